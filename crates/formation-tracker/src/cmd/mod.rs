@@ -1,0 +1,6 @@
+//! One module per subcommand. Each exposes an `Args` struct (clap) and a `run` function.
+
+/// Any error a subcommand reports; printed as one line by `main`.
+pub type CliError = Box<dyn std::error::Error + Send + Sync + 'static>;
+
+pub mod info;

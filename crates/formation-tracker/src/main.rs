@@ -1,0 +1,42 @@
+//! The `formation-tracker` command-line tool.
+//!
+//! Each subcommand lives in its own module under `cmd/`; this file only parses arguments,
+//! dispatches, and reports an error as one clear line on stderr with a non-zero exit code.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod cmd;
+
+/// Vision-based tracking of mobile robots in formation.
+///
+/// A follower robot's camera finds the leader robots' marker rigs, measures their pose and
+/// estimates the formation variables (l12, alpha12, beta12) and the leaders' velocities with
+/// a dual unscented Kalman filter.
+#[derive(Debug, Parser)]
+#[command(name = "formation-tracker", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Print the versions of the library crates this binary was built from.
+    Info,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result: Result<(), cmd::CliError> = match cli.command {
+        Command::Info => cmd::info::run(),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("formation-tracker: error: {err}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,70 @@
+//! Project chores, run as `cargo xtask <command>`.
+//!
+//! Each command lives in its own module; `main` only dispatches. Commands that write data
+//! (golden files, tables in `docs/`) are the only way those files are produced, so anyone can
+//! regenerate them.
+
+use std::process::ExitCode;
+
+type Result<T = ()> = std::result::Result<T, Box<dyn std::error::Error>>;
+
+const USAGE: &str = "usage: cargo xtask <command>
+
+commands:
+  no-c             fail if any crate in the dependency tree builds C code
+";
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let result = match args.first().map(String::as_str) {
+        Some("no-c") => no_c(),
+        _ => {
+            eprint!("{USAGE}");
+            return ExitCode::from(2);
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("xtask: error: {err}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Crates whose presence means C is compiled or a system library is linked.
+const C_BUILDERS: &[&str] = &["cc", "cmake", "pkg-config", "bindgen", "alloca"];
+
+fn no_c() -> Result {
+    let out = std::process::Command::new(env!("CARGO"))
+        .args([
+            "tree",
+            "--workspace",
+            "-e",
+            "normal,build,dev",
+            "--prefix",
+            "none",
+        ])
+        .output()?;
+    if !out.status.success() {
+        return Err(format!(
+            "cargo tree failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        )
+        .into());
+    }
+    let tree = String::from_utf8(out.stdout)?;
+    let offenders: Vec<&str> = tree
+        .lines()
+        .filter(|line| {
+            let name = line.split_whitespace().next().unwrap_or("");
+            C_BUILDERS.contains(&name) || name.ends_with("-sys") && name != "linux-raw-sys"
+        })
+        .collect();
+    if offenders.is_empty() {
+        println!("no-c: no crate in the tree builds C");
+        Ok(())
+    } else {
+        Err(format!("crates that build C: {}", offenders.join(", ")).into())
+    }
+}
