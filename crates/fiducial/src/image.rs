@@ -1,0 +1,179 @@
+//! Borrowed 8-bit grey images: the one pixel type every stage of the detector reads.
+//!
+//! The detector never owns the caller's frame; it reads rows through a [`GrayView`]. A view
+//! has a `stride` (bytes from one row to the next) so that a sub-rectangle or a padded frame
+//! buffer can be read without copying. Coordinates follow the pixel-centre convention of the
+//! spec (section 2.1): integer coordinates are pixel centres, so the image covers
+//! `[-0.5, width - 0.5] x [-0.5, height - 0.5]`.
+
+use thiserror::Error;
+
+/// Corner order of a marker, in its own frame: north-west, north-east, south-east,
+/// south-west (clockwise in the image, whose v axis points down).
+pub type Corners = [nalgebra::Point2<f64>; 4];
+
+/// Why a buffer cannot be viewed as a grey image.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum ImageError {
+    /// Width or height is zero.
+    #[error("image is empty ({width}x{height}); a frame needs at least one pixel")]
+    Empty {
+        /// Width in pixels.
+        width: usize,
+        /// Height in pixels.
+        height: usize,
+    },
+    /// The stride is shorter than a row.
+    #[error("stride {stride} is shorter than the row width {width}")]
+    StrideTooSmall {
+        /// Bytes per row requested.
+        stride: usize,
+        /// Width in pixels.
+        width: usize,
+    },
+    /// The buffer does not hold `height` rows of `stride` bytes (the last row needs only
+    /// `width` bytes).
+    #[error("buffer of {len} bytes is too short for {width}x{height} with stride {stride}")]
+    BufferTooShort {
+        /// Length of the buffer.
+        len: usize,
+        /// Width in pixels.
+        width: usize,
+        /// Height in pixels.
+        height: usize,
+        /// Bytes per row.
+        stride: usize,
+    },
+    /// The image is larger than the detector accepts (see [`GrayView::MAX_SIDE`]).
+    #[error("image {width}x{height} is larger than the {max}x{max} the detector accepts")]
+    TooLarge {
+        /// Width in pixels.
+        width: usize,
+        /// Height in pixels.
+        height: usize,
+        /// Largest side accepted.
+        max: usize,
+    },
+}
+
+/// A borrowed, row-major, 8-bit grey image.
+#[derive(Debug, Clone, Copy)]
+pub struct GrayView<'a> {
+    data: &'a [u8],
+    width: usize,
+    height: usize,
+    stride: usize,
+}
+
+impl<'a> GrayView<'a> {
+    /// Largest width or height accepted (keeps every index inside `u32` and every buffer
+    /// size sane; 16384 covers any real camera).
+    pub const MAX_SIDE: usize = 16_384;
+
+    /// Views a tightly packed buffer (`stride == width`).
+    pub fn new(data: &'a [u8], width: usize, height: usize) -> Result<Self, ImageError> {
+        Self::with_stride(data, width, height, width)
+    }
+
+    /// Views a buffer whose rows are `stride` bytes apart.
+    pub fn with_stride(
+        data: &'a [u8],
+        width: usize,
+        height: usize,
+        stride: usize,
+    ) -> Result<Self, ImageError> {
+        if width == 0 || height == 0 {
+            return Err(ImageError::Empty { width, height });
+        }
+        if width > Self::MAX_SIDE || height > Self::MAX_SIDE {
+            return Err(ImageError::TooLarge {
+                width,
+                height,
+                max: Self::MAX_SIDE,
+            });
+        }
+        if stride < width {
+            return Err(ImageError::StrideTooSmall { stride, width });
+        }
+        let needed = stride * (height - 1) + width;
+        if data.len() < needed {
+            return Err(ImageError::BufferTooShort {
+                len: data.len(),
+                width,
+                height,
+                stride,
+            });
+        }
+        Ok(Self {
+            data,
+            width,
+            height,
+            stride,
+        })
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// Bytes from one row to the next.
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+
+    /// Row `y` (exactly `width` bytes). Panics if `y >= height`, which callers inside the
+    /// crate never ask for.
+    #[inline]
+    pub fn row(&self, y: usize) -> &'a [u8] {
+        let start = y * self.stride;
+        &self.data[start..start + self.width]
+    }
+
+    /// The pixel at integer coordinates, or `None` outside the image.
+    #[inline]
+    pub fn get(&self, x: usize, y: usize) -> Option<u8> {
+        (x < self.width && y < self.height).then(|| self.data[y * self.stride + x])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rejects_bad_shapes() {
+        let buf = [0u8; 12];
+        assert!(matches!(
+            GrayView::new(&buf, 0, 3),
+            Err(ImageError::Empty { .. })
+        ));
+        assert!(matches!(
+            GrayView::new(&buf, 4, 4),
+            Err(ImageError::BufferTooShort { .. })
+        ));
+        assert!(matches!(
+            GrayView::with_stride(&buf, 4, 2, 3),
+            Err(ImageError::StrideTooSmall { .. })
+        ));
+        assert!(matches!(
+            GrayView::new(&buf, 20_000, 1),
+            Err(ImageError::TooLarge { .. })
+        ));
+    }
+
+    #[test]
+    fn strided_rows() {
+        let buf: Vec<u8> = (0..11).collect();
+        let v = GrayView::with_stride(&buf, 3, 3, 4).unwrap();
+        assert_eq!(v.row(0), &[0, 1, 2]);
+        assert_eq!(v.row(2), &[8, 9, 10]);
+        assert_eq!(v.get(2, 1), Some(6));
+        assert_eq!(v.get(3, 1), None);
+    }
+}
