@@ -131,7 +131,7 @@ fn render_flipped(dict: &Dictionary, code: u64, flips: &[usize]) -> fiducial::Re
             quiet_cells: 1,
         },
     )
-    .unwrap()
+    .expect("valid code and options")
 }
 
 proptest! {
