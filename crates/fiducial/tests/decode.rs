@@ -1,7 +1,7 @@
 //! Decoding rendered markers: exact corners, every corner order, bit flips, rejections.
 
 use fiducial::{
-    DecodeParams, Dictionary, GrayView, MarkerFamily, Rejection, RenderOptions, decode,
+    DecodeParams, Dictionary, GrayView, MarkerFamily, Rejection, RenderOptions, decode, hamming,
     render_marker,
 };
 use nalgebra::Point2;
@@ -152,6 +152,24 @@ proptest! {
         prop_assert_eq!(d.index, index);
         prop_assert_eq!(d.distance as usize, flips.len());
         prop_assert_eq!(d.corners, m.corners());
+    }
+
+    /// Whatever pattern is shown, an accepted read is within 2 bits of the entry turned by
+    /// the reported rotation.
+    #[test]
+    fn accepted_reads_are_close_to_the_turned_entry(code in 0u64..(1 << 20), shift in 0usize..4) {
+        let dict = Dictionary::paper();
+        let f = dict.family();
+        let m = render_marker(f, code, &RenderOptions { px_per_cell: 6, quiet_cells: 1 }).unwrap();
+        if let Ok(d) = decode(&m.view(), &shifted(&m.corners(), shift), dict, &DecodeParams::default()) {
+            prop_assert!(d.distance * 2 < dict.min_distance());
+            // The corners were given shifted, so the marker turned by `rotation` relative to
+            // them is the rendered pattern turned back by the shift.
+            let turn = (d.rotation as usize + shift) % 4;
+            prop_assert_eq!(hamming(code, f.rotate(d.code, turn as u8).unwrap()), d.distance);
+            // The entry's own NW corner is the rendered pattern's corner `turn`.
+            prop_assert_eq!(d.corners, shifted(&m.corners(), turn));
+        }
     }
 
     #[test]

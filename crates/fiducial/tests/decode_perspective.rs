@@ -125,6 +125,31 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(128))]
+
+    /// Small, noisy, perspective views (3..20 pixels per cell) of a marker with three
+    /// flipped cells are rejected, never read as an entry.
+    #[test]
+    fn three_flips_in_perspective_are_rejected(
+        index in 0usize..100,
+        flips in proptest::sample::subsequence((0..20).collect::<Vec<usize>>(), 3),
+        size in 21.0..140.0f64,
+        angle in -3.2..3.2f64,
+        jitter in prop::array::uniform4((-0.08..0.08f64, -0.08..0.08f64)),
+        shift in 0usize..4,
+    ) {
+        let dict = Dictionary::paper();
+        let code = flips.iter().fold(dict.codes()[index % dict.len()], |c, &k| c ^ (1 << k));
+        let corners = quad(100.0, 100.0, size, angle, jitter);
+        let img = view_of(code, &corners, 200, 200, 30.0, 220.0, 6.0);
+        let view = GrayView::new(&img, 200, 200).unwrap();
+        let given: Corners = core::array::from_fn(|i| corners[(i + shift) % 4]);
+        let got = decode(&view, &given, dict, &DecodeParams::default());
+        prop_assert!(got.is_err(), "3 flips of entry {} read as {:?}", index % dict.len(), got);
+    }
+}
+
 #[test]
 fn low_contrast_is_rejected_at_the_set_minimum() {
     let dict = Dictionary::paper();
