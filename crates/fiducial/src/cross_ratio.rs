@@ -148,6 +148,16 @@ pub fn convex_quad_area2(corners: &Corners) -> Result<f64, FiducialError> {
     Ok(area2)
 }
 
+/// The same quad with its corners clockwise in the image (as [`crate::decode()`] wants):
+/// unchanged if already clockwise, otherwise corner 0 kept and the others reversed.
+pub fn clockwise(corners: &Corners) -> Result<Corners, FiducialError> {
+    Ok(if convex_quad_area2(corners)? > 0.0 {
+        *corners
+    } else {
+        [corners[0], corners[3], corners[2], corners[1]]
+    })
+}
+
 impl CrossRatioFrame {
     /// Prepares the construction for corners `[q_NW, q_NE, q_SE, q_SW]`, which must form a
     /// strictly convex quadrilateral (either winding).
@@ -229,6 +239,15 @@ mod tests {
         assert!((q - p(7.5, 2.5)).norm() < 1e-12, "{q}");
         let q = f.map(-1.0, 1.0).unwrap();
         assert!((q - p(0.0, 10.0)).norm() < 1e-12, "{q}");
+    }
+
+    #[test]
+    fn clockwise_fixes_winding() {
+        let cw = [p(0.0, 0.0), p(4.0, 0.0), p(4.0, 3.0), p(0.0, 3.0)];
+        assert_eq!(clockwise(&cw).unwrap(), cw);
+        let ccw = [cw[0], cw[3], cw[2], cw[1]];
+        assert_eq!(clockwise(&ccw).unwrap(), cw);
+        assert!(convex_quad_area2(&cw).unwrap() > 0.0);
     }
 
     #[test]

@@ -67,7 +67,7 @@ pub enum Rejection {
     },
     /// The corners run counter-clockwise in the image (NW, NE, SE, SW must be clockwise
     /// with v pointing down); a mirrored marker is never read.
-    #[error("corners run counter-clockwise in the image")]
+    #[error("corners run counter-clockwise in the image (see cross_ratio::clockwise)")]
     CounterClockwise,
     /// A border or data cell has no sample inside the image.
     #[error("a marker cell lies outside the image")]
@@ -157,6 +157,11 @@ pub struct Decoded {
     /// See [`CellReading::confidence`].
     pub confidence: f64,
 }
+
+/// Samples per cell are at most `(2 MAX_STEPS + 1)^2`: a 5 x 5 grid of bilinear samples
+/// spread over the averaging square (about one sample per pixel up to 10-pixel cells,
+/// sparser beyond, where the image is anyway far above the noise).
+const MAX_STEPS: i32 = 2;
 
 /// Upper bounds of the fixed arrays (8 x 8 data cells, a 10 x 10 marker).
 const MAX_BORDER: usize = 4 * 10;
@@ -272,7 +277,7 @@ pub fn read_cells(
         width: f64::from(wc),
         height: f64::from(hc),
         radius,
-        steps: (radius.floor() as i32).clamp(if radius > 0.25 { 1 } else { 0 }, 3),
+        steps: (radius.floor() as i32).clamp(if radius > 0.25 { 1 } else { 0 }, MAX_STEPS),
     };
 
     // Border ring: black reference.
