@@ -1,7 +1,7 @@
 //! The crate's error type for bad input to the marker side (families, dictionaries,
 //! rendering, quad geometry).
 //!
-//! A quad that simply is not a readable marker is *not* an error: [`crate::decode`] returns
+//! A quad that simply is not a readable marker is *not* an error: [`crate::decode()`] returns
 //! a [`crate::Rejection`] for that, because rejecting candidates is the decoder's normal work.
 
 use thiserror::Error;

@@ -397,7 +397,12 @@ mod tests {
         let back: Face = serde_json::from_str(&s).unwrap();
         assert_eq!(back.face, 2);
         // serde_json's default float parsing may differ in the last bit.
-        for (a, b) in back.corners.iter().flatten().zip(f.corners.iter().flatten()) {
+        for (a, b) in back
+            .corners
+            .iter()
+            .flatten()
+            .zip(f.corners.iter().flatten())
+        {
             assert!((a - b).abs() <= 1e-15, "{a} vs {b}");
         }
     }
