@@ -195,7 +195,12 @@ impl Texture for ImageTexture {
         match self.filter {
             Filter::Nearest => self.texel(cell(s, self.width), cell(t, self.height)) / 255.0,
             Filter::Bilinear => {
-                // Texel centres at (i + 0.5) / width.
+                // Texel centres at (i + 0.5) / width. NaN coordinates read the NW texel (a NaN
+                // would otherwise survive `clamp` and poison the result).
+                let (s, t) = (
+                    if s.is_nan() { 0.0 } else { s },
+                    if t.is_nan() { 0.0 } else { t },
+                );
                 let x = (s.clamp(0.0, 1.0) * self.width as f64 - 0.5)
                     .clamp(0.0, (self.width - 1) as f64);
                 let y = (t.clamp(0.0, 1.0) * self.height as f64 - 0.5)
@@ -296,6 +301,9 @@ mod tests {
         let nearest = ImageTexture::new(2, 1, vec![0, 255], Filter::Nearest).unwrap();
         assert_eq!(nearest.albedo(0.49, 0.5), 0.0);
         assert_eq!(nearest.albedo(0.51, 0.5), 1.0);
+        // Regression (found by proptest): NaN coordinates gave a NaN albedo.
+        assert_eq!(img.albedo(0.0, f64::NAN), 0.0);
+        assert_eq!(img.albedo(f64::NAN, 0.3), 0.0);
     }
 
     #[test]

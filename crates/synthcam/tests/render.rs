@@ -1,4 +1,5 @@
 //! Rendering: determinism, noise, blur, lighting, formats and bad input.
+#![allow(clippy::unwrap_used)] // Tests may unwrap (house rules); helpers here are test code too.
 
 use std::sync::Arc;
 

@@ -1,4 +1,5 @@
 //! Ground truth: poses, corners, visibility and orientation conventions.
+#![allow(clippy::unwrap_used)] // Tests may unwrap (house rules); helpers here are test code too.
 
 use std::f64::consts::PI;
 use std::sync::Arc;
