@@ -69,12 +69,11 @@
 //! use std::sync::Arc;
 //! use synthcam::*;
 //!
-//! let marker = Arc::new(CellGrid::from_bits(2, 2, &[true, false, false, true])?);
-//! let faces = reference_octagon_faces(0.16)?;
-//! let mut leader = Robot::new(Pose2::new(1.5, 0.2, 0.0), Body::Cylinder { radius: 0.2, height: 0.2, albedo: 0.3 });
-//! for (i, placement) in faces.into_iter().enumerate() {
-//!     leader = leader.with_face(Face::new(i as u32 + 1, placement, marker.clone()));
-//! }
+//! // One texture per face; a real rig would carry five different markers.
+//! let marker: Arc<dyn Texture> = Arc::new(CellGrid::from_bits(2, 2, &[true, false, false, true])?);
+//! let rig = reference_octagon_rig(0.16, std::array::from_fn(|_| marker.clone()))?;
+//! let leader = Robot::new(Pose2::new(1.5, 0.2, 0.0), Body::Cylinder { radius: 0.2, height: 0.2, albedo: 0.3 })
+//!     .with_faces(rig);
 //! let mut scene = Scene::new(0.8);
 //! scene.robots.push(leader);
 //! scene.ground = Some(Ground { texture: Arc::new(SoftChecker::new(0.45, 0.6)?), tile: 1.0 });
@@ -85,7 +84,7 @@
 //! let out = render(&scene, &camera, &RenderSettings::default())?;
 //! assert_eq!(out.frame.data.len(), 160 * 120);
 //! // The leader faces away from the camera, so face 3 (pointing backwards) is visible.
-//! assert!(out.truth.robots[0].faces[2].visible);
+//! assert!(out.truth.face(0, 3).is_some_and(|f| f.visible));
 //! # Ok::<(), synthcam::SynthError>(())
 //! ```
 #![deny(missing_docs)]
@@ -106,7 +105,12 @@ pub use render::{
 pub use scene::{
     Body, Face, FaceFrame, FacePlacement, Ground, OCTAGON_FACE_YAWS_DEG, Pose2,
     REFERENCE_FACE_CENTRE_HEIGHT, REFERENCE_FACE_WIDTH, Robot, Scene, octagon_apothem,
-    octagon_faces, reference_octagon_faces, wrap_angle,
+    octagon_faces, reference_octagon_faces, reference_octagon_rig, wrap_angle,
 };
 pub use texture::{CellGrid, Filter, ImageTexture, SoftChecker, Texture, Uniform};
 pub use truth::{CORNER_INSET, FaceTruth, FrameTruth, RobotTruth, ground_truth};
+
+/// The README's example, compiled and run as a doctest so it cannot rot.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctest;

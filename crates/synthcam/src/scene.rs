@@ -227,6 +227,11 @@ impl Robot {
         self.faces.push(face);
         self
     }
+    /// Add several faces (builder style).
+    pub fn with_faces(mut self, faces: impl IntoIterator<Item = Face>) -> Self {
+        self.faces.extend(faces);
+        self
+    }
 }
 
 /// The ground plane `z = 0`, textured by tiling a texture: one texture period covers
@@ -321,6 +326,21 @@ pub fn octagon_faces(
 /// height (e.g. 0.16 m for a 4 x 5 marker of 20 mm cells with border and one-cell quiet zone).
 pub fn reference_octagon_faces(height: f64) -> Result<[FacePlacement; 5], SynthError> {
     octagon_faces(REFERENCE_FACE_WIDTH, height, REFERENCE_FACE_CENTRE_HEIGHT)
+}
+
+/// The spec's reference octagon rig as faces: [`reference_octagon_faces`] with `textures[i]`
+/// on face `i + 1` (labels 1..5).
+pub fn reference_octagon_rig(
+    height: f64,
+    textures: [Arc<dyn Texture>; 5],
+) -> Result<Vec<Face>, SynthError> {
+    let placements = reference_octagon_faces(height)?;
+    Ok(placements
+        .into_iter()
+        .zip(textures)
+        .enumerate()
+        .map(|(i, (placement, texture))| Face::new(i as u32 + 1, placement, texture))
+        .collect())
 }
 
 #[cfg(test)]

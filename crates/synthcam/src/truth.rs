@@ -2,7 +2,7 @@
 
 use nalgebra::{Isometry3, Point2, Point3};
 
-use crate::camera::Camera;
+use crate::camera::{Camera, Intrinsics};
 use crate::error::SynthError;
 use crate::raycast::Prepared;
 use crate::scene::{Pose2, Scene};
@@ -70,10 +70,32 @@ pub struct RobotTruth {
 /// Ground truth of a frame.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FrameTruth {
+    /// The camera's intrinsics (K and image size).
+    pub intrinsics: Intrinsics,
     /// The camera's extrinsics, world -> camera.
     pub world_to_camera: Isometry3<f64>,
     /// One entry per robot, in scene order.
     pub robots: Vec<RobotTruth>,
+}
+
+impl FrameTruth {
+    /// The face labelled `label` of robot `robot`, if both exist.
+    pub fn face(&self, robot: usize, label: u32) -> Option<&FaceTruth> {
+        self.robots
+            .get(robot)?
+            .faces
+            .iter()
+            .find(|f| f.label == label)
+    }
+    /// All visible faces, as `(robot index, face)`.
+    pub fn visible_faces(&self) -> impl Iterator<Item = (usize, &FaceTruth)> {
+        self.robots.iter().flat_map(|r| {
+            r.faces
+                .iter()
+                .filter(|f| f.visible)
+                .map(move |f| (r.index, f))
+        })
+    }
 }
 
 /// Ground truth of `scene` seen by `camera`, without rendering.
@@ -151,6 +173,7 @@ pub(crate) fn ground_truth_prepared(
         });
     }
     Ok(FrameTruth {
+        intrinsics: *intr,
         world_to_camera: w2c,
         robots,
     })

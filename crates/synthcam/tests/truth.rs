@@ -128,6 +128,13 @@ fn face_straight_at_the_camera_has_zero_off_axis_and_the_expected_width() {
     let truth = ground_truth(&scene, &cam).unwrap();
     let f = &truth.robots[0].faces[2];
     assert!(f.visible);
+    assert_eq!(truth.face(0, 3), Some(f));
+    assert_eq!(truth.face(0, 9), None);
+    assert_eq!(truth.face(1, 3), None);
+    // Straight behind, faces 2, 3 and 4 are visible; the side faces 1 and 5 are turned just
+    // past edge-on (off-axis a little over 90 degrees), so they are not.
+    let labels: Vec<u32> = truth.visible_faces().map(|(_, f)| f.label).collect();
+    assert_eq!(labels, vec![2, 3, 4]);
     assert!(f.off_axis_deg.abs() < 1e-6, "{}", f.off_axis_deg);
     let focal = cam.intrinsics().k()[(0, 0)];
     let expected = focal * 0.18 / 2.0;
