@@ -4,8 +4,11 @@ use nalgebra::{
     Isometry3, Matrix3, Point2, Point3, Rotation3, Translation3, UnitQuaternion, Vector3,
 };
 
-use crate::error::{SynthError, finite, finite_vec, in_range};
+use crate::error::{MAX_INTRINSIC, SynthError, bounded, finite, finite_vec, in_range};
 use crate::scene::Pose2;
+
+/// Points closer to the camera's focal plane than this (m, camera-frame `z`) do not project.
+pub const MIN_DEPTH: f64 = 1e-9;
 
 /// Largest image the renderer accepts, in pixels (64 Mpx).
 pub const MAX_PIXELS: usize = 1 << 26;
@@ -30,7 +33,7 @@ impl Intrinsics {
     /// `K[0][0]`, `K[1][1]`; the image must be non-empty and at most [`MAX_PIXELS`].
     pub fn new(k: Matrix3<f64>, width: usize, height: usize) -> Result<Self, SynthError> {
         for &c in k.iter() {
-            finite("intrinsic matrix entry", c)?;
+            bounded("intrinsic matrix entry", c, MAX_INTRINSIC)?;
         }
         if k[(1, 0)] != 0.0 || k[(2, 0)] != 0.0 || k[(2, 1)] != 0.0 {
             return Err(SynthError::InvalidIntrinsics {
@@ -101,9 +104,10 @@ impl Intrinsics {
         self.height
     }
 
-    /// Exact pinhole projection of a camera-frame point; `None` unless `z > 0`.
+    /// Exact pinhole projection of a camera-frame point; `None` unless `z > MIN_DEPTH`
+    /// (which, with the crate's magnitude limits, keeps the result finite).
     pub fn project(&self, p: &Point3<f64>) -> Option<Point2<f64>> {
-        if p.z > 0.0 {
+        if p.z > MIN_DEPTH {
             let q = self.k * p.coords;
             Some(Point2::new(q.x / q.z, q.y / q.z))
         } else {

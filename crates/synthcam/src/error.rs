@@ -13,6 +13,18 @@ pub enum SynthError {
         /// The offending value.
         value: f64,
     },
+    /// A length, coordinate or angle is larger in magnitude than [`crate::MAX_MAGNITUDE`] (or a
+    /// `K` entry larger than [`crate::MAX_INTRINSIC`]): such values make the projection
+    /// overflow, so they are refused rather than silently producing infinities.
+    #[error("{what} has magnitude {value}, above the limit {max}")]
+    TooLarge {
+        /// Which quantity.
+        what: &'static str,
+        /// The offending value.
+        value: f64,
+        /// The limit.
+        max: f64,
+    },
     /// A size or distance that must be strictly positive is not.
     #[error("{what} must be > 0, got {value}")]
     NotPositive {
@@ -106,13 +118,28 @@ pub enum SynthError {
     Io(#[from] std::io::Error),
 }
 
-/// Check that `value` is finite.
-pub(crate) fn finite(what: &'static str, value: f64) -> Result<f64, SynthError> {
-    if value.is_finite() {
-        Ok(value)
-    } else {
+/// Largest magnitude accepted for any length (m), coordinate (m) or angle (rad) in a scene,
+/// camera or setting: one thousand kilometres is far beyond any robot scene, and the bound keeps
+/// every projection finite.
+pub const MAX_MAGNITUDE: f64 = 1e6;
+
+/// Largest magnitude accepted for an entry of the intrinsic matrix `K` (pixels).
+pub const MAX_INTRINSIC: f64 = 1e9;
+
+/// Check that `value` is finite and at most `max` in magnitude.
+pub(crate) fn bounded(what: &'static str, value: f64, max: f64) -> Result<f64, SynthError> {
+    if !value.is_finite() {
         Err(SynthError::NonFinite { what, value })
+    } else if value.abs() > max {
+        Err(SynthError::TooLarge { what, value, max })
+    } else {
+        Ok(value)
     }
+}
+
+/// Check that `value` is finite and at most [`MAX_MAGNITUDE`] in magnitude.
+pub(crate) fn finite(what: &'static str, value: f64) -> Result<f64, SynthError> {
+    bounded(what, value, MAX_MAGNITUDE)
 }
 
 /// Check that `value` is finite and strictly positive.

@@ -97,8 +97,8 @@ mod scene;
 mod texture;
 mod truth;
 
-pub use camera::{Camera, CameraMount, Intrinsics, MAX_PIXELS};
-pub use error::SynthError;
+pub use camera::{Camera, CameraMount, Intrinsics, MAX_PIXELS, MIN_DEPTH};
+pub use error::{MAX_INTRINSIC, MAX_MAGNITUDE, SynthError};
 pub use render::{
     Frame, Gradient, MAX_SUPERSAMPLING, PixelFormat, RenderSettings, Rendered, Shading, render,
 };

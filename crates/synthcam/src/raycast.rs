@@ -140,7 +140,7 @@ pub(crate) struct Hit {
 /// Conservative screen box of camera-frame points: `None` if all are behind the camera,
 /// the whole plane if some are.
 fn screen_box(camera: &Camera, pts: &[Point3<f64>]) -> Option<ScreenBox> {
-    let eps = 1e-9;
+    let eps = crate::camera::MIN_DEPTH;
     if pts.iter().all(|p| p.z <= eps) {
         return None;
     }

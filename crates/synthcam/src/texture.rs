@@ -237,9 +237,12 @@ impl SoftChecker {
     }
 }
 
-/// Triangle wave with period 1: +1 at 0.25, -1 at 0.75, 0 at 0 and 0.5.
+/// Triangle wave with period 1: +1 at 0.25, -1 at 0.75, 0 at 0 and 0.5; 0 for non-finite `x`.
 #[inline]
 fn triangle(x: f64) -> f32 {
+    if !x.is_finite() {
+        return 0.0;
+    }
     let f = x - x.floor();
     (if f < 0.5 {
         1.0 - (4.0 * f - 1.0).abs()
@@ -320,5 +323,6 @@ mod tests {
         }
         assert!(lo >= 0.4 - 1e-6 && hi <= 0.6 + 1e-6);
         assert!(hi - lo > 0.15);
+        assert_eq!(c.albedo(f64::NAN, f64::INFINITY), 0.5);
     }
 }

@@ -16,7 +16,7 @@ pub const CORNER_INSET: f64 = 1e-3;
 /// A face is **visible** when all of these hold:
 /// - `front_facing`: the camera centre lies strictly on the outward side of the face's plane
 ///   (equivalently `off_axis_deg < 90`);
-/// - `in_front`: all four corners have camera-frame `z > 0`;
+/// - `in_front`: all four corners have camera-frame `z >` [`crate::MIN_DEPTH`];
 /// - `inside_image`: all four projected corners lie in the image area
 ///   `[-0.5, w - 0.5] x [-0.5, h - 0.5]`;
 /// - `unoccluded`: for each corner, the segment from the camera centre to the corner (pulled

@@ -87,6 +87,26 @@ fn same_seed_gives_identical_bytes_and_different_seeds_differ() {
 }
 
 #[test]
+fn output_does_not_depend_on_the_number_of_threads() {
+    let (s, c) = (scene(), camera(120, 90));
+    let settings = RenderSettings {
+        blur_sigma: 0.8,
+        ..noisy(3)
+    };
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let three = rayon::ThreadPoolBuilder::new()
+        .num_threads(3)
+        .build()
+        .unwrap();
+    let a = one.install(|| render(&s, &c, &settings)).unwrap();
+    let b = three.install(|| render(&s, &c, &settings)).unwrap();
+    assert_eq!(a.frame, b.frame);
+}
+
+#[test]
 fn noise_has_the_requested_standard_deviation() {
     let (s, c) = (scene(), camera(160, 120));
     let clean = render(&s, &c, &RenderSettings::default()).unwrap();
@@ -307,6 +327,29 @@ fn bad_input_is_a_typed_error() {
         g.tile = 0.0;
     }
     assert!(render(&bad, &c, &ok).is_err());
+
+    // Coordinates so large the projection would overflow are refused.
+    let mut bad = scene();
+    bad.robots[0].pose.x = 1e300;
+    assert!(matches!(
+        render(&bad, &c, &ok),
+        Err(SynthError::TooLarge { .. })
+    ));
+    let huge_k = Matrix3::new(1e200, 0.0, 10.0, 0.0, 1e200, 10.0, 0.0, 0.0, 1.0);
+    assert!(matches!(
+        Intrinsics::new(huge_k, 20, 20),
+        Err(SynthError::TooLarge { .. })
+    ));
+    let far = CameraMount {
+        d: -1e12,
+        height: 0.3,
+        pan: 0.0,
+        tilt: 0.0,
+    };
+    assert!(matches!(
+        Camera::on_robot(*c.intrinsics(), &far, Pose2::default()),
+        Err(SynthError::TooLarge { .. })
+    ));
 
     let singular = Matrix3::new(100.0, 0.0, 10.0, 0.0, 0.0, 10.0, 0.0, 0.0, 1.0);
     assert!(matches!(
