@@ -4,7 +4,9 @@ use nalgebra::{
     Isometry3, Matrix3, Point2, Point3, Rotation3, Translation3, UnitQuaternion, Vector3,
 };
 
-use crate::error::{MAX_INTRINSIC, SynthError, bounded, finite, finite_vec, in_range};
+use crate::error::{
+    MAX_INTRINSIC, MAX_MAGNITUDE, SynthError, bounded, finite, finite_vec, in_range,
+};
 use crate::scene::Pose2;
 
 /// Points closer to the camera's focal plane than this (m, camera-frame `z`) do not project.
@@ -196,7 +198,11 @@ impl Camera {
         intrinsics: Intrinsics,
         world_to_camera: Isometry3<f64>,
     ) -> Result<Self, SynthError> {
-        finite_vec("camera translation", &world_to_camera.translation.vector)?;
+        // World -> camera translation components of a camera whose centre lies within the
+        // magnitude limit can reach sqrt(3) times it.
+        for &c in world_to_camera.translation.vector.iter() {
+            bounded("camera translation", c, 2.0 * MAX_MAGNITUDE)?;
+        }
         for &c in world_to_camera.rotation.coords.iter() {
             finite("camera rotation", c)?;
         }

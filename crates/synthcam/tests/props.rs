@@ -136,6 +136,27 @@ proptest! {
     }
 
     #[test]
+    fn truth_stays_finite_up_to_the_magnitude_limits(
+        lx in -MAX_MAGNITUDE..MAX_MAGNITUDE, ly in -MAX_MAGNITUDE..MAX_MAGNITUDE,
+        fx in -MAX_MAGNITUDE..MAX_MAGNITUDE, fy in -MAX_MAGNITUDE..MAX_MAGNITUDE,
+        lt in -MAX_MAGNITUDE..MAX_MAGNITUDE, ft in -MAX_MAGNITUDE..MAX_MAGNITUDE,
+        height in -MAX_MAGNITUDE..MAX_MAGNITUDE, tilt in -3.2..3.2f64,
+    ) {
+        let mut scene = Scene::new(0.5);
+        scene.robots.push(leader(Pose2::new(lx, ly, lt)));
+        let m = CameraMount { d: 0.1, height, pan: 0.0, tilt };
+        let cam = Camera::on_robot(Intrinsics::from_hfov(32, 24, 60.0).unwrap(), &m, Pose2::new(fx, fy, ft)).unwrap();
+        let out = render(&scene, &cam, &RenderSettings { supersampling: 1, ..RenderSettings::default() }).unwrap();
+        for f in &out.truth.robots[0].faces {
+            prop_assert!(f.off_axis_deg.is_finite());
+            if let Some(c) = f.corners_px {
+                prop_assert!(c.iter().all(|p| p.x.is_finite() && p.y.is_finite()));
+                prop_assert!(f.width_px.unwrap().is_finite());
+            }
+        }
+    }
+
+    #[test]
     fn wrap_angle_is_in_half_open_range_and_equivalent(a in -1e3..1e3f64) {
         let w = wrap_angle(a);
         prop_assert!(w > -PI && w <= PI);
