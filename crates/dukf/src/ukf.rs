@@ -298,6 +298,13 @@ impl<const N: usize, S: Space<N>> Ukf<N, S> {
                 max_jitter: s.jitter,
             });
         }
+        let nis = z.norm_squared();
+        if !nis.is_finite() {
+            // A finite but absurd measurement (e.g. 1e308) overflows the innovation.
+            return Err(UkfError::NonFiniteEstimate {
+                which: Covariance::Innovation,
+            });
+        }
         let k = kt.transpose();
         let x = self.space.add(&prior.x, &(k * innovation));
         if x.iter().any(|v| !v.is_finite()) {
@@ -311,7 +318,7 @@ impl<const N: usize, S: Space<N>> Ukf<N, S> {
         let report = UpdateReport {
             innovation,
             innovation_covariance: s.covariance,
-            nis: z.norm_squared(),
+            nis,
             innovation_jitter: s.jitter,
             jitter: p.jitter,
         };
