@@ -112,7 +112,7 @@ pub fn factor_repaired<const D: usize>(
     if let Some(ch) = Cholesky::new(sym) {
         return Ok(Factored {
             covariance: sym,
-            factor: ch.l(),
+            factor: ch.unpack(),
             jitter: 0.0,
         });
     }
@@ -134,7 +134,7 @@ pub fn factor_repaired<const D: usize>(
         if let Some(ch) = Cholesky::new(candidate) {
             return Ok(Factored {
                 covariance: candidate,
-                factor: ch.l(),
+                factor: ch.unpack(),
                 jitter,
             });
         }

@@ -14,7 +14,7 @@
 
 use core::f64::consts::{PI, TAU};
 
-use nalgebra::SVector;
+use nalgebra::{Const, Matrix, RawStorage, SMatrix, SVector, U1};
 
 use crate::error::UkfError;
 use crate::sigma::{SigmaPoints, Weights};
@@ -162,15 +162,21 @@ impl<const D: usize> Space<D> for AngleMask<D> {
         let w = weights.other;
         let mut mean = *c;
         for (k, &is_angle) in self.angles.iter().enumerate() {
+            let ck = c[k];
             if is_angle {
-                let others = (0..L).flat_map(|j| [points.plus[(k, j)], points.minus[(k, j)]]);
-                mean[k] = refine_circular_mean(c[k], weights.mean0, c[k], w, others);
+                mean[k] = sigma_circular_mean(
+                    ck,
+                    weights.mean0,
+                    w,
+                    points.plus.row(k),
+                    points.minus.row(k),
+                );
             } else {
                 let mut acc = 0.0;
                 for j in 0..L {
-                    acc += (points.plus[(k, j)] - c[k]) + (points.minus[(k, j)] - c[k]);
+                    acc += (points.plus[(k, j)] - ck) + (points.minus[(k, j)] - ck);
                 }
-                mean[k] = c[k] + w * acc;
+                mean[k] = ck + w * acc;
             }
         }
         mean
@@ -230,26 +236,65 @@ pub fn circular_mean(samples: &[(f64, f64)]) -> Option<f64> {
     Some(refine_weighted(seed, w0, a0, rest))
 }
 
-/// Weighted circular mean of a centre sample (weight `w0`) and others of equal weight `w`,
-/// by fixed-point iteration `m <- m + sum_i w_i wrap(theta_i - m)` from `seed`.
+/// Weighted circular mean of one angle component of a sigma-point set: centre `c` (weight
+/// `w0`) and the `2L` side points (weight `w` each), seeded at the centre.
 ///
-/// The iteration is the intrinsic (Karcher) mean on the circle: if no sample crosses the
-/// antipode of `m` during an iteration, one step is exact and the next returns a zero step.
-/// Working with wrapped residuals keeps it accurate when weights are huge and of mixed sign
-/// (`W0_m ~ -L/a^2` for a small `a`), where sums of sines and cosines would cancel badly.
-pub(crate) fn refine_circular_mean<I>(seed: f64, w0: f64, a0: f64, w: f64, others: I) -> f64
+/// This is the intrinsic (Karcher) mean on the circle, the point `m` where the weighted
+/// wrapped residuals `sum_i W_i wrap(theta_i - m)` vanish, found by the fixed-point
+/// iteration `m <- m + sum_i W_i wrap(theta_i - m)`. From the centre, one step is exact
+/// unless a point ends up more than `pi` from the new mean (crosses its antipode); that is
+/// checked from the extreme residuals of the first pass, and only then is the iteration
+/// continued. Working with wrapped residuals keeps it accurate when weights are huge and of
+/// mixed sign (`W0_m ~ -L/a^2` for a small `a`), where sums of sines and cosines would
+/// cancel badly.
+fn sigma_circular_mean<const L: usize, SP, SM>(
+    c: f64,
+    w0: f64,
+    w: f64,
+    plus: Matrix<f64, U1, Const<L>, SP>,
+    minus: Matrix<f64, U1, Const<L>, SM>,
+) -> f64
 where
-    I: Iterator<Item = f64> + Clone,
+    SP: RawStorage<f64, U1, Const<L>>,
+    SM: RawStorage<f64, U1, Const<L>>,
 {
-    refine_weighted(seed, w0, a0, others.map(move |a| (w, a)))
+    let c = wrap_angle(c);
+    // First step from the centre, tracking the extreme residuals (the centre's is 0).
+    let (mut lo, mut hi, mut sides) = (0.0_f64, 0.0_f64, 0.0);
+    for j in 0..L {
+        let dp = wrap_angle(plus[j] - c);
+        let dm = wrap_angle(minus[j] - c);
+        let (a, b) = if dp < dm { (dp, dm) } else { (dm, dp) };
+        lo = if a < lo { a } else { lo };
+        hi = if b > hi { b } else { hi };
+        sides += dp + dm;
+    }
+    let step = w * sides;
+    let mut m = wrap_angle(c + step);
+    if hi - step < PI && lo - step > -PI {
+        return m;
+    }
+    for _ in 0..MAX_ITERATIONS {
+        let mut sides = 0.0;
+        for j in 0..L {
+            sides += wrap_angle(plus[j] - m) + wrap_angle(minus[j] - m);
+        }
+        let step = w0 * wrap_angle(c - m) + w * sides;
+        m = wrap_angle(m + step);
+        if step.abs() <= TOLERANCE {
+            break;
+        }
+    }
+    m
 }
+
+const MAX_ITERATIONS: usize = 8;
+const TOLERANCE: f64 = 1e-13;
 
 fn refine_weighted<I>(seed: f64, w0: f64, a0: f64, others: I) -> f64
 where
     I: Iterator<Item = (f64, f64)> + Clone,
 {
-    const MAX_ITERATIONS: usize = 8;
-    const TOLERANCE: f64 = 1e-13;
     let mut m = wrap_angle(seed);
     for _ in 0..MAX_ITERATIONS {
         let mut step = w0 * wrap_angle(a0 - m);
@@ -270,16 +315,17 @@ pub(crate) fn residuals<const D: usize, const L: usize, S: Space<D>>(
     points: &SigmaPoints<D, L>,
     mean: &SVector<f64, D>,
 ) -> SigmaPoints<D, L> {
-    let mut out = SigmaPoints {
-        center: space.residual(&points.center, mean),
-        plus: points.plus,
-        minus: points.minus,
-    };
+    let mut plus = SMatrix::<f64, D, L>::zeros();
+    let mut minus = SMatrix::<f64, D, L>::zeros();
     for j in 0..L {
         let p: SVector<f64, D> = points.plus.column(j).into_owned();
-        out.plus.set_column(j, &space.residual(&p, mean));
+        plus.set_column(j, &space.residual(&p, mean));
         let q: SVector<f64, D> = points.minus.column(j).into_owned();
-        out.minus.set_column(j, &space.residual(&q, mean));
+        minus.set_column(j, &space.residual(&q, mean));
     }
-    out
+    SigmaPoints {
+        center: space.residual(&points.center, mean),
+        plus,
+        minus,
+    }
 }

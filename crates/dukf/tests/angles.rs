@@ -171,3 +171,25 @@ fn angle_mask_from_indices() {
     assert_eq!(n[3], 7.0);
     assert!((n[2] - (4.0 - TAU)).abs() < 1e-12 && (n[4] - (TAU - 4.0)).abs() < 1e-12 && n[5] == PI);
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(512))]
+
+    /// Widely spread points (some crossing the antipode of the first estimate) take the
+    /// iterative path: the result is still a weighted mean on the circle, i.e. the wrapped
+    /// residuals from it sum to zero under the weights.
+    #[test]
+    fn angle_mask_mean_of_wide_sets_is_a_fixed_point(
+        c in angle(),
+        plus in [-3.0..3.0f64, -3.0..3.0f64],
+        minus in [-3.0..3.0f64, -3.0..3.0f64],
+    ) {
+        let space = AngleMask::new([true, false]);
+        // alpha = 1, kappa = 1: all weights positive (W0 = 1/3, Wi = 1/6).
+        let w = Weights::new(UtParams::new(1.0, 2.0, 1.0), 2).unwrap();
+        let s = sigma_set(c, plus, minus);
+        let m = space.weighted_mean(&s, &w)[0];
+        let balance: f64 = s.weighted(&w).map(|(wi, p)| wi * wrap_angle(p[0] - m)).sum();
+        prop_assert!(balance.abs() < 1e-9, "mean {m}: weighted residuals sum to {balance}");
+    }
+}
