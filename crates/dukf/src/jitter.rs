@@ -1,25 +1,6 @@
 //! Factorising a covariance, with the documented repair when it has lost definiteness.
 //!
-//! # The policy
-//!
-//! Every covariance the filter needs a square root of (the state covariance for sigma
-//! points, the innovation covariance for the gain) goes through [`factor_repaired`]:
-//!
-//! 1. symmetrise: `P <- (P + P^T) / 2` (always; rounding makes `P` drift from symmetric and
-//!    nalgebra's Cholesky reads only the lower triangle, so without this the drift would be
-//!    silently ignored in one half and kept in the other);
-//! 2. try the Cholesky factorisation;
-//! 3. if it fails, add `j I` with `j = initial_relative * s`, then `j * growth`, ... up to
-//!    `max_relative * s`, where `s` is the largest absolute diagonal entry (or 1 if the
-//!    diagonal is all zero), retrying after each addition;
-//! 4. if it still fails, return [`UkfError::NotPositiveDefinite`].
-//!
-//! The repaired matrix (with its jitter) replaces the original, so the covariance a filter
-//! holds always matches the factor it uses, and the jitter actually added is reported to the
-//! caller (in [`PredictReport`](crate::PredictReport) and
-//! [`UpdateReport`](crate::UpdateReport)). With the default bound (`1e-6` relative) the
-//! repair absorbs rounding (eigenvalues a few ulps below zero) but never hides a covariance
-//! that is wrong (a noise matrix with a negative eigenvalue of any real size).
+//! See [`JitterPolicy`] for the procedure.
 
 use nalgebra::{Cholesky, SMatrix};
 
@@ -27,8 +8,29 @@ use crate::error::{Covariance, UkfError};
 
 /// How much diagonal jitter may be added to a covariance whose Cholesky factorisation fails.
 ///
-/// All amounts are relative to the largest absolute diagonal entry of the matrix. See the
-/// [module documentation](self) for the procedure.
+/// All amounts are relative to the largest absolute diagonal entry of the matrix.
+///
+/// # The procedure
+///
+/// Every covariance the filter needs a square root of (the state covariance for sigma
+/// points, the innovation covariance for the gain) goes through [`factor_repaired`]:
+///
+/// 1. symmetrise: `P <- (P + P^T) / 2` (always; rounding makes `P` drift from symmetric and
+///    nalgebra's Cholesky reads only the lower triangle, so without this the drift would be
+///    silently ignored in one half and kept in the other);
+/// 2. try the Cholesky factorisation;
+/// 3. if it fails, add `j I` with `j = initial_relative * s`, then `j * growth`, ... up to
+///    `max_relative * s`, where `s` is the largest absolute diagonal entry (or 1 if the
+///    diagonal is all zero), retrying after each addition;
+/// 4. if it still fails, return [`UkfError::NotPositiveDefinite`].
+///
+/// The repaired matrix (with its jitter) replaces the original, so the covariance a filter
+/// holds always matches the factor it uses, and the jitter actually added is reported to the
+/// caller (in [`PredictReport`](crate::PredictReport) and
+/// [`UpdateReport`](crate::UpdateReport)). With the default bound (`1e-6` relative) the
+/// repair absorbs rounding (eigenvalues a few ulps below zero) but does not hide a
+/// covariance that is wrong: a negative eigenvalue below `-1e-6` times the largest variance
+/// is an error.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct JitterPolicy {
     /// First relative jitter tried.
