@@ -53,7 +53,7 @@ where
     let ys = map_points(&xs, f, Function::Measurement)?;
     let mean = out_space.weighted_mean(&ys, &weights);
     let r = residuals(out_space, &ys, &mean);
-    let covariance = weighted_outer(&r, &r, &weights);
+    let covariance = weighted_covariance(&r, &weights);
     let cross_covariance = cross_from_factor(&fp.factor, &r, &weights);
     Ok(Transformed {
         mean,
@@ -103,14 +103,25 @@ where
     )
 }
 
-/// `sum_i Wc_i a_i b_i^T` over two residual sets.
-pub(crate) fn weighted_outer<const D: usize, const E: usize, const L: usize>(
-    a: &SigmaPoints<D, L>,
-    b: &SigmaPoints<E, L>,
+/// `sum_i Wc_i r_i r_i^T` over a residual set, computed on the lower triangle and mirrored
+/// (the result is exactly symmetric, and half the work of two general products).
+pub(crate) fn weighted_covariance<const D: usize, const L: usize>(
+    r: &SigmaPoints<D, L>,
     weights: &Weights,
-) -> SMatrix<f64, D, E> {
-    let sides = a.plus * b.plus.transpose() + a.minus * b.minus.transpose();
-    a.center * b.center.transpose() * weights.cov0 + sides * weights.other
+) -> SMatrix<f64, D, D> {
+    let mut out = SMatrix::<f64, D, D>::zeros();
+    for i in 0..D {
+        for j in 0..=i {
+            let mut sides = 0.0;
+            for k in 0..L {
+                sides += r.plus[(i, k)] * r.plus[(j, k)] + r.minus[(i, k)] * r.minus[(j, k)];
+            }
+            let v = weights.cov0 * r.center[i] * r.center[j] + weights.other * sides;
+            out[(i, j)] = v;
+            out[(j, i)] = v;
+        }
+    }
+    out
 }
 
 /// Cross-covariance `sum_i Wc_i (X_i (-) x)(Y_i (-) y)^T` when the state deviations are the

@@ -7,7 +7,7 @@ use crate::jitter::{Factored, JitterPolicy, factor_repaired};
 use crate::sigma::{UtParams, Weights};
 use crate::space::{Euclidean, Space, residuals};
 use crate::transform::{
-    check_matrix, check_vector, cross_from_factor, map_points, sigma_points, weighted_outer,
+    check_matrix, check_vector, cross_from_factor, map_points, sigma_points, weighted_covariance,
 };
 
 /// What a prediction did besides predicting.
@@ -234,7 +234,7 @@ impl<const N: usize, S: Space<N>> Ukf<N, S> {
             });
         }
         let r = residuals(&self.space, &ys, &x);
-        let p = weighted_outer(&r, &r, &self.weights) + q;
+        let p = weighted_covariance(&r, &self.weights) + q;
         let p = factor_repaired(&p, &self.policy, Covariance::Predicted)?;
         Ok(Estimate { x, p })
     }
@@ -278,7 +278,7 @@ impl<const N: usize, S: Space<N>> Ukf<N, S> {
         }
         let ry = residuals(measurement_space, &ys, &y_hat);
         let s = factor_repaired(
-            &(weighted_outer(&ry, &ry, w) + r),
+            &(weighted_covariance(&ry, w) + r),
             &self.policy,
             Covariance::Innovation,
         )?;
