@@ -25,9 +25,10 @@
 //! with `lambda = a^2 (L + kappa) - L`, `W0_m = lambda / (L + lambda)`,
 //! `W0_c = W0_m + (1 - a^2 + b)`, `Wi_m = Wi_c = 1 / (2 (L + lambda))`. The weights are
 //! computed once, when a filter is built ([`Weights::new`]); [`UtParams::default`] is
-//! `a = 0.1`, `b = 2`, `kappa = 0` (see [`UtParams`] for why not the often quoted `1e-3`). Means are computed as `Y_0 + sum_{i>0} W_i (Y_i (-) Y_0)`
-//! (equal to `sum W_i Y_i` since the weights sum to one) so that the large negative `W0_m`
-//! of a small `a` (about `-L / a^2`) does not cancel catastrophically.
+//! `a = 0.1`, `b = 2`, `kappa = 0` (see [`UtParams`] for why not the often quoted `1e-3`).
+//! Means are computed as `Y_0 + sum_{i>0} W_i (Y_i (-) Y_0)` (equal to `sum W_i Y_i` since
+//! the weights sum to one) so that the large negative `W0_m` of a small `a` (about
+//! `-L / a^2`) does not cancel catastrophically.
 //!
 //! The update redraws sigma points from the predicted estimate, so that `h` sees the
 //! additive `Q`; with this, for linear `f` and `h` the filter is exactly the linear Kalman
@@ -53,8 +54,9 @@
 //! weights)` and never does arithmetic on states or measurements itself. [`AngleMask`]
 //! covers the usual case (some components are angles): residuals and sums wrapped to
 //! `(-pi, pi]`, angle means the weighted intrinsic mean on the circle seeded at the centre
-//! sigma point (one fixed-point step, exact when the points fit in a half circle, and
-//! accurate for huge mixed-sign weights where sums of sines and cosines are not).
+//! sigma point: one fixed-point step `m = c + sum W_i wrap(theta_i - c)` when no point ends
+//! up more than `pi` from the result (the usual case, checked), iterated otherwise; it stays
+//! accurate for huge mixed-sign weights, where sums of sines and cosines cancel badly.
 //!
 //! # The jitter policy
 //!
@@ -81,7 +83,14 @@
 //! the leader's velocities) alongside the state: see [`DualUkf`]. Both filters read only the
 //! previous estimates and are committed together. Known inputs (the follower's own
 //! velocities) are captured by the caller's closure `f(x, w)`, so the filter's signature does
-//! not depend on them.
+//! not depend on them. A model that can fail (a singular configuration) should return a
+//! non-finite vector from the closure: the step then fails with
+//! [`UkfError::NonFiniteFunction`] and neither filter changes.
+//!
+//! The parameter filter sees `w` only through one step of the model, `h(f(x^, w))`, so a
+//! parameter that moves `y` only after two steps (a turn rate when only positions are
+//! measured) is not observable to it. In the formation model every parameter reaches `y` in
+//! one step (`l12'` depends on `v1`, `alpha12'` on `w1`).
 //!
 //! ```
 //! use dukf::{AngleMask, DualUkf, Euclidean, Ukf, UtParams};
