@@ -1,4 +1,4 @@
-//! Vision-based tracking of mobile robots in formation: rig model, measurement transform, tracker and CLI.
-//!
-//! (Crate under construction: see `docs/architecture.md`.)
+//! formation-tracker: the thin composition of `fiducial`, `pose`, `unicycle` and `dukf`.
 #![deny(missing_docs)]
+
+pub mod mount;
