@@ -7,6 +7,7 @@
 use std::process::ExitCode;
 
 mod bench_report;
+mod dictionary;
 
 type Result<T = ()> = std::result::Result<T, Box<dyn std::error::Error>>;
 
@@ -16,6 +17,7 @@ commands:
   no-c             fail if any crate in the dependency tree builds C code
   bench-report     run all criterion benchmarks and write docs/performance.md
                    (--quick: short measurements; --no-run: only rebuild the table)
+  dictionary       regenerate crates/fiducial/data/dict-4x5-d6.txt (--check: only compare)
 ";
 
 fn main() -> ExitCode {
@@ -23,6 +25,7 @@ fn main() -> ExitCode {
     let result = match args.first().map(String::as_str) {
         Some("no-c") => no_c(),
         Some("bench-report") => bench_report::run(&args[1..]),
+        Some("dictionary") => dictionary::run(&args[1..]),
         _ => {
             eprint!("{USAGE}");
             return ExitCode::from(2);
