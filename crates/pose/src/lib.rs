@@ -59,6 +59,7 @@
 #[cfg(feature = "calib")]
 pub mod calib;
 mod camera;
+mod chol6;
 mod distortion;
 mod error;
 mod ippe;

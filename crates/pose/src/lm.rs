@@ -9,13 +9,15 @@
 //! `J_l(w)` (see [`crate::so3`]).
 //!
 //! Each step solves `(J^T J + lambda I) d = -J^T e` (the spec's damped normal equations) by
-//! Cholesky. Lambda starts at `initial_damping * max(diag(J^T J))` and adapts with Nielsen's
+//! Cholesky. Lambda starts at `initial_damping * max(diag(J^T J))` [1e-7] and adapts with Nielsen's
 //! gain-ratio rule (a smooth form of the Marquardt/Lowe up-down schedule): after an accepted
 //! step `lambda *= max(1/3, 1 - (2 rho - 1)^3)`, after a rejected one it grows by a factor that
 //! doubles each time. A step that puts a point behind the camera is rejected like any step that
 //! increases the cost.
 //!
 //! Convergence ([`LmConfig`], defaults in brackets): the solve stops and reports success when
+//! the damped step's predicted reduction of the squared error is below
+//! `relative_cost_tolerance` of it while lambda is small (nearly Gauss-Newton), when
 //! the gradient `max |J^T e|` falls below `gradient_tolerance` [1e-10], when the step is smaller
 //! than `step_tolerance * (|params| + step_tolerance)` [1e-10], or when an accepted step lowers
 //! the sum of squared errors by less than `relative_cost_tolerance` of it [1e-10]. (Near the
@@ -23,6 +25,7 @@
 //! tilt, where LM converges only linearly: the relative-cost test is what ends those solves.) Running out
 //! of `max_iterations` [100] returns [`PoseError::NotConverged`] carrying the last estimate.
 
+use crate::chol6::Chol6;
 use crate::{Intrinsics, Pose, PoseError, so3};
 use nalgebra::{Matrix2x3, Matrix3, Matrix6, Point2, Point3, Vector6};
 
@@ -38,7 +41,9 @@ pub struct LmConfig {
     /// Stop when an accepted step lowers the squared error by less than this fraction.
     /// Default 1e-10.
     pub relative_cost_tolerance: f64,
-    /// Initial lambda as a fraction of the largest diagonal entry of `J^T J`. Default 1e-3.
+    /// Initial lambda as a fraction of the largest diagonal entry of `J^T J`. Default 1e-7:
+    /// both initialisers land close to the minimum, so the first steps are nearly Gauss-Newton;
+    /// the gain ratio raises lambda at once when a start is poor.
     pub initial_damping: f64,
 }
 
@@ -49,7 +54,7 @@ impl Default for LmConfig {
             gradient_tolerance: 1e-10,
             step_tolerance: 1e-10,
             relative_cost_tolerance: 1e-10,
-            initial_damping: 1e-3,
+            initial_damping: 1e-7,
         }
     }
 }
@@ -91,7 +96,10 @@ pub(crate) fn normal_equations(
         let e = nalgebra::Vector2::new(proj.x - m.x, proj.y - m.y);
         sse += e.norm_squared();
         let jp: Matrix2x3<f64> = k.projection_jacobian(&pc);
-        let jr: Matrix2x3<f64> = jp * (-so3::hat(&rp));
+        // Row a of J_proj times -[Rp]x is (Rp x a)^T.
+        let (a0, a1) = (jp.row(0).transpose(), jp.row(1).transpose());
+        let jr: Matrix2x3<f64> =
+            Matrix2x3::from_rows(&[rp.cross(&a0).transpose(), rp.cross(&a1).transpose()]);
         rr += jr.transpose() * jr;
         rt += jr.transpose() * jp;
         tt += jp.transpose() * jp;
@@ -162,7 +170,7 @@ pub(crate) fn refine(
         for i in 0..6 {
             a[(i, i)] += lambda;
         }
-        let Some(chol) = a.cholesky() else {
+        let Some(chol) = Chol6::new(&a) else {
             lambda *= nu;
             nu *= 2.0;
             continue;
@@ -177,8 +185,20 @@ pub(crate) fn refine(
             }));
         }
         let candidate = Pose::from_params(&(x + step));
-        // Predicted reduction of sse: -2 d^T g - d^T J^T J d = d^T (lambda d - g) (for sse, x2 of 1/2 form).
+        // Predicted reduction of sse by the linear model: -2 d^T g - d^T J^T J d = d^T (lambda d - g).
         let predicted = step.dot(&(step * lambda - cur.jte));
+        // Nearly Gauss-Newton and the model promises less than the cost tolerance: the current
+        // pose is the minimum within tolerance, no need to evaluate the step.
+        let max_diag = (0..6).map(|i| cur.jtj[(i, i)]).fold(0.0, f64::max);
+        if lambda <= 1e-3 * max_diag
+            && (0.0..=cfg.relative_cost_tolerance * cur.sse).contains(&predicted)
+        {
+            return Ok(Ok(Refined {
+                pose,
+                normal: cur,
+                iterations: iter,
+            }));
+        }
         let rho = match normal_equations(k, model, image, &candidate) {
             Ok(n) if n.sse.is_finite() && predicted > 0.0 => {
                 let rho = (cur.sse - n.sse) / predicted;
@@ -235,9 +255,7 @@ pub(crate) fn covariance(
 ) -> Result<Matrix6<f64>, PoseError> {
     let dof = (2 * n_points).saturating_sub(6).max(1) as f64;
     let var = (normal.sse / dof).max(min_pixel_sigma * min_pixel_sigma);
-    let inv = normal
-        .jtj
-        .cholesky()
+    let inv = Chol6::new(&normal.jtj)
         .ok_or(PoseError::Degenerate {
             reason: "J^T J is singular at the optimum: the points do not fix the pose",
         })?

@@ -15,8 +15,9 @@ use nalgebra::{Matrix3, Point2, Point3, Vector3};
 
 /// Iterations POSIT runs before giving up.
 pub const POSIT_MAX_ITERATIONS: usize = 100;
-/// POSIT stops when the change of `k` plus the relative change of `Z0` is below this.
-pub const POSIT_TOLERANCE: f64 = 1e-12;
+/// POSIT stops when the change of `k` plus the relative change of `Z0` is below this. POSIT
+/// converges linearly and only initialises LM, so this need not be tight.
+pub const POSIT_TOLERANCE: f64 = 1e-9;
 
 /// Pose by POSIT from four or more non-coplanar model points and their pixels (already
 /// undistorted). The first point is the reference point. Returns
