@@ -17,10 +17,7 @@ impl Chol6 {
     pub(crate) fn new(a: &Matrix6<f64>) -> Option<Self> {
         let mut l = [[0.0f64; 6]; 6];
         for j in 0..6 {
-            let mut d = a[(j, j)];
-            for k in 0..j {
-                d -= l[j][k] * l[j][k];
-            }
+            let d = a[(j, j)] - l[j][..j].iter().map(|v| v * v).sum::<f64>();
             if d.is_nan() || d <= 0.0 {
                 return None;
             }
@@ -28,10 +25,12 @@ impl Chol6 {
             l[j][j] = djj;
             let inv = 1.0 / djj;
             for i in j + 1..6 {
-                let mut s = a[(i, j)];
-                for k in 0..j {
-                    s -= l[i][k] * l[j][k];
-                }
+                let s = a[(i, j)]
+                    - l[i][..j]
+                        .iter()
+                        .zip(&l[j][..j])
+                        .map(|(x, y)| x * y)
+                        .sum::<f64>();
                 l[i][j] = s * inv;
             }
         }
