@@ -197,12 +197,26 @@ impl PoseSolver {
             }
             Err(e) => return Err(e),
         };
-        let best = self.refine_checked(model, px, &init)?;
-        Ok(PoseSolution {
-            best,
-            alternative: None,
-            coplanar: false,
-        })
+        match self.refine_checked(model, px, &init) {
+            Ok(best) => Ok(PoseSolution {
+                best,
+                alternative: None,
+                coplanar: false,
+            }),
+            // A poor POSIT start (noisy, nearly planar points) can put points behind the camera
+            // or leave LM crawling: retry from the best-fit plane's IPPE candidates.
+            Err(first @ (PoseError::PointBehindCamera { .. } | PoseError::NotConverged { .. })) => {
+                match self.planar_refined(model, px, &geo) {
+                    Ok([best, _]) => Ok(PoseSolution {
+                        best,
+                        alternative: None,
+                        coplanar: false,
+                    }),
+                    Err(_) => Err(first),
+                }
+            }
+            Err(e) => Err(e),
+        }
     }
 
     /// Refine a caller-supplied pose (e.g. a tracker's prediction) by LM, skipping the

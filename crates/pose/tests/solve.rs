@@ -329,3 +329,29 @@ fn ambiguity_ratio_reports_flip() {
     let alt = sol.alternative.unwrap();
     assert!(alt.pose.rotation_angle_to(&truth) > 0.1);
 }
+
+/// Three faces with 0.3 px noise, 0.8 to 3 m: no wrong minimum (every rotation error below
+/// 3 degrees) and >= 97% of 500 trials within 1 degree (the misses are 1.0-1.4 degrees at
+/// 2-3 m, i.e. precision).
+#[test]
+fn three_faces_noise_rotation_error_small() {
+    let k = camera();
+    let model = three_faces_model();
+    let solver = PoseSolver::new(k);
+    let noise = Normal::new(0.0, 0.3).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(99);
+    let mut errs = Vec::new();
+    for _ in 0..500 {
+        let truth = random_rig_pose(&mut rng);
+        let image: Vec<_> = project_all(&k, &truth, &model)
+            .into_iter()
+            .map(|m| Point2::new(m.x + noise.sample(&mut rng), m.y + noise.sample(&mut rng)))
+            .collect();
+        let sol = solver.solve(&model, &image).unwrap();
+        errs.push(sol.pose().rotation_angle_to(&truth).to_degrees());
+    }
+    let worst = errs.iter().copied().fold(0.0, f64::max);
+    let within = errs.iter().filter(|e| **e < 1.0).count();
+    assert!(worst < 3.0, "worst rotation error {worst} degrees");
+    assert!(within >= 485, "{within}/500 within 1 degree");
+}
