@@ -107,8 +107,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .collect::<Result<_, _>>()?;
         let sol = with_lens.solve(&rig, &distorted)?;
         println!(
-            "with the calibration in {} ({:?} format)",
-            "opencv_640x480.yaml", cal.format
+            "with the calibration in opencv_640x480.yaml ({:?} format)",
+            cal.format
         );
         report("  undistorted", &sol.best.pose, &rig_truth, sol.best.rms);
     }
