@@ -94,8 +94,8 @@ impl Intrinsics {
     }
 
     /// Intrinsics from a 3x3 camera matrix (as stored by OpenCV or ROS): `alpha = K00`,
-    /// `theta = atan2(K11... )` recovered from `K01 = -alpha cot(theta)` and
-    /// `K11 = beta / sin(theta)`. `K` must be upper triangular with `K22 = 1`.
+    /// `u0 = K02`, `v0 = K12`, the skew angle from `K01 = -alpha cot(theta)` and
+    /// `beta = K11 sin(theta)`. `K` must be upper triangular with `K22 = 1`.
     pub fn from_matrix(k: &Matrix3<f64>) -> Result<Self, PoseError> {
         let alpha = k[(0, 0)];
         let (u0, v0) = (k[(0, 2)], k[(1, 2)]);

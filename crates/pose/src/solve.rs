@@ -379,19 +379,9 @@ impl PoseSolver {
             return Ok(Pixels::Borrowed(image));
         };
         let k = &self.intrinsics;
+        // Name the offending point in the error.
         let one = |i: usize, m: &Point2<f64>| {
             d.undistort_pixel(k, m).map_err(|e| match e {
-                PoseError::UndistortionNotConverged {
-                    x,
-                    y,
-                    iterations,
-                    residual,
-                } => PoseError::UndistortionNotConverged {
-                    x,
-                    y,
-                    iterations,
-                    residual,
-                },
                 PoseError::NonFinite { which, .. } => PoseError::NonFinite { which, index: i },
                 other => other,
             })

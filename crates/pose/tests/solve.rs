@@ -355,3 +355,18 @@ fn three_faces_noise_rotation_error_small() {
     assert!(worst < 3.0, "worst rotation error {worst} degrees");
     assert!(within >= 485, "{within}/500 within 1 degree");
 }
+
+#[test]
+fn undistortion_failure_is_reported_by_the_solver() {
+    let (model, mut image) = square_points();
+    image[1] = Point2::new(0.0, 0.0); // the image corner lies beyond the fold of k1 = -1
+    let d = Distortion::new(-1.0, 0.0, 0.0, 0.0, 0.0).unwrap();
+    let e = PoseSolver::new(camera())
+        .with_distortion(d)
+        .solve(&model, &image)
+        .unwrap_err();
+    assert!(
+        matches!(e, PoseError::UndistortionNotConverged { .. }),
+        "{e:?}"
+    );
+}
