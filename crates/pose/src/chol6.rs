@@ -1,40 +1,50 @@
-//! A 6x6 Cholesky factorisation on plain arrays. nalgebra's generic `Cholesky` is correct but
-//! its loops are written for any size and took a third of a 4-point solve; this one is unrolled
-//! by the compiler for the one size the solver needs.
+//! A 6x6 LDL^T (square-root-free Cholesky) factorisation on plain arrays. nalgebra's generic
+//! `Cholesky` is correct but its loops are written for any size and took a third of a 4-point
+//! solve; this one has fixed bounds the compiler unrolls, and needs no square roots (whose
+//! latency dominated a first hand-written `L L^T` version): one division per column.
+#![allow(clippy::needless_range_loop)] // index loops mirror the textbook recurrences
 
 use nalgebra::{Matrix6, Vector6};
 
-/// Lower-triangular factor `L` with `A = L L^T`, or `None` when `A` is not (numerically)
-/// positive definite.
+/// `A = L D L^T` with unit lower-triangular `L` and positive diagonal `D`.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Chol6 {
     l: [[f64; 6]; 6],
+    inv_d: [f64; 6],
 }
 
 impl Chol6 {
-    /// Factorises the symmetric matrix `a` (only its lower triangle is read).
+    /// Factorises the symmetric matrix `a` (only its lower triangle is read); `None` when `a`
+    /// is not (numerically) positive definite.
     #[inline]
     pub(crate) fn new(a: &Matrix6<f64>) -> Option<Self> {
         let mut l = [[0.0f64; 6]; 6];
+        let mut d = [0.0f64; 6];
+        let mut inv_d = [0.0f64; 6];
         for j in 0..6 {
-            let d = a[(j, j)] - l[j][..j].iter().map(|v| v * v).sum::<f64>();
-            if d.is_nan() || d <= 0.0 {
+            // ld[k] = L_jk d_k
+            let mut ld = [0.0f64; 6];
+            let mut djj = a[(j, j)];
+            for k in 0..j {
+                ld[k] = l[j][k] * d[k];
+                djj -= l[j][k] * ld[k];
+            }
+            if djj.is_nan() || djj <= 0.0 {
                 return None;
             }
-            let djj = d.sqrt();
-            l[j][j] = djj;
+            d[j] = djj;
             let inv = 1.0 / djj;
+            inv_d[j] = inv;
+            l[j][j] = 1.0;
             for i in j + 1..6 {
-                let s = a[(i, j)]
-                    - l[i][..j]
-                        .iter()
-                        .zip(&l[j][..j])
-                        .map(|(x, y)| x * y)
-                        .sum::<f64>();
+                let mut s = a[(i, j)];
+                for k in 0..j {
+                    s -= l[i][k] * ld[k];
+                }
                 l[i][j] = s * inv;
             }
         }
-        Some(Self { l })
+        Some(Self { l, inv_d })
     }
 
     /// Solves `A x = b`.
@@ -47,29 +57,49 @@ impl Chol6 {
             for k in 0..i {
                 s -= l[i][k] * y[k];
             }
-            y[i] = s / l[i][i];
+            y[i] = s;
         }
-        let mut x = Vector6::zeros();
+        for i in 0..6 {
+            y[i] *= self.inv_d[i];
+        }
+        let mut x = [0.0f64; 6];
         for i in (0..6).rev() {
             let mut s = y[i];
             for k in i + 1..6 {
                 s -= l[k][i] * x[k];
             }
-            x[i] = s / l[i][i];
+            x[i] = s;
         }
-        x
+        Vector6::from(x)
     }
 
-    /// `A^-1`.
+    /// `A^-1 = L^-T D^-1 L^-1`, exactly symmetric.
     pub(crate) fn inverse(&self) -> Matrix6<f64> {
-        let mut inv = Matrix6::zeros();
+        let l = &self.l;
+        // m = L^-1 (unit lower triangular), column by column.
+        let mut m = [[0.0f64; 6]; 6];
         for c in 0..6 {
-            let mut e = Vector6::zeros();
-            e[c] = 1.0;
-            inv.set_column(c, &self.solve(&e));
+            m[c][c] = 1.0;
+            for i in c + 1..6 {
+                let mut s = 0.0;
+                for k in c..i {
+                    s -= l[i][k] * m[k][c];
+                }
+                m[i][c] = s;
+            }
         }
-        // Exact symmetry.
-        (inv + inv.transpose()) * 0.5
+        let mut inv = Matrix6::zeros();
+        for i in 0..6 {
+            for j in 0..=i {
+                let mut s = 0.0;
+                for k in i..6 {
+                    s += m[k][i] * m[k][j] * self.inv_d[k];
+                }
+                inv[(i, j)] = s;
+                inv[(j, i)] = s;
+            }
+        }
+        inv
     }
 }
 

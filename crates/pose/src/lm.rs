@@ -20,7 +20,7 @@
 //! `relative_cost_tolerance` of it while lambda is small (nearly Gauss-Newton), when
 //! the gradient `max |J^T e|` falls below `gradient_tolerance` [1e-10], when the step is smaller
 //! than `step_tolerance * (|params| + step_tolerance)` [1e-10], or when an accepted step lowers
-//! the sum of squared errors by less than `relative_cost_tolerance` of it [1e-10]. (Near the
+//! the sum of squared errors by less than `relative_cost_tolerance` of it [1e-8]. (Near the
 //! fronto-parallel view of one face the two planar minima merge and the cost is quartic in the
 //! tilt, where LM converges only linearly: the relative-cost test is what ends those solves.) Running out
 //! of `max_iterations` [100] returns [`PoseError::NotConverged`] carrying the last estimate.
@@ -38,8 +38,9 @@ pub struct LmConfig {
     pub gradient_tolerance: f64,
     /// Stop when `|step| <= step_tolerance * (|params| + step_tolerance)`. Default 1e-10.
     pub step_tolerance: f64,
-    /// Stop when an accepted step lowers the squared error by less than this fraction.
-    /// Default 1e-10.
+    /// Stop when an accepted step lowers the squared error by less than this fraction (or the
+    /// linear model predicts less, in the near-Gauss-Newton regime). Default 1e-8: the pose is
+    /// then within ~1e-4 of its standard deviation of the exact minimum.
     pub relative_cost_tolerance: f64,
     /// Initial lambda as a fraction of the largest diagonal entry of `J^T J`. Default 1e-7:
     /// both initialisers land close to the minimum, so the first steps are nearly Gauss-Newton;
@@ -53,7 +54,7 @@ impl Default for LmConfig {
             max_iterations: 100,
             gradient_tolerance: 1e-10,
             step_tolerance: 1e-10,
-            relative_cost_tolerance: 1e-10,
+            relative_cost_tolerance: 1e-8,
             initial_damping: 1e-7,
         }
     }
