@@ -147,6 +147,14 @@ pub enum PoseError {
         /// The last estimate.
         estimate: Pose,
     },
+    /// A solver setting is negative, NaN or infinite.
+    #[error("invalid solver option {name} = {value} (must be finite and non-negative)")]
+    InvalidOptions {
+        /// The option.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+    },
     /// A calibration file could not be read or parsed.
     #[cfg(feature = "calib")]
     #[error(transparent)]

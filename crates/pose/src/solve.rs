@@ -417,11 +417,30 @@ fn rank(e: &Estimate) -> (bool, f64) {
     (!e.converged, e.rms)
 }
 
+fn check_options(opts: &SolverOptions) -> Result<(), PoseError> {
+    let lm = &opts.lm;
+    for (name, value) in [
+        ("min_pixel_sigma", opts.min_pixel_sigma),
+        ("planarity_tolerance", opts.planarity_tolerance),
+        ("collinearity_tolerance", opts.collinearity_tolerance),
+        ("lm.gradient_tolerance", lm.gradient_tolerance),
+        ("lm.step_tolerance", lm.step_tolerance),
+        ("lm.relative_cost_tolerance", lm.relative_cost_tolerance),
+        ("lm.initial_damping", lm.initial_damping),
+    ] {
+        if !value.is_finite() || value < 0.0 {
+            return Err(PoseError::InvalidOptions { name, value });
+        }
+    }
+    Ok(())
+}
+
 fn validate(
     model: &[Point3<f64>],
     image: &[Point2<f64>],
     opts: &SolverOptions,
 ) -> Result<Geometry, PoseError> {
+    check_options(opts)?;
     if model.len() != image.len() {
         return Err(PoseError::LengthMismatch {
             model: model.len(),

@@ -370,3 +370,42 @@ fn undistortion_failure_is_reported_by_the_solver() {
         "{e:?}"
     );
 }
+
+#[test]
+fn invalid_options_are_rejected() {
+    let (model, image) = square_points();
+    let opts = SolverOptions {
+        min_pixel_sigma: f64::NAN,
+        ..Default::default()
+    };
+    let e = PoseSolver::new(camera())
+        .with_options(opts)
+        .solve(&model, &image)
+        .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            PoseError::InvalidOptions {
+                name: "min_pixel_sigma",
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    let mut opts = SolverOptions::default();
+    opts.lm.step_tolerance = -1.0;
+    let e = PoseSolver::new(camera())
+        .with_options(opts)
+        .refine(&model, &image, &Pose::identity())
+        .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            PoseError::InvalidOptions {
+                name: "lm.step_tolerance",
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+}
