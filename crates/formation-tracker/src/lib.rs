@@ -16,6 +16,9 @@
 //!   reproduction run (paper Figs. 12-13) with its figures of merit.
 //! - [`scenario`]: the reference scenario of that experiment: a Cartesian truth simulation
 //!   and seeded noisy measurements.
+//! - [`tracker`]: [`tracker::Tracker`], one [`filter::FormationFilter`] per leader robot
+//!   over time: per-frame pose measurements in, formation variables and leader velocities
+//!   out, with coasting, loss and re-acquisition, planar-ambiguity resolution and gating.
 //! - [`plot`]: figures as SVG and PNG with plotters' pure-Rust backends and an embedded font.
 //!
 //! Library modules never print or exit. The `formation-tracker` binary's subcommands live
@@ -28,3 +31,4 @@ pub mod mount;
 pub mod plot;
 pub mod rig;
 pub mod scenario;
+pub mod tracker;
