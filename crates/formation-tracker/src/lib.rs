@@ -19,6 +19,9 @@
 //! - [`tracker`]: [`tracker::Tracker`], one [`filter::FormationFilter`] per leader robot
 //!   over time: per-frame pose measurements in, formation variables and leader velocities
 //!   out, with coasting, loss and re-acquisition, planar-ambiguity resolution and gating.
+//! - [`frames`]: frame sources (a folder of images, a y4m file, a y4m stream on stdin) read
+//!   into one reused grey buffer.
+//! - [`inputs`]: the follower's own inputs `(v2, w2)` and camera pan per frame, from a CSV.
 //! - [`plot`]: figures as SVG and PNG with plotters' pure-Rust backends and an embedded font.
 //!
 //! Library modules never print or exit. The `formation-tracker` binary's subcommands live
@@ -27,6 +30,8 @@
 #![deny(missing_docs)]
 
 pub mod filter;
+pub mod frames;
+pub mod inputs;
 pub mod mount;
 pub mod plot;
 pub mod rig;

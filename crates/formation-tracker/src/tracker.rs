@@ -70,11 +70,11 @@ use std::collections::BTreeMap;
 
 use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, Vector2, Vector3};
 use serde::Serialize;
-use unicycle::{Formation, Inputs, PolarState};
+use unicycle::{Formation, Inputs, PolarState, wrap_angle};
 
 use crate::filter::{FilterConfig, FilterError, FormationFilter};
 use crate::mount::{
-    CameraMount, MeasurementError, formation_from_camera_pose, propagate_covariance, wrap_angle,
+    CameraMount, MeasurementError, formation_from_camera_pose, propagate_covariance,
 };
 
 /// The 99.9 % point of a chi-square distribution with 3 degrees of freedom.

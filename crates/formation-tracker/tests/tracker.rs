@@ -2,7 +2,7 @@
 //! by inverting the measurement transform (no images): accuracy, coasting through an
 //! occlusion, loss and re-acquisition, planar-flip resolution, gating and bad input.
 
-use formation_tracker::mount::{CameraMount, formation_from_camera_pose, wrap_angle};
+use formation_tracker::mount::{CameraMount, formation_from_camera_pose};
 use formation_tracker::scenario::{ScenarioConfig, simulate};
 use formation_tracker::tracker::{
     FrameInput, FrameReport, LeaderReport, MeasurementUse, Observation, PoseMeasurement, Status,
@@ -13,7 +13,7 @@ use proptest::prelude::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use unicycle::{Inputs, PolarModel};
+use unicycle::{Inputs, PolarModel, wrap_angle};
 
 const ROBOT: u32 = 4;
 /// Standard deviations of the simulated pose noise: rotation vector (rad), translation (m).

@@ -1,0 +1,433 @@
+//! Frame sources: a folder of images, a y4m file, or a y4m stream on stdin, each read frame
+//! by frame into one reused grey buffer.
+//!
+//! - **Folder**: every `*.png`, `*.jpg`, `*.jpeg` (any case) in it, sorted by file name
+//!   (byte order, so name frames `frame-0001.png`, ... with leading zeros). Colour images are
+//!   converted to grey with the Rec. 601 luma weights `(299 R + 587 G + 114 B) / 1000`.
+//!   A file that cannot be read or decoded is a [`FrameError::Image`] for that frame; the
+//!   next call goes on with the next file, and frame numbers keep counting the broken file so
+//!   that they stay equal to the position in the sorted folder.
+//! - **y4m** (YUV4MPEG2, crate `y4m`): any colour space; the luma plane *is* the grey image
+//!   (high bits of 10/12-bit samples). `-` reads the stream from stdin, so any video `ffmpeg`
+//!   can decode works as a source:
+//!   `ffmpeg -i video.mp4 -f yuv4mpegpipe -pix_fmt yuv420p - | formation-tracker track - ...`.
+//!   The header's frame rate is reported by [`FrameSource::frame_rate`]. A stream that ends
+//!   inside a frame (a truncated file, a killed pipe) ends cleanly: the partial frame is
+//!   dropped and [`FrameSource::truncated`] says so; [`FrameSource::frames_read`] counts the
+//!   complete frames. A malformed frame header cannot be resynchronised: it is one
+//!   [`FrameError::Y4m`] and the stream ends.
+//!
+//! Frame sizes are limited to [`MAX_SIDE`] pixels a side (checked from the y4m header
+//! before any buffer is allocated), so a corrupt header cannot ask for gigabytes.
+
+use std::cell::Cell;
+use std::fs;
+use std::io::{self, BufRead, BufReader, Cursor, Read};
+use std::path::{Path, PathBuf};
+use std::rc::Rc;
+
+/// Largest accepted image side, pixels.
+pub const MAX_SIDE: usize = 16_384;
+
+/// Errors of the frame sources. `Image` and `Y4m` concern one frame; the others one source.
+#[derive(Debug, thiserror::Error)]
+pub enum FrameError {
+    /// The input path does not exist or cannot be read.
+    #[error("cannot open input {path}: {source}")]
+    Open {
+        /// The path given.
+        path: PathBuf,
+        /// The I/O error.
+        #[source]
+        source: io::Error,
+    },
+    /// A folder holds no PNG or JPEG file.
+    #[error("folder {path} holds no .png, .jpg or .jpeg file")]
+    EmptyFolder {
+        /// The folder.
+        path: PathBuf,
+    },
+    /// One image file could not be read or decoded (the folder source goes on).
+    #[error("frame {index} ({path}): {message}")]
+    Image {
+        /// Frame number (position in the sorted folder).
+        index: u64,
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// The y4m stream header is not valid.
+    #[error("not a usable y4m stream: {message}")]
+    Y4mHeader {
+        /// What went wrong.
+        message: String,
+    },
+    /// A y4m frame could not be read (the stream ends here).
+    #[error("y4m frame {index}: {message}; the stream ends here")]
+    Y4m {
+        /// Frame number.
+        index: u64,
+        /// What went wrong.
+        message: String,
+    },
+    /// An image is larger than [`MAX_SIDE`] or empty.
+    #[error("frame size {width}x{height} is outside 1..={max} pixels a side")]
+    Size {
+        /// Width.
+        width: usize,
+        /// Height.
+        height: usize,
+        /// The limit.
+        max: usize,
+    },
+}
+
+/// A grey image, row-major with stride equal to the width.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct GreyImage {
+    /// Width, pixels.
+    pub width: usize,
+    /// Height, pixels.
+    pub height: usize,
+    /// `width * height` bytes.
+    pub data: Vec<u8>,
+}
+
+impl GreyImage {
+    /// Resizes the buffer (reusing its allocation) and returns the pixels.
+    fn reshape(&mut self, width: usize, height: usize) -> &mut [u8] {
+        self.width = width;
+        self.height = height;
+        self.data.resize(width * height, 0);
+        &mut self.data
+    }
+}
+
+/// One frame handed out by a [`FrameSource`]; the image borrows the source's buffer.
+#[derive(Debug, Clone, Copy)]
+pub struct Frame<'a> {
+    /// Frame number from 0 (for a folder: position in the sorted list).
+    pub index: u64,
+    /// The grey image.
+    pub image: &'a GreyImage,
+}
+
+enum Kind {
+    Folder {
+        files: Vec<PathBuf>,
+        next: usize,
+    },
+    Y4m {
+        decoder: Box<y4m::Decoder<Counting>>,
+        consumed: Rc<Cell<u64>>,
+        /// Bytes the decoder had consumed after the last complete frame.
+        frame_end: u64,
+        rate: Option<f64>,
+        bit_depth: usize,
+        next: u64,
+        done: bool,
+    },
+}
+
+/// A sequence of grey frames from a folder, a y4m file or stdin.
+pub struct FrameSource {
+    kind: Kind,
+    grey: GreyImage,
+    read: u64,
+    truncated: bool,
+}
+
+impl std::fmt::Debug for FrameSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FrameSource")
+            .field("frames_read", &self.read)
+            .field("truncated", &self.truncated)
+            .finish_non_exhaustive()
+    }
+}
+
+fn is_image(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+        .is_some_and(|e| e == "png" || e == "jpg" || e == "jpeg")
+}
+
+impl FrameSource {
+    /// Opens `input`: `-` for a y4m stream on stdin, a folder of images, or a y4m file.
+    ///
+    /// # Errors
+    /// The path cannot be read, the folder has no images, or the y4m header is bad.
+    pub fn open(input: &Path) -> Result<Self, FrameError> {
+        if input == Path::new("-") {
+            return Self::from_y4m_reader(Box::new(io::stdin().lock()));
+        }
+        let open_error = |source| FrameError::Open {
+            path: input.to_path_buf(),
+            source,
+        };
+        let meta = fs::metadata(input).map_err(open_error)?;
+        if meta.is_dir() {
+            return Self::from_folder(input);
+        }
+        let file = fs::File::open(input).map_err(open_error)?;
+        Self::from_y4m_reader(Box::new(file))
+    }
+
+    /// The images of a folder, sorted by name.
+    ///
+    /// # Errors
+    /// The folder cannot be listed or has no images.
+    pub fn from_folder(folder: &Path) -> Result<Self, FrameError> {
+        let entries = fs::read_dir(folder).map_err(|source| FrameError::Open {
+            path: folder.to_path_buf(),
+            source,
+        })?;
+        let mut files: Vec<PathBuf> = entries
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| is_image(p) && !p.is_dir())
+            .collect();
+        if files.is_empty() {
+            return Err(FrameError::EmptyFolder {
+                path: folder.to_path_buf(),
+            });
+        }
+        files.sort_by(|a, b| a.file_name().cmp(&b.file_name()));
+        Ok(Self::new(Kind::Folder { files, next: 0 }))
+    }
+
+    /// A y4m stream from any reader (buffered here).
+    ///
+    /// # Errors
+    /// [`FrameError::Y4mHeader`] for a missing or bad header or frames larger than
+    /// [`MAX_SIDE`].
+    pub fn from_y4m_reader(reader: Box<dyn Read>) -> Result<Self, FrameError> {
+        let mut reader = BufReader::new(reader);
+        // Check the header's size fields before `y4m` allocates a frame buffer for them.
+        let mut header = Vec::with_capacity(128);
+        (&mut reader)
+            .take(1024)
+            .read_until(b'\n', &mut header)
+            .map_err(|e| FrameError::Y4mHeader {
+                message: e.to_string(),
+            })?;
+        check_header(&header)?;
+        let counting = Counting {
+            inner: Box::new(Cursor::new(header).chain(reader)),
+            consumed: Rc::new(Cell::new(0)),
+        };
+        let consumed = Rc::clone(&counting.consumed);
+        let decoder = y4m::Decoder::new(counting).map_err(|e| FrameError::Y4mHeader {
+            message: e.to_string(),
+        })?;
+        let rate = decoder.get_framerate();
+        let rate = (rate.num > 0 && rate.den > 0).then(|| rate.num as f64 / rate.den as f64);
+        let bit_depth = decoder.get_bit_depth();
+        Ok(Self::new(Kind::Y4m {
+            decoder: Box::new(decoder),
+            frame_end: consumed.get(),
+            consumed,
+            rate,
+            bit_depth,
+            next: 0,
+            done: false,
+        }))
+    }
+
+    fn new(kind: Kind) -> Self {
+        Self {
+            kind,
+            grey: GreyImage::default(),
+            read: 0,
+            truncated: false,
+        }
+    }
+
+    /// The stream's frame rate (y4m header), frames per second.
+    pub fn frame_rate(&self) -> Option<f64> {
+        match &self.kind {
+            Kind::Y4m { rate, .. } => *rate,
+            Kind::Folder { .. } => None,
+        }
+    }
+
+    /// Number of frames, when known in advance (a folder).
+    pub fn len_hint(&self) -> Option<u64> {
+        match &self.kind {
+            Kind::Folder { files, .. } => Some(files.len() as u64),
+            Kind::Y4m { .. } => None,
+        }
+    }
+
+    /// Frames read successfully so far.
+    pub fn frames_read(&self) -> u64 {
+        self.read
+    }
+
+    /// Whether a y4m stream ended inside a frame.
+    pub fn truncated(&self) -> bool {
+        self.truncated
+    }
+
+    /// The next frame; `Ok(None)` at the end.
+    ///
+    /// # Errors
+    /// A broken frame: [`FrameError::Image`] (a folder; call again for the next file) or
+    /// [`FrameError::Y4m`] (the stream then ends).
+    pub fn next_frame(&mut self) -> Result<Option<Frame<'_>>, FrameError> {
+        let index = match &mut self.kind {
+            Kind::Folder { files, next } => {
+                let Some(path) = files.get(*next) else {
+                    return Ok(None);
+                };
+                let index = *next as u64;
+                *next += 1;
+                load_image(path, &mut self.grey).map_err(|message| FrameError::Image {
+                    index,
+                    path: path.clone(),
+                    message,
+                })?;
+                index
+            }
+            Kind::Y4m {
+                decoder,
+                consumed,
+                frame_end,
+                bit_depth,
+                next,
+                done,
+                ..
+            } => {
+                if *done {
+                    return Ok(None);
+                }
+                let index = *next;
+                let (w, h) = (decoder.get_width(), decoder.get_height());
+                match decoder.read_frame() {
+                    Ok(frame) => {
+                        copy_luma(frame.get_y_plane(), *bit_depth, self.grey.reshape(w, h));
+                        *next += 1;
+                        *frame_end = consumed.get();
+                        index
+                    }
+                    Err(y4m::Error::EOF) => {
+                        // `y4m` reports every end of input as EOF; bytes consumed since
+                        // the last complete frame mean the stream stopped inside a frame.
+                        *done = true;
+                        self.truncated = consumed.get() > *frame_end;
+                        return Ok(None);
+                    }
+                    Err(e) => {
+                        *done = true;
+                        return Err(FrameError::Y4m {
+                            index,
+                            message: e.to_string(),
+                        });
+                    }
+                }
+            }
+        };
+        self.read += 1;
+        Ok(Some(Frame {
+            index,
+            image: &self.grey,
+        }))
+    }
+}
+
+/// A reader that counts the bytes handed to the decoder.
+struct Counting {
+    inner: Box<dyn Read>,
+    consumed: Rc<Cell<u64>>,
+}
+
+impl Read for Counting {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.consumed.set(self.consumed.get() + n as u64);
+        Ok(n)
+    }
+}
+
+/// Checks `W` and `H` of a y4m header line.
+fn check_header(header: &[u8]) -> Result<(), FrameError> {
+    let bad = |message: &str| FrameError::Y4mHeader {
+        message: message.to_string(),
+    };
+    if !header.starts_with(b"YUV4MPEG2 ") {
+        return Err(bad("missing YUV4MPEG2 signature"));
+    }
+    if header.last() != Some(&b'\n') {
+        return Err(bad("header line not terminated within 1024 bytes"));
+    }
+    let (mut w, mut h) = (None, None);
+    for field in header[10..header.len() - 1].split(|&b| b == b' ') {
+        let parse = |v: &[u8]| std::str::from_utf8(v).ok()?.parse::<usize>().ok();
+        match field.first() {
+            Some(b'W') => w = parse(&field[1..]),
+            Some(b'H') => h = parse(&field[1..]),
+            _ => {}
+        }
+    }
+    let (Some(width), Some(height)) = (w, h) else {
+        return Err(bad("width (W) or height (H) missing or not a number"));
+    };
+    if width == 0 || height == 0 || width > MAX_SIDE || height > MAX_SIDE {
+        return Err(FrameError::Size {
+            width,
+            height,
+            max: MAX_SIDE,
+        });
+    }
+    Ok(())
+}
+
+/// Copies a luma plane into the grey buffer; 10/12-bit little-endian samples keep their
+/// high 8 bits.
+fn copy_luma(y: &[u8], bit_depth: usize, out: &mut [u8]) {
+    if bit_depth <= 8 {
+        out.copy_from_slice(&y[..out.len()]);
+    } else {
+        let shift = bit_depth - 8;
+        for (o, s) in out.iter_mut().zip(y.chunks_exact(2)) {
+            let v = u16::from_le_bytes([s[0], s[1]]) >> shift;
+            *o = v.min(255) as u8;
+        }
+    }
+}
+
+/// Decodes an image file into the grey buffer.
+fn load_image(path: &Path, grey: &mut GreyImage) -> Result<(), String> {
+    let img = image::ImageReader::open(path)
+        .map_err(|e| e.to_string())?
+        .with_guessed_format()
+        .map_err(|e| e.to_string())?
+        .decode()
+        .map_err(|e| e.to_string())?;
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
+        return Err(format!(
+            "image size {w}x{h} is outside 1..={MAX_SIDE} pixels a side"
+        ));
+    }
+    let out = grey.reshape(w, h);
+    let luma = |r: u8, g: u8, b: u8| {
+        ((299 * u32::from(r) + 587 * u32::from(g) + 114 * u32::from(b) + 500) / 1000) as u8
+    };
+    match &img {
+        image::DynamicImage::ImageLuma8(g) => out.copy_from_slice(g.as_raw()),
+        image::DynamicImage::ImageRgb8(c) => {
+            for (o, p) in out.iter_mut().zip(c.as_raw().chunks_exact(3)) {
+                *o = luma(p[0], p[1], p[2]);
+            }
+        }
+        image::DynamicImage::ImageRgba8(c) => {
+            for (o, p) in out.iter_mut().zip(c.as_raw().chunks_exact(4)) {
+                *o = luma(p[0], p[1], p[2]);
+            }
+        }
+        other => out.copy_from_slice(other.to_luma8().as_raw()),
+    }
+    Ok(())
+}
