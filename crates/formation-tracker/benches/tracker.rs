@@ -1,0 +1,70 @@
+//! Criterion benchmarks of the tracker's per-frame update with one leader, measurement given
+//! (no image work): one chosen pose, and a single face's two planar candidates.
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use formation_tracker::mount::CameraMount;
+use formation_tracker::tracker::{
+    FrameInput, Observation, PoseMeasurement, Tracker, TrackerConfig,
+};
+use nalgebra::{Matrix6, Rotation3, Vector3, Vector6};
+use unicycle::Inputs;
+
+const DT: f64 = 1.0 / 30.0;
+
+/// A leader 1.5 m ahead and 0.25 m to the left, facing the same way, seen by the reference
+/// mount; covariance of a typical single-face solve.
+fn estimate(yaw: f64) -> pose::Estimate {
+    let mount = CameraMount::default();
+    let r_cb = mount.camera_to_body_rotation().inverse();
+    let leader = Rotation3::from_axis_angle(&Vector3::z_axis(), yaw);
+    let t = r_cb * (Vector3::new(1.5, 0.25, 0.0) - mount.camera_position());
+    let sig = Vector6::new(0.01, 0.01, 0.01, 0.003, 0.003, 0.01);
+    pose::Estimate {
+        pose: pose::Pose::from_matrix((r_cb * leader).matrix(), t),
+        rms: 0.3,
+        covariance: Matrix6::from_diagonal(&sig.component_mul(&sig)),
+        iterations: 4,
+        converged: true,
+    }
+}
+
+fn bench_step(c: &mut Criterion, id: &str, pose: PoseMeasurement) {
+    let mut tracker = Tracker::new(TrackerConfig::reference(0.5, DT)).expect("reference config");
+    let mut frame = FrameInput {
+        t: 0.0,
+        follower: Inputs::new(0.0, 0.0),
+        mount: CameraMount::default(),
+        observations: vec![Observation { robot: 1, pose }],
+    };
+    // Warm up past initialisation and the velocity transient.
+    for _ in 0..60 {
+        tracker.update(&frame).expect("update");
+        frame.t += DT;
+    }
+    c.bench_function(id, |b| {
+        b.iter(|| {
+            frame.t += DT;
+            std::hint::black_box(
+                tracker
+                    .update(std::hint::black_box(&frame))
+                    .expect("update"),
+            )
+        })
+    });
+}
+
+fn tracker_step(c: &mut Criterion) {
+    bench_step(
+        c,
+        "formation-tracker/tracker_step",
+        PoseMeasurement::Chosen(estimate(0.0)),
+    );
+    bench_step(
+        c,
+        "formation-tracker/tracker_step_candidates",
+        PoseMeasurement::Candidates([estimate(0.0), estimate(0.6)]),
+    );
+}
+
+criterion_group!(benches, tracker_step);
+criterion_main!(benches);
