@@ -189,6 +189,8 @@ impl TrackerConfig {
 }
 
 /// What the vision pipeline measured of one robot in one frame.
+// Kept unboxed: one measurement per robot per frame, and boxing would allocate for each.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum PoseMeasurement {
     /// One pose (e.g. a joint pose over several faces, which has no planar ambiguity).

@@ -1,5 +1,6 @@
 //! Frame sources on small y4m streams written byte by byte here, and on a folder of images
 //! with a broken file.
+#![allow(clippy::unwrap_used)] // Tests may unwrap (house rules); helpers here are test code too.
 
 use std::io::Cursor;
 use std::path::PathBuf;

@@ -1,6 +1,7 @@
 //! The multi-leader tracker on the reference scenario's truth, with pose measurements made
 //! by inverting the measurement transform (no images): accuracy, coasting through an
 //! occlusion, loss and re-acquisition, planar-flip resolution, gating and bad input.
+#![allow(clippy::unwrap_used)] // Tests may unwrap (house rules); helpers here are test code too.
 
 use formation_tracker::mount::{CameraMount, formation_from_camera_pose};
 use formation_tracker::scenario::{ScenarioConfig, simulate};

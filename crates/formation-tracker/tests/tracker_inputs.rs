@@ -1,4 +1,5 @@
 //! The follower-inputs CSV: columns in any order, hold between rows, typed errors.
+#![allow(clippy::unwrap_used)] // Tests may unwrap (house rules); helpers here are test code too.
 
 use formation_tracker::inputs::{FollowerInputs, InputsError, Key};
 use proptest::prelude::*;
