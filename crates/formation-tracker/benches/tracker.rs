@@ -34,7 +34,11 @@ fn bench_step(c: &mut Criterion, id: &str, pose: PoseMeasurement) {
         t: 0.0,
         follower: Inputs::new(0.0, 0.0),
         mount: CameraMount::default(),
-        observations: vec![Observation { robot: 1, pose }],
+        observations: vec![Observation {
+            robot: 1,
+            points: 4,
+            pose,
+        }],
     };
     // Warm up past initialisation and the velocity transient.
     for _ in 0..60 {

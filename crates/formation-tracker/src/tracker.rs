@@ -12,7 +12,10 @@
 //! # One frame, per leader
 //! 1. **Measurement.** Each pose candidate (rig frame to camera frame) goes through the
 //!    measurement transform of spec 2.5 ([`crate::mount::formation_from_camera_pose`]); its
-//!    6x6 pose covariance is propagated to `(l12, alpha12, beta12)` by
+//!    6x6 pose covariance, rescaled to the configured corner noise
+//!    ([`TrackerConfig::corner_sigma_px`], 0.5 px: `pose` scales by a residual-based noise
+//!    estimate that has only 2 degrees of freedom for one face and is often far too small),
+//!    is propagated to `(l12, alpha12, beta12)` by
 //!    [`crate::mount::propagate_covariance`], and a floor variance
 //!    ([`TrackerConfig::measurement_floor_std`]) is **added** to the diagonal. The pose
 //!    covariance only knows pixel noise (at least `pose`'s 0.1 px floor); corner bias,
@@ -46,10 +49,17 @@
 //! if the follower stood at the origin at that instant, with a loose
 //! [`TrackerConfig::world_pose_prior_std`] (0.1). The leader's velocity prior is the
 //! filter template's `w0`, `Pw0`: by default the paper's `[0, 0]` and `I` (nothing is known
-//! about how the leader moves; 1 m/s and 1 rad/s standard deviations). With two candidates
-//! and no track yet, the one with the lower RMS (`best`) is taken: nothing else can decide.
-//! A wrong start then shows up as a track whose innovations keep being gated and is replaced
-//! after `lost_after` (a known limitation: a wrong start that stays self-consistent is kept).
+//! about how the leader moves; 1 m/s and 1 rad/s standard deviations).
+//!
+//! With two candidates and no track yet, nothing in one frame can decide: the `best`
+//! candidate (lower RMS) starts the main hypothesis and the other a **rival**. For
+//! [`TrackerConfig::confirm_time`] (default 1 s) both are run on every frame, each choosing
+//! its own nearest candidate and accumulating a score, the sum of its chosen `d^2` (each
+//! capped at the gate). The hypothesis with the lower score is the one reported (the report's
+//! `hypotheses` is 2 meanwhile); at the end of the window the other is dropped. The flipped
+//! pose is not consistent with the unicycle kinematics and the follower's known motion over
+//! time, so its score grows faster. A wrong hypothesis that survives shows up as gated
+//! measurements and is replaced after `lost_after`.
 //!
 //! # Time
 //! The filter's step `dt` is fixed ([`TrackerConfig::filter`]`.dt`, the camera's frame
@@ -142,12 +152,26 @@ pub struct TrackerConfig {
     /// Standard deviation of the leader's world pose `(x1, y1, theta1)` at initialisation
     /// (unobservable, carried along). Default 0.1.
     pub world_pose_prior_std: f64,
+    /// Seconds during which a track started from a single face keeps a rival hypothesis
+    /// from the other planar candidate. Default 1 s; 0 disables the rival.
+    pub confirm_time: f64,
+    /// Corner noise, pixels, to which each pose covariance is rescaled; `None` uses the
+    /// covariance as given. Default 0.5 px. `pose` scales its covariance `(J^T J)^-1` by a
+    /// noise estimated from the residual, `sigma^2 = max(SSE / (2N - 6), min_pixel_sigma^2)`;
+    /// for one face (N = 4) that estimate has 2 degrees of freedom and is often far too small,
+    /// which makes the filter trust single frames and diverge. The tracker undoes it
+    /// (`SSE = N rms^2`) and uses `corner_sigma_px^2` instead.
+    pub corner_sigma_px: Option<f64>,
+    /// The pose solver's `min_pixel_sigma` (to undo its scaling). Default that of
+    /// `pose::SolverOptions::default()`.
+    pub solver_min_pixel_sigma: f64,
 }
 
 impl TrackerConfig {
     /// The defaults: the filter of the reference scenario (`FilterConfig::reference(d, dt)`:
     /// its `Q`, `Rr`, velocity prior `w0 = [0, 0]`, `Pw0 = I`), `lost_after = 2 s`, gate
-    /// 16.27, measurement floor 5 mm / 5 mrad, world-pose prior 0.1.
+    /// 16.27, measurement floor 5 mm / 5 mrad, world-pose prior 0.1, confirmation 1 s,
+    /// corner noise 0.5 px.
     pub fn reference(d: f64, dt: f64) -> Self {
         Self {
             filter: FilterConfig::reference(d, dt),
@@ -155,6 +179,9 @@ impl TrackerConfig {
             gate: CHI2_3_999,
             measurement_floor_std: [0.005, 0.005, 0.005],
             world_pose_prior_std: 0.1,
+            confirm_time: 1.0,
+            corner_sigma_px: Some(0.5),
+            solver_min_pixel_sigma: pose::SolverOptions::default().min_pixel_sigma,
         }
     }
 
@@ -172,8 +199,19 @@ impl TrackerConfig {
         };
         positive("lost_after", self.lost_after)?;
         positive("world_pose_prior_std", self.world_pose_prior_std)?;
+        positive("solver_min_pixel_sigma", self.solver_min_pixel_sigma)?;
+        if let Some(s) = self.corner_sigma_px {
+            positive("corner_sigma_px", s)?;
+        }
         for s in self.measurement_floor_std {
             positive("measurement_floor_std", s)?;
+        }
+        if !(self.confirm_time.is_finite() && self.confirm_time >= 0.0) {
+            return Err(TrackerError::InvalidConfig {
+                what: "confirm_time",
+                value: self.confirm_time,
+                expected: "finite and non-negative",
+            });
         }
         if self.gate.is_nan() || self.gate <= 0.0 {
             return Err(TrackerError::InvalidConfig {
@@ -204,6 +242,9 @@ pub enum PoseMeasurement {
 pub struct Observation {
     /// The robot's id (from its markers' codes, see [`crate::rig::robot_face`]).
     pub robot: u32,
+    /// Number of point correspondences of the pose solve (4 per marker face); used to
+    /// rescale the covariance to [`TrackerConfig::corner_sigma_px`].
+    pub points: usize,
     /// Its pose measurement: rig frame to camera frame, with covariance.
     pub pose: PoseMeasurement,
 }
@@ -260,6 +301,8 @@ pub struct LeaderReport {
     pub status: Status,
     /// What happened to this frame's measurement.
     pub measurement: MeasurementUse,
+    /// Hypotheses alive: 2 while a single-face start is being confirmed, else 1.
+    pub hypotheses: u8,
     /// Which planar candidate was used (0 = `best`, 1 = the alternative); `None` without
     /// candidates.
     pub candidate: Option<u8>,
@@ -298,10 +341,35 @@ pub struct FrameReport {
     pub leaders: Vec<LeaderReport>,
 }
 
+/// One filter and how well it has explained the measurements so far.
+#[derive(Debug, Clone)]
+struct Hypothesis {
+    filter: FormationFilter,
+    /// Sum of the chosen candidates' `d^2`, each capped at the gate.
+    score: f64,
+}
+
+impl Hypothesis {
+    fn new(filter: FormationFilter) -> Self {
+        Self { filter, score: 0.0 }
+    }
+}
+
+/// One leader's track: the main hypothesis (reported) and, while a single-face start is
+/// unconfirmed, the rival started from the other planar candidate.
 #[derive(Debug, Clone)]
 struct Track {
-    filter: FormationFilter,
+    main: Hypothesis,
+    rival: Option<Hypothesis>,
+    confirm_until: f64,
     last_seen: f64,
+}
+
+/// What one hypothesis did with one frame's measurement.
+#[derive(Debug, Clone, Copy)]
+struct Outcome {
+    usage: MeasurementUse,
+    chosen: Option<(Formed, f64)>,
 }
 
 /// A measurement converted to formation variables.
@@ -359,9 +427,9 @@ impl Tracker {
         self.last_t = Some(t);
         let u = frame.follower;
 
-        let mut seen: BTreeMap<u32, &PoseMeasurement> = BTreeMap::new();
+        let mut seen: BTreeMap<u32, &Observation> = BTreeMap::new();
         for obs in &frame.observations {
-            seen.entry(obs.robot).or_insert(&obs.pose);
+            seen.entry(obs.robot).or_insert(obs);
         }
         let mut robots: Vec<u32> = self.tracks.keys().copied().collect();
         robots.extend(
@@ -420,9 +488,11 @@ impl Tracker {
     /// The measurement's candidates as formation variables with covariance (floor added).
     fn measurements(
         &self,
-        m: &PoseMeasurement,
+        obs: &Observation,
         mount: &CameraMount,
     ) -> Result<Vec<Formed>, MeasurementError> {
+        let m = &obs.pose;
+        let points = obs.points;
         let floor = self.config.measurement_floor_std;
         let floor = Matrix3::from_diagonal(&Vector3::new(
             floor[0] * floor[0],
@@ -431,12 +501,13 @@ impl Tracker {
         ));
         let form = |e: &pose::Estimate, candidate| -> Result<Formed, MeasurementError> {
             let params = e.pose.to_params();
+            let covariance = self.rescaled(e, points);
             let to_formation = |p: &SVector<f64, 6>| {
                 let rot = Rotation3::new(Vector3::new(p[0], p[1], p[2]));
                 formation_from_camera_pose(&rot, &Vector3::new(p[3], p[4], p[5]), mount)
             };
             let y = to_formation(&params)?;
-            let r = propagate_covariance(&params, &e.covariance, to_formation)? + floor;
+            let r = propagate_covariance(&params, &covariance, to_formation)? + floor;
             if !r.iter().all(|v| v.is_finite()) {
                 return Err(MeasurementError::NonFinite {
                     what: "measurement covariance",
@@ -460,25 +531,41 @@ impl Tracker {
         }
     }
 
-    /// A new track from the first usable candidate (the best one; see the module docs).
+    /// The pose covariance at the configured corner noise (see
+    /// [`TrackerConfig::corner_sigma_px`]); unchanged when that is `None` or when `points`
+    /// leaves no residual degree of freedom.
+    fn rescaled(&self, e: &pose::Estimate, points: usize) -> SMatrix<f64, 6, 6> {
+        let Some(sigma) = self.config.corner_sigma_px else {
+            return e.covariance;
+        };
+        let dof = 2 * points as i64 - 6;
+        if dof <= 0 || !e.rms.is_finite() {
+            return e.covariance;
+        }
+        let floor = self.config.solver_min_pixel_sigma;
+        let used = (e.rms * e.rms * points as f64 / dof as f64).max(floor * floor);
+        if used > 0.0 {
+            e.covariance * (sigma * sigma / used)
+        } else {
+            e.covariance
+        }
+    }
+
+    /// A new track from the measurement: the first candidate (`best`) as the main
+    /// hypothesis and, for a single face, the other candidate as a rival until
+    /// `confirm_time` has passed (see the module documentation).
     fn start(&mut self, robot: u32, t: f64, list: &[Formed]) -> Option<LeaderReport> {
         let m = list.first()?;
-        let d = self.config.filter.d;
-        let formation = Formation::from_vector(&m.y);
-        let world = formation
-            .leader_pose(&unicycle::Pose::new(0.0, 0.0, 0.0), d)
-            .ok()?;
-        let mut cfg = self.config.filter.clone();
-        cfg.x0 = PolarState::new(world.x, world.y, world.theta, m.y[0], m.y[1], m.y[2]);
-        let s = self.config.world_pose_prior_std;
-        let mut p0 = SMatrix::<f64, 6, 6>::zeros();
-        p0.fixed_view_mut::<3, 3>(0, 0)
-            .copy_from(&Matrix3::from_diagonal_element(s * s));
-        p0.fixed_view_mut::<3, 3>(3, 3).copy_from(&m.r);
-        cfg.p0 = p0;
-        let filter = FormationFilter::new(&cfg).ok()?;
+        let main = Hypothesis::new(self.filter_from(m)?);
+        let rival = list
+            .get(1)
+            .filter(|_| self.config.confirm_time > 0.0)
+            .and_then(|r| self.filter_from(r))
+            .map(Hypothesis::new);
         let track = Track {
-            filter,
+            main,
+            rival,
+            confirm_until: t + self.config.confirm_time,
             last_seen: t,
         };
         let report = report(
@@ -493,6 +580,24 @@ impl Tracker {
         Some(report)
     }
 
+    /// A filter initialised from one measurement.
+    fn filter_from(&self, m: &Formed) -> Option<FormationFilter> {
+        let d = self.config.filter.d;
+        let formation = Formation::from_vector(&m.y);
+        let world = formation
+            .leader_pose(&unicycle::Pose::new(0.0, 0.0, 0.0), d)
+            .ok()?;
+        let mut cfg = self.config.filter.clone();
+        cfg.x0 = PolarState::new(world.x, world.y, world.theta, m.y[0], m.y[1], m.y[2]);
+        let s = self.config.world_pose_prior_std;
+        let mut p0 = SMatrix::<f64, 6, 6>::zeros();
+        p0.fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&Matrix3::from_diagonal_element(s * s));
+        p0.fixed_view_mut::<3, 3>(3, 3).copy_from(&m.r);
+        cfg.p0 = p0;
+        FormationFilter::new(&cfg).ok()
+    }
+
     /// Advances an existing track over `steps` filter steps to time `t`.
     fn advance(
         &mut self,
@@ -503,7 +608,6 @@ impl Tracker {
         u: Inputs,
         formed: Option<Result<Vec<Formed>, MeasurementError>>,
     ) -> LeaderReport {
-        let lost = |track: &Track| report(robot, track, t, Status::Lost, MeasurementUse::Missing);
         let waited = t - track.last_seen;
         if waited > self.config.lost_after {
             // Too long unseen: dropped. A measurement in this very frame starts a new track.
@@ -512,17 +616,70 @@ impl Tracker {
             {
                 return r;
             }
-            return lost(&track);
+            return report(robot, &track, t, Status::Lost, MeasurementUse::Missing);
         }
-        for _ in 1..steps {
-            if track.filter.predict_only(u).is_err() {
-                return lost(&track);
+        let formed = formed.as_ref();
+        let main = self.run(&mut track.main, steps, u, formed);
+        let rival = match track.rival.take() {
+            Some(mut h) => self.run(&mut h, steps, u, formed).ok().map(|o| (h, o)),
+            None => None,
+        };
+        let mut outcome = match (main, rival) {
+            (Ok(o), None) => o,
+            (Ok(o), Some((h, ro))) => {
+                if h.score < track.main.score {
+                    // The rival explains the measurements better: it becomes the main.
+                    track.rival = Some(std::mem::replace(&mut track.main, h));
+                    ro
+                } else {
+                    track.rival = Some(h);
+                    o
+                }
             }
+            (Err(_), Some((h, ro))) => {
+                track.main = h;
+                ro
+            }
+            (Err(_), None) => {
+                return report(robot, &track, t, Status::Lost, MeasurementUse::Missing);
+            }
+        };
+        if t >= track.confirm_until {
+            track.rival = None;
+        }
+        let status = if outcome.usage == MeasurementUse::Updated {
+            track.last_seen = t;
+            Status::Tracking
+        } else {
+            Status::Coasting
+        };
+        if outcome.usage == MeasurementUse::Missing {
+            outcome.chosen = None;
+        }
+        let out = report(robot, &track, t, status, outcome.usage).with(
+            outcome.chosen.and_then(|(m, _)| m.candidate),
+            outcome.chosen.map(|(_, n)| n),
+        );
+        self.tracks.insert(robot, track);
+        out
+    }
+
+    /// One hypothesis over the frame: predict over the gap, choose, gate, update or coast,
+    /// and add the (capped) `d^2` of the chosen candidate to its score.
+    fn run(
+        &self,
+        h: &mut Hypothesis,
+        steps: u64,
+        u: Inputs,
+        formed: Option<&Result<Vec<Formed>, MeasurementError>>,
+    ) -> Result<Outcome, FilterError> {
+        for _ in 1..steps {
+            h.filter.predict_only(u)?;
         }
         let (chosen, usage) = match formed {
             None => (None, MeasurementUse::Missing),
             Some(Err(_)) => (None, MeasurementUse::Invalid),
-            Some(Ok(list)) => match self.choose(&track, u, &list) {
+            Some(Ok(list)) => match self.choose(&h.filter, u, list) {
                 Some((m, nis)) if nis <= self.config.gate => {
                     (Some((m, nis)), MeasurementUse::Updated)
                 }
@@ -530,45 +687,47 @@ impl Tracker {
                 None => (None, MeasurementUse::Invalid),
             },
         };
-        let result = match (usage, chosen) {
-            (MeasurementUse::Updated, Some((m, _))) => track.filter.step(&m.y, &m.r, u),
-            _ => track.filter.predict_only(u),
-        };
-        if result.is_err() {
-            return lost(&track);
+        match (usage, chosen) {
+            (MeasurementUse::Updated, Some((m, _))) => h.filter.step(&m.y, &m.r, u)?,
+            _ => h.filter.predict_only(u)?,
         }
-        let status = if usage == MeasurementUse::Updated {
-            track.last_seen = t;
-            Status::Tracking
-        } else {
-            Status::Coasting
-        };
-        let out = report(robot, &track, t, status, usage).with(
-            chosen.and_then(|(m, _)| m.candidate),
-            chosen.map(|(_, n)| n),
-        );
-        self.tracks.insert(robot, track);
-        out
+        if let Some((_, nis)) = chosen {
+            h.score += nis.min(self.config.gate);
+        }
+        Ok(Outcome { usage, chosen })
     }
 
-    /// The candidate nearest the track's one-step prediction, with its `d^2`.
-    fn choose(&self, track: &Track, u: Inputs, list: &[Formed]) -> Option<(Formed, f64)> {
-        let mut predicted = track.filter.clone();
+    /// The candidate nearest the filter's one-step prediction, with its `d^2`.
+    fn choose(
+        &self,
+        filter: &FormationFilter,
+        u: Inputs,
+        list: &[Formed],
+    ) -> Option<(Formed, f64)> {
+        let mut predicted = filter.clone();
         predicted.predict_only(u).ok()?;
         let y_pred = predicted.formation().to_vector();
         let var = predicted.formation_std().map(|s| s * s);
-        list.iter()
-            .filter_map(|m| {
-                let nu = Vector3::new(
-                    m.y[0] - y_pred[0],
-                    wrap_angle(m.y[1] - y_pred[1]),
-                    wrap_angle(m.y[2] - y_pred[2]),
-                );
-                let s = Matrix3::from_diagonal(&var) + m.r;
-                let d2 = s.cholesky()?.solve(&nu).dot(&nu);
-                d2.is_finite().then_some((*m, d2))
-            })
+        // (candidate, d^2); at most two candidates.
+        let mut scored: [Option<(Formed, f64)>; 2] = [None, None];
+        for (slot, m) in scored.iter_mut().zip(list) {
+            let nu = Vector3::new(
+                m.y[0] - y_pred[0],
+                wrap_angle(m.y[1] - y_pred[1]),
+                wrap_angle(m.y[2] - y_pred[2]),
+            );
+            let s = Matrix3::from_diagonal(&var) + m.r;
+            let Some(chol) = s.cholesky() else { continue };
+            let d2 = chol.solve(&nu).dot(&nu);
+            if d2.is_finite() {
+                *slot = Some((*m, d2));
+            }
+        }
+        scored
+            .iter()
+            .flatten()
             .min_by(|a, b| a.1.total_cmp(&b.1))
+            .copied()
     }
 }
 
@@ -579,14 +738,16 @@ fn report(
     status: Status,
     measurement: MeasurementUse,
 ) -> LeaderReport {
-    let f = track.filter.formation();
-    let fs = track.filter.formation_std();
-    let w = track.filter.leader_velocity();
-    let ws: Vector2<f64> = track.filter.leader_velocity_std();
+    let filter = &track.main.filter;
+    let f = filter.formation();
+    let fs = filter.formation_std();
+    let w = filter.leader_velocity();
+    let ws: Vector2<f64> = filter.leader_velocity_std();
     LeaderReport {
         robot,
         status,
         measurement,
+        hypotheses: if track.rival.is_some() { 2 } else { 1 },
         candidate: None,
         nis: None,
         l12: f.l12,

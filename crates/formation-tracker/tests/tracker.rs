@@ -100,11 +100,23 @@ fn input(f: &Frame, observations: Vec<Observation>) -> FrameInput {
 }
 
 fn seen(pose: PoseMeasurement) -> Vec<Observation> {
-    vec![Observation { robot: ROBOT, pose }]
+    vec![Observation {
+        robot: ROBOT,
+        points: 8,
+        pose,
+    }]
+}
+
+/// The reference configuration, told to use the given covariances as they are (they are
+/// the true noise of the simulated poses here).
+fn config() -> TrackerConfig {
+    let mut c = TrackerConfig::reference(0.5, 1.0 / 30.0);
+    c.corner_sigma_px = None;
+    c
 }
 
 fn tracker() -> Tracker {
-    Tracker::new(TrackerConfig::reference(0.5, 1.0 / 30.0)).unwrap()
+    Tracker::new(config()).unwrap()
 }
 
 fn leader(report: &FrameReport) -> &LeaderReport {
@@ -283,7 +295,9 @@ fn planar_flip_resolved_by_prediction() {
         let l = leader(&rep);
         let best_err = wrap_angle(measured(&pair[0].pose)[1] - f.truth[1]).abs();
         best_max = best_max.max(best_err);
-        if l.candidate == Some(if flipped { 0 } else { 1 }) {
+        // The first second keeps both hypotheses (`confirm_time`); the reported one may be
+        // either until the evidence separates them.
+        if f.t > 1.0 && l.candidate == Some(if flipped { 0 } else { 1 }) {
             flipped_used += 1;
         }
         if f.t > 1.0 {
@@ -297,7 +311,7 @@ fn planar_flip_resolved_by_prediction() {
 
 fn outlier_run(gate: f64) -> (LeaderReport, Vector3<f64>) {
     let frames = frames(5);
-    let mut config = TrackerConfig::reference(0.5, 1.0 / 30.0);
+    let mut config = config();
     config.gate = gate;
     let mut tr = Tracker::new(config).unwrap();
     for (k, f) in frames.iter().enumerate() {
@@ -405,10 +419,12 @@ fn leaders_are_tracked_independently_by_robot_id() {
     for (k, f) in frames.iter().enumerate() {
         let a = Observation {
             robot: ROBOT,
+            points: 8,
             pose: PoseMeasurement::Chosen(estimate(f.pose)),
         };
         let b = Observation {
             robot: 9,
+            points: 8,
             pose: PoseMeasurement::Chosen(estimate(shift(&f.pose))),
         };
         let obs = if k % 2 == 0 { vec![a, b] } else { vec![b, a] };
@@ -439,6 +455,24 @@ fn bad_configuration_is_a_typed_error() {
     assert!(matches!(
         Tracker::new(c),
         Err(TrackerError::InvalidConfig { what: "gate", .. })
+    ));
+    let mut c = TrackerConfig::reference(0.5, 1.0 / 30.0);
+    c.corner_sigma_px = Some(-1.0);
+    assert!(matches!(
+        Tracker::new(c),
+        Err(TrackerError::InvalidConfig {
+            what: "corner_sigma_px",
+            ..
+        })
+    ));
+    let mut c = TrackerConfig::reference(0.5, 1.0 / 30.0);
+    c.confirm_time = f64::NAN;
+    assert!(matches!(
+        Tracker::new(c),
+        Err(TrackerError::InvalidConfig {
+            what: "confirm_time",
+            ..
+        })
     ));
     assert!(matches!(
         Tracker::new(TrackerConfig::reference(0.5, 0.0)),
