@@ -1,0 +1,121 @@
+//! What goes into the tracker per frame and what comes out.
+
+use serde::Serialize;
+use unicycle::Inputs;
+
+use crate::mount::CameraMount;
+
+/// What the vision pipeline measured of one robot in one frame.
+// Kept unboxed: one measurement per robot per frame, and boxing would allocate for each.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PoseMeasurement {
+    /// One pose (e.g. a joint pose over several faces, which has no planar ambiguity).
+    Chosen(pose::Estimate),
+    /// A single face: both planar candidates, lowest reprojection RMS first.
+    Candidates([pose::Estimate; 2]),
+}
+
+/// One robot seen in one frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Observation {
+    /// The robot's id (from its markers' codes, see [`crate::rig::robot_face`]).
+    pub robot: u32,
+    /// Number of point correspondences of the pose solve (4 per marker face); used to
+    /// rescale the covariance to [`TrackerConfig::corner_sigma_px`](crate::tracker::TrackerConfig::corner_sigma_px).
+    pub points: usize,
+    /// Its pose measurement: rig frame to camera frame, with covariance.
+    pub pose: PoseMeasurement,
+}
+
+/// Everything the tracker needs about one frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameInput {
+    /// Frame time, seconds.
+    pub t: f64,
+    /// The follower's inputs `(v2, w2)` applied since the previous frame.
+    pub follower: Inputs,
+    /// The camera mount at this frame (its `pan` may change per frame; its `offset` must be
+    /// the filter's `d`).
+    pub mount: CameraMount,
+    /// The robots seen (at most one entry per robot; later duplicates are ignored).
+    pub observations: Vec<Observation>,
+}
+
+/// A track's status in one frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Status {
+    /// A measurement was applied this frame.
+    Tracking,
+    /// No measurement applied this frame (not seen, gated or invalid); predicted only.
+    Coasting,
+    /// Dropped this frame (too long without a measurement, or the filter failed); the
+    /// values are the last estimate.
+    Lost,
+}
+
+/// What happened to a leader's measurement in one frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MeasurementUse {
+    /// A new track was started from it.
+    Initialised,
+    /// Applied in a filter update.
+    Updated,
+    /// Rejected by the Mahalanobis gate.
+    Gated,
+    /// Unusable (non-finite, or the leader on the camera point); skipped.
+    Invalid,
+    /// The leader was not seen.
+    Missing,
+}
+
+/// One leader in one frame's output.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct LeaderReport {
+    /// Robot id.
+    pub robot: u32,
+    /// Track status.
+    pub status: Status,
+    /// What happened to this frame's measurement.
+    pub measurement: MeasurementUse,
+    /// Hypotheses alive: 2 while a single-face start is being confirmed, else 1.
+    pub hypotheses: u8,
+    /// Which planar candidate was used (0 = `best`, 1 = the alternative); `None` without
+    /// candidates.
+    pub candidate: Option<u8>,
+    /// Mahalanobis distance squared of the used (or gated) measurement, if any.
+    pub nis: Option<f64>,
+    /// Estimated separation, m.
+    pub l12: f64,
+    /// Estimated bearing in the leader's frame, rad.
+    pub alpha12: f64,
+    /// Estimated bearing in the follower's frame, rad.
+    pub beta12: f64,
+    /// Estimated leader speed, m/s.
+    pub v1: f64,
+    /// Estimated leader turn rate, rad/s.
+    pub w1: f64,
+    /// Standard deviation of `l12`, m.
+    pub l12_std: f64,
+    /// Standard deviation of `alpha12`, rad.
+    pub alpha12_std: f64,
+    /// Standard deviation of `beta12`, rad.
+    pub beta12_std: f64,
+    /// Standard deviation of `v1`, m/s.
+    pub v1_std: f64,
+    /// Standard deviation of `w1`, rad/s.
+    pub w1_std: f64,
+    /// Seconds since the last accepted measurement.
+    pub since_seen: f64,
+}
+
+/// One frame's output: every leader with a track, sorted by robot id.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FrameReport {
+    /// Frame time, seconds.
+    pub t: f64,
+    /// The leaders.
+    pub leaders: Vec<LeaderReport>,
+}
