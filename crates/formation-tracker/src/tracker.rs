@@ -55,7 +55,8 @@
 //! candidate (lower RMS) starts the main hypothesis and the other a **rival**. For
 //! [`TrackerConfig::confirm_time`] (default 1 s) both are run on every frame, each choosing
 //! its own nearest candidate and accumulating a score, the sum of its chosen `d^2` (each
-//! capped at the gate). The hypothesis with the lower score is the one reported (the report's
+//! capped at the gate). The main hypothesis is reported unless the rival's score is lower by
+//! more than 8 (hysteresis), in which case they swap (the report's
 //! `hypotheses` is 2 meanwhile); at the end of the window the other is dropped. The flipped
 //! pose is not consistent with the unicycle kinematics and the follower's known motion over
 //! time, so its score grows faster. A wrong hypothesis that survives shows up as gated
@@ -81,7 +82,8 @@ mod io;
 
 pub use config::{CHI2_3_999, TrackerConfig, TrackerError};
 pub use io::{
-    FrameInput, FrameReport, LeaderReport, MeasurementUse, Observation, PoseMeasurement, Status,
+    FormationMeasurement, FrameInput, FrameReport, LeaderReport, MeasurementUse, Observation,
+    PoseMeasurement, Status,
 };
 
 use std::collections::BTreeMap;
@@ -91,8 +93,13 @@ use unicycle::{Formation, Inputs, PolarState, wrap_angle};
 
 use crate::filter::{FilterError, FormationFilter};
 use crate::mount::{
-    CameraMount, MeasurementError, formation_from_camera_pose, propagate_covariance,
+    CameraMount, MIN_L12, MeasurementError, formation_from_camera_pose, propagate_covariance,
 };
+
+/// How much lower (in summed `d^2`) the rival's score must be before it replaces the main
+/// hypothesis: hysteresis, so that the reported estimate does not alternate between the two
+/// while the evidence is still even.
+const SWITCH_MARGIN: f64 = 8.0;
 
 /// One filter and how well it has explained the measurements so far.
 #[derive(Debug, Clone)]
@@ -268,18 +275,37 @@ impl Tracker {
             }
             Ok(Formed { y, r, candidate })
         };
+        let given = |f: &FormationMeasurement, candidate| -> Result<Formed, MeasurementError> {
+            if !f.y.iter().chain(f.r.iter()).all(|v| v.is_finite()) {
+                return Err(MeasurementError::NonFinite {
+                    what: "formation measurement",
+                });
+            }
+            if f.y[0] < MIN_L12 {
+                return Err(MeasurementError::Coincident { l12: f.y[0] });
+            }
+            let mut y = f.y;
+            y[1] = wrap_angle(y[1]);
+            y[2] = wrap_angle(y[2]);
+            let r = (f.r + f.r.transpose()) * 0.5 + floor;
+            Ok(Formed { y, r, candidate })
+        };
+        let pair = |first: Result<Formed, MeasurementError>,
+                    second: Result<Formed, MeasurementError>| {
+            // An unusable alternative does not spoil a usable best candidate.
+            match (first, second) {
+                (Ok(x), Ok(y)) => Ok(vec![x, y]),
+                (Ok(x), Err(_)) => Ok(vec![x]),
+                (Err(_), Ok(y)) => Ok(vec![y]),
+                (Err(e), Err(_)) => Err(e),
+            }
+        };
         match m {
             PoseMeasurement::Chosen(e) => Ok(vec![form(e, None)?]),
-            PoseMeasurement::Candidates([a, b]) => {
-                // An unusable alternative does not spoil a usable best candidate.
-                let first = form(a, Some(0));
-                let second = form(b, Some(1));
-                match (first, second) {
-                    (Ok(x), Ok(y)) => Ok(vec![x, y]),
-                    (Ok(x), Err(_)) => Ok(vec![x]),
-                    (Err(_), Ok(y)) => Ok(vec![y]),
-                    (Err(e), Err(_)) => Err(e),
-                }
+            PoseMeasurement::Candidates([a, b]) => pair(form(a, Some(0)), form(b, Some(1))),
+            PoseMeasurement::Formation(f) => Ok(vec![given(f, None)?]),
+            PoseMeasurement::FormationCandidates([a, b]) => {
+                pair(given(a, Some(0)), given(b, Some(1)))
             }
         }
     }
@@ -380,7 +406,7 @@ impl Tracker {
         let mut outcome = match (main, rival) {
             (Ok(o), None) => o,
             (Ok(o), Some((h, ro))) => {
-                if h.score < track.main.score {
+                if h.score + SWITCH_MARGIN < track.main.score {
                     // The rival explains the measurements better: it becomes the main.
                     track.rival = Some(std::mem::replace(&mut track.main, h));
                     ro

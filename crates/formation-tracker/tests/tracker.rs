@@ -525,3 +525,80 @@ proptest! {
         }
     }
 }
+
+/// Measurements already in formation variables (the reference scenario's own noisy `y`,
+/// `R = diag(0.07^2, 0.03^2, 0.03^2)`): filtered better than raw; a mirrored `alpha12`
+/// candidate listed first in every third frame is not taken; bad values are skipped.
+#[test]
+fn formation_measurements_are_filtered_and_checked() {
+    use formation_tracker::tracker::FormationMeasurement;
+    use nalgebra::Matrix3;
+    let scenario = simulate(&ScenarioConfig::reference(8)).unwrap();
+    let r = scenario.config.noise_covariance();
+    let mut tr = tracker();
+    let (mut est, mut raw) = (0.0, 0.0);
+    for (k, s) in scenario.samples.iter().enumerate() {
+        let prev = &scenario.samples[k.saturating_sub(1)];
+        let good = FormationMeasurement {
+            y: s.measurement,
+            r,
+        };
+        let mut mirrored = good;
+        mirrored.y[1] = -good.y[1] - 0.3;
+        let pair = if k % 3 == 1 {
+            [mirrored, good]
+        } else {
+            [good, mirrored]
+        };
+        let rep = tr
+            .update(&FrameInput {
+                t: s.t,
+                follower: prev.follower_inputs,
+                mount: CameraMount::default(),
+                observations: seen(PoseMeasurement::FormationCandidates(pair)),
+            })
+            .unwrap();
+        let l = leader(&rep);
+        assert!(sane(l));
+        let truth = PolarModel::h(&s.truth);
+        if k > 0 {
+            est += (l.l12 - truth[0]).powi(2) + wrap_angle(l.alpha12 - truth[1]).powi(2);
+            raw += (s.measurement[0] - truth[0]).powi(2)
+                + wrap_angle(s.measurement[1] - truth[1]).powi(2);
+        }
+        if s.t > 1.0 {
+            assert!(wrap_angle(l.alpha12 - truth[1]).abs() < 0.1, "t = {}", s.t);
+        }
+    }
+    assert!(est < 0.2 * raw, "filtered {est} vs raw {raw}");
+
+    let f = |y: Vector3<f64>| {
+        PoseMeasurement::Formation(FormationMeasurement {
+            y,
+            r: Matrix3::identity() * 1e-3,
+        })
+    };
+    let last = scenario.samples.last().unwrap();
+    for (i, bad) in [
+        f(Vector3::new(f64::NAN, 0.0, 0.0)),
+        f(Vector3::new(0.0, 0.1, 0.1)),
+        PoseMeasurement::Formation(FormationMeasurement {
+            y: Vector3::new(1.0, 0.1, 0.1),
+            r: Matrix3::identity() * f64::INFINITY,
+        }),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let rep = tr
+            .update(&FrameInput {
+                t: last.t + (i + 1) as f64 / 30.0,
+                follower: last.follower_inputs,
+                mount: CameraMount::default(),
+                observations: seen(bad),
+            })
+            .unwrap();
+        assert_eq!(leader(&rep).measurement, MeasurementUse::Invalid);
+        assert!(sane(leader(&rep)));
+    }
+}

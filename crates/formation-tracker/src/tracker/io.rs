@@ -1,5 +1,6 @@
 //! What goes into the tracker per frame and what comes out.
 
+use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 use unicycle::Inputs;
 
@@ -14,6 +15,21 @@ pub enum PoseMeasurement {
     Chosen(pose::Estimate),
     /// A single face: both planar candidates, lowest reprojection RMS first.
     Candidates([pose::Estimate; 2]),
+    /// A measurement already in formation variables: `y = [l12, alpha12, beta12]` and its
+    /// covariance (e.g. from a pipeline that refines poses on the ground plane). Used as
+    /// given: the floor is added, no rescaling.
+    Formation(FormationMeasurement),
+    /// Two candidates already in formation variables (a single face), best first.
+    FormationCandidates([FormationMeasurement; 2]),
+}
+
+/// Formation variables `[l12, alpha12, beta12]` with their covariance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FormationMeasurement {
+    /// `[l12, alpha12, beta12]` (m, rad, rad).
+    pub y: Vector3<f64>,
+    /// Their covariance.
+    pub r: Matrix3<f64>,
 }
 
 /// One robot seen in one frame.
