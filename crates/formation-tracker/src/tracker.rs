@@ -82,8 +82,8 @@ mod io;
 
 pub use config::{CHI2_3_999, TrackerConfig, TrackerError};
 pub use io::{
-    FormationMeasurement, FrameInput, FrameReport, LeaderReport, MeasurementUse, Observation,
-    PoseMeasurement, Status,
+    FormationMeasurement, FrameInput, FrameReport, LeaderReport, LostReason, MeasurementUse,
+    Observation, PoseMeasurement, Status,
 };
 
 use std::collections::BTreeMap;
@@ -395,7 +395,8 @@ impl Tracker {
             {
                 return r;
             }
-            return report(robot, &track, t, Status::Lost, MeasurementUse::Missing);
+            return report(robot, &track, t, Status::Lost, MeasurementUse::Missing)
+                .lost(LostReason::Timeout);
         }
         let formed = formed.as_ref();
         let main = self.run(&mut track.main, steps, u, formed);
@@ -420,7 +421,8 @@ impl Tracker {
                 ro
             }
             (Err(_), None) => {
-                return report(robot, &track, t, Status::Lost, MeasurementUse::Missing);
+                return report(robot, &track, t, Status::Lost, MeasurementUse::Missing)
+                    .lost(LostReason::FilterFailed);
             }
         };
         if t >= track.confirm_until {
@@ -526,6 +528,7 @@ fn report(
         robot,
         status,
         measurement,
+        lost: None,
         hypotheses: if track.rival.is_some() { 2 } else { 1 },
         candidate: None,
         nis: None,
@@ -544,6 +547,11 @@ fn report(
 }
 
 impl LeaderReport {
+    fn lost(mut self, reason: LostReason) -> Self {
+        self.lost = Some(reason);
+        self
+    }
+
     fn with(mut self, candidate: Option<u8>, nis: Option<f64>) -> Self {
         self.candidate = candidate;
         self.nis = nis;

@@ -6,8 +6,8 @@
 use formation_tracker::mount::{CameraMount, formation_from_camera_pose};
 use formation_tracker::scenario::{ScenarioConfig, simulate};
 use formation_tracker::tracker::{
-    FrameInput, FrameReport, LeaderReport, MeasurementUse, Observation, PoseMeasurement, Status,
-    Tracker, TrackerConfig, TrackerError,
+    FrameInput, FrameReport, LeaderReport, LostReason, MeasurementUse, Observation,
+    PoseMeasurement, Status, Tracker, TrackerConfig, TrackerError,
 };
 use nalgebra::{Matrix6, Rotation3, Vector3, Vector6};
 use proptest::prelude::*;
@@ -250,6 +250,7 @@ fn long_occlusion_is_lost_once_then_reinitialised_under_same_id() {
                 assert!(sane(l));
                 if l.status == Status::Lost {
                     assert!(l.since_seen > 2.0);
+                    assert_eq!(l.lost, Some(LostReason::Timeout));
                     lost_frames.push(f.t);
                 }
                 if f.t > 2.5 && l.measurement == MeasurementUse::Initialised {
@@ -516,7 +517,15 @@ proptest! {
                     prop_assert!(*code >= 4);
                 }
                 if l.status == Status::Lost {
-                    prop_assert!(l.since_seen > 2.0);
+                    // Lost by timeout, or because a coast drove the filter to l12 <= 0 (a
+                    // velocity estimate from too few measurements).
+                    match l.lost {
+                        Some(LostReason::Timeout) => prop_assert!(l.since_seen > 2.0),
+                        Some(LostReason::FilterFailed) => {}
+                        None => prop_assert!(false, "lost without a reason"),
+                    }
+                } else {
+                    prop_assert!(l.lost.is_none());
                 }
                 if l.status == Status::Coasting {
                     prop_assert!(l.since_seen <= 2.0);

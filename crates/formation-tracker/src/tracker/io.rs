@@ -71,6 +71,16 @@ pub enum Status {
     Lost,
 }
 
+/// Why a track was dropped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LostReason {
+    /// No accepted measurement for longer than `lost_after`.
+    Timeout,
+    /// The filter failed (e.g. a coasting prediction reached `l12 <= 0`).
+    FilterFailed,
+}
+
 /// What happened to a leader's measurement in one frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -96,6 +106,8 @@ pub struct LeaderReport {
     pub status: Status,
     /// What happened to this frame's measurement.
     pub measurement: MeasurementUse,
+    /// Why the track was dropped (only with status `lost`).
+    pub lost: Option<LostReason>,
     /// Hypotheses alive: 2 while a single-face start is being confirmed, else 1.
     pub hypotheses: u8,
     /// Which planar candidate was used (0 = `best`, 1 = the alternative); `None` without
