@@ -1,0 +1,147 @@
+//! The detector: grey frame in, refined marker quadrilaterals out (spec 3.4).
+//!
+//! A [`Detector`] owns every buffer of every stage (smoothed frame, tile statistics, binary
+//! image, runs and components, contour, edge points, output quads). Buffers grow to fit the
+//! first frame of a size and are then reused, so a steady stream of frames of one size is
+//! detected without touching the heap (an integration test counts allocations to prove it).
+//!
+//! Stages: [`Binarizer`] (adaptive tile threshold, or Otsu), [`Labeller`] (run-length
+//! union-find), cheap rejection of components by size, shape and frame-border contact,
+//! [`trace_outer`] (Moore border following) and [`fit_quad`] (four-vertex polygon), then
+//! [`Refiner`] (sub-pixel corners from grey-level edge lines).
+
+use nalgebra::Point2;
+
+use crate::contour::{Labeller, trace_outer};
+use crate::image::{Corners, GrayView};
+use crate::quad::{QuadLimits, fit_quad};
+use crate::refine::{RefineConfig, Refiner};
+use crate::threshold::{Binarizer, Threshold};
+
+/// Every tunable of the detector, with documented defaults ([`DetectorConfig::default`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DetectorConfig {
+    /// Binarization (default: adaptive tiles of 8 px, minimum contrast 20).
+    pub threshold: Threshold,
+    /// Shortest marker side in pixels (default 10).
+    pub min_side: f64,
+    /// Smallest interior corner angle in degrees, allowing for perspective (default 30).
+    pub min_angle_deg: f64,
+    /// Straightness tolerance of a side: absolute pixels (default 1.5)...
+    pub line_tolerance: f64,
+    /// ...plus this fraction of the side length (default 0.05).
+    pub line_tolerance_rel: f64,
+    /// Components closer than this many pixels to the frame border are rejected (default 2).
+    pub border_margin: u32,
+    /// Sub-pixel refinement settings (default: [`RefineConfig::default`]).
+    pub refine: RefineConfig,
+}
+
+impl Default for DetectorConfig {
+    fn default() -> Self {
+        Self {
+            threshold: Threshold::default(),
+            min_side: 10.0,
+            min_angle_deg: 30.0,
+            line_tolerance: 1.5,
+            line_tolerance_rel: 0.05,
+            border_margin: 2,
+            refine: RefineConfig::default(),
+        }
+    }
+}
+
+/// A candidate marker outline with sub-pixel corners.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Quad {
+    /// Corners in pixel-centre coordinates, clockwise in the image (v down). Which corner is
+    /// the marker's north-west is only known after decoding.
+    pub corners: Corners,
+    /// Mean grey-level step across the four edges (0-255): a confidence measure.
+    pub contrast: f64,
+}
+
+/// The marker detector; reuse one per stream of frames.
+#[derive(Debug, Default, Clone)]
+pub struct Detector {
+    config: DetectorConfig,
+    binarizer: Binarizer,
+    bin: Vec<u8>,
+    labeller: Labeller,
+    contour: Vec<[i32; 2]>,
+    refiner: Refiner,
+    quads: Vec<Quad>,
+}
+
+impl Detector {
+    /// A detector with the given settings; buffers grow on the first frame.
+    pub fn new(config: DetectorConfig) -> Self {
+        Self {
+            config,
+            ..Self::default()
+        }
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &DetectorConfig {
+        &self.config
+    }
+
+    /// The binary image of the last frame (`width` bytes per row, 1 = dark), for debugging
+    /// and visualisation.
+    pub fn binary(&self) -> &[u8] {
+        &self.bin
+    }
+
+    /// Finds the quadrilateral outlines of dark regions in `img` with sub-pixel corners: the
+    /// quad-finding phase of detection (no decoding). The returned slice lives in the
+    /// detector and is overwritten by the next call.
+    pub fn find_quads(&mut self, img: &GrayView<'_>) -> &[Quad] {
+        self.quads.clear();
+        let cfg = self.config;
+        let (w, h) = (img.width(), img.height());
+        self.binarizer.binarize(img, cfg.threshold, &mut self.bin);
+        let limits = QuadLimits {
+            min_side: cfg.min_side,
+            min_angle_deg: cfg.min_angle_deg,
+            line_tolerance: cfg.line_tolerance,
+            line_tolerance_rel: cfg.line_tolerance_rel,
+        };
+        let m = cfg.border_margin.max(1);
+        let min_side = cfg.min_side.max(3.0) as u32;
+        let components = self.labeller.label(&self.bin, w);
+        for c in components {
+            let bw = c.x_max - c.x_min + 1;
+            let bh = c.y_max - c.y_min + 1;
+            // Cheap rejections first: size, frame border, sparsity.
+            if bw.max(bh) < min_side
+                || bw.min(bh) < min_side / 2
+                || c.pixels < bw.max(bh) + bw.min(bh)
+                || c.x_min < m
+                || c.y_min < m
+                || c.x_max as usize + m as usize >= w
+                || c.y_max as usize + m as usize >= h
+            {
+                continue;
+            }
+            let max_len = 2 * (bw + bh) as usize + 16;
+            if !trace_outer(&self.bin, w, c.start_x, c.y_min, max_len, &mut self.contour) {
+                continue;
+            }
+            let Some(coarse) = fit_quad(&self.contour, &limits) else {
+                continue;
+            };
+            let Some((corners, contrast)) =
+                self.refiner
+                    .refine(img, &coarse, &cfg.refine, cfg.min_angle_deg)
+            else {
+                continue;
+            };
+            self.quads.push(Quad {
+                corners: corners.map(|[x, y]| Point2::new(x, y)),
+                contrast,
+            });
+        }
+        &self.quads
+    }
+}
