@@ -68,15 +68,12 @@ impl Labeller {
             let mut x = 0usize;
             while x < width {
                 // Skip light pixels.
-                match row[x..].iter().position(|&v| v == DARK) {
+                match first_where(&row[x..], true) {
                     None => break,
                     Some(off) => x += off,
                 }
                 let x0 = x;
-                x += row[x..]
-                    .iter()
-                    .position(|&v| v != DARK)
-                    .unwrap_or(width - x);
+                x += first_where(&row[x..], false).unwrap_or(width - x);
                 let idx = self.runs.len() as u32;
                 self.runs.push(Run {
                     y: y as u32,
@@ -151,6 +148,31 @@ impl Labeller {
             self.parent[ra as usize] = rb;
         }
     }
+}
+
+/// Index of the first dark (`dark == true`) or light pixel, eight bytes at a time: the first
+/// byte that differs from the skipped kind is found from the trailing zeros of a word.
+#[inline]
+fn first_where(row: &[u8], dark: bool) -> Option<usize> {
+    let skip = if dark {
+        0u64
+    } else {
+        u64::from_le_bytes([DARK; 8])
+    };
+    let mut chunks = row.chunks_exact(8);
+    let mut base = 0;
+    for c in chunks.by_ref() {
+        let word = u64::from_le_bytes(c.try_into().unwrap_or([0; 8])) ^ skip;
+        if word != 0 {
+            return Some(base + (word.trailing_zeros() / 8) as usize);
+        }
+        base += 8;
+    }
+    chunks
+        .remainder()
+        .iter()
+        .position(|&v| (v == DARK) == dark)
+        .map(|p| p + base)
 }
 
 /// Neighbour offsets clockwise in the image (v down), starting west.
@@ -260,6 +282,22 @@ mod tests {
             (3, 0, 3)
         );
         assert_eq!(comps[3].pixels, 1);
+    }
+
+    #[test]
+    fn first_where_finds_every_position() {
+        for len in 0..40 {
+            for at in 0..len {
+                let mut row = vec![0u8; len];
+                row[at] = DARK;
+                assert_eq!(first_where(&row, true), Some(at));
+                let mut row = vec![DARK; len];
+                row[at] = 0;
+                assert_eq!(first_where(&row, false), Some(at));
+            }
+            assert_eq!(first_where(&vec![0u8; len], true), None);
+            assert_eq!(first_where(&vec![DARK; len], false), None);
+        }
     }
 
     #[test]

@@ -21,7 +21,7 @@ use crate::threshold::{Binarizer, Threshold};
 /// Every tunable of the detector, with documented defaults ([`DetectorConfig::default`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DetectorConfig {
-    /// Binarization (default: adaptive tiles of 8 px, minimum contrast 20).
+    /// Binarization (default: adaptive tiles of 8 px, minimum contrast 30).
     pub threshold: Threshold,
     /// Shortest marker side in pixels (default 10).
     pub min_side: f64,

@@ -26,6 +26,10 @@ pub struct RefineConfig {
     pub min_edge_contrast: f64,
     /// Largest number of stations per side.
     pub max_stations: usize,
+    /// Spacing of stations along a side, in pixels.
+    pub station_spacing: f64,
+    /// Largest half-length of an edge profile (second pass), in pixels.
+    pub max_half_profile: f64,
 }
 
 impl Default for RefineConfig {
@@ -34,7 +38,9 @@ impl Default for RefineConfig {
             corner_margin_rel: 0.12,
             corner_margin_px: 2.0,
             min_edge_contrast: 10.0,
-            max_stations: 32,
+            max_stations: 24,
+            station_spacing: 1.5,
+            max_half_profile: 2.5,
         }
     }
 }
@@ -44,27 +50,47 @@ impl Default for RefineConfig {
 pub fn bilinear(img: &GrayView<'_>, x: f64, y: f64) -> f64 {
     let wmax = (img.width() - 1) as f64;
     let hmax = (img.height() - 1) as f64;
-    let x = if x.is_finite() {
-        x.clamp(0.0, wmax)
-    } else {
-        0.0
-    };
-    let y = if y.is_finite() {
-        y.clamp(0.0, hmax)
-    } else {
-        0.0
-    };
-    let x0 = x.floor();
-    let y0 = y.floor();
-    let fx = x - x0;
-    let fy = y - y0;
-    let (xi, yi) = (x0 as usize, y0 as usize);
+    // Clamped to >= 0, so truncation is floor (and NaN becomes 0).
+    let x = x.max(0.0).min(wmax);
+    let y = y.max(0.0).min(hmax);
+    let (xi, yi) = (x as usize, y as usize);
+    let fx = x - xi as f64;
+    let fy = y - yi as f64;
     let xj = (xi + 1).min(img.width() - 1);
     let r0 = img.row(yi);
     let r1 = img.row((yi + 1).min(img.height() - 1));
-    let top = f64::from(r0[xi]) * (1.0 - fx) + f64::from(r0[xj]) * fx;
-    let bot = f64::from(r1[xi]) * (1.0 - fx) + f64::from(r1[xj]) * fx;
-    top * (1.0 - fy) + bot * fy
+    let top = f64::from(r0[xi]) + (f64::from(r0[xj]) - f64::from(r0[xi])) * fx;
+    let bot = f64::from(r1[xi]) + (f64::from(r1[xj]) - f64::from(r1[xi])) * fx;
+    top + (bot - top) * fy
+}
+
+/// Samples `out.len()` bilinear grey levels at `start + k * step`. When the whole segment
+/// lies inside the frame the samples are read without clamping.
+fn sample_profile(img: &GrayView<'_>, start: [f64; 2], step: [f64; 2], out: &mut [f64]) {
+    let last = (out.len().max(1) - 1) as f64;
+    let end = [start[0] + last * step[0], start[1] + last * step[1]];
+    let (w, h) = ((img.width() - 1) as f64, (img.height() - 1) as f64);
+    let inside = |p: [f64; 2]| p[0] >= 0.0 && p[1] >= 0.0 && p[0] < w && p[1] < h;
+    if !(inside(start) && inside(end)) {
+        for (k, v) in out.iter_mut().enumerate() {
+            let t = k as f64;
+            *v = bilinear(img, start[0] + t * step[0], start[1] + t * step[1]);
+        }
+        return;
+    }
+    for (k, v) in out.iter_mut().enumerate() {
+        let t = k as f64;
+        let (x, y) = (start[0] + t * step[0], start[1] + t * step[1]);
+        let (xi, yi) = (x as usize, y as usize);
+        let (fx, fy) = (x - xi as f64, y - yi as f64);
+        let r0 = &img.row(yi)[xi..];
+        let r1 = &img.row(yi + 1)[xi..];
+        let (a, b) = (f64::from(r0[0]), f64::from(r0[1]));
+        let (c, d) = (f64::from(r1[0]), f64::from(r1[1]));
+        let top = a + (b - a) * fx;
+        let bot = c + (d - c) * fx;
+        *v = top + (bot - top) * fy;
+    }
 }
 
 /// A line `n . p = c` with unit normal `n`.
@@ -188,14 +214,20 @@ impl Refiner {
         if usable <= 0.0 {
             return None;
         }
-        let stations = (usable.floor() as usize + 1).clamp(2, cfg.max_stations.max(2));
+        // The first pass only has to centre the second: a few stations suffice.
+        let cap = if pass == 0 {
+            8
+        } else {
+            cfg.max_stations.max(2)
+        };
+        let stations = ((usable / cfg.station_spacing.max(0.5)) as usize + 1).clamp(2, cap);
         let step_s = usable / (stations - 1) as f64;
         // Half-width of the profile: wide enough for blur, short enough to stay inside the
         // border cell (about a seventh of the side) on small markers.
         let half = if pass == 0 {
             (0.12 * len).clamp(1.5, 3.5)
         } else {
-            (0.1 * len).clamp(1.5, 3.0)
+            (0.1 * len).clamp(1.5, cfg.max_half_profile.max(1.5))
         };
         const STEP: f64 = 0.5;
         let k_max = ((2.0 * half / STEP).round() as usize).min(PROFILE - 1);
@@ -211,11 +243,15 @@ impl Refiner {
             let px = a[0] + d * t[0] + offset * n[0];
             let py = a[1] + d * t[1] + offset * n[1];
             let mut prof = [0.0f64; PROFILE];
-            for (k, v) in prof.iter_mut().enumerate().take(k_max + 1) {
-                let o = k as f64 * STEP - half;
-                *v = bilinear(img, px + o * n[0], py + o * n[1]);
-                lo = lo.min(*v);
-                hi = hi.max(*v);
+            sample_profile(
+                img,
+                [px - half * n[0], py - half * n[1]],
+                [STEP * n[0], STEP * n[1]],
+                &mut prof[..=k_max],
+            );
+            for &v in &prof[..=k_max] {
+                lo = lo.min(v);
+                hi = hi.max(v);
             }
             self.profiles.push(([px, py], prof));
         }
