@@ -6,18 +6,26 @@
 
 use std::process::ExitCode;
 
+mod bench_report;
+mod dictionary;
+
 type Result<T = ()> = std::result::Result<T, Box<dyn std::error::Error>>;
 
 const USAGE: &str = "usage: cargo xtask <command>
 
 commands:
   no-c             fail if any crate in the dependency tree builds C code
+  bench-report     run all criterion benchmarks and write docs/performance.md
+                   (--quick: short measurements; --no-run: only rebuild the table)
+  dictionary       regenerate crates/fiducial/data/dict-4x5-d6.txt (--check: only compare)
 ";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.first().map(String::as_str) {
         Some("no-c") => no_c(),
+        Some("bench-report") => bench_report::run(&args[1..]),
+        Some("dictionary") => dictionary::run(&args[1..]),
         _ => {
             eprint!("{USAGE}");
             return ExitCode::from(2);

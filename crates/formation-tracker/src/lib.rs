@@ -1,4 +1,20 @@
-//! Vision-based tracking of mobile robots in formation: rig model, measurement transform, tracker and CLI.
+//! Vision-based tracking of mobile robots in formation: rig model, measurement transform,
+//! tracker and CLI.
 //!
-//! (Crate under construction: see `docs/architecture.md`.)
+//! This crate is the thin composition layer over the library crates: `fiducial` finds and
+//! reads markers, `pose` measures their 6-DOF pose, `unicycle` models the robots and
+//! `dukf` filters. What belongs here is what ties them to *our* robots:
+//!
+//! - [`rig`]: the leader's octagon of five marker faces (spec 3.3), the 3D corners of each
+//!   marker in the leader's body frame, and the mapping between `(robot, face)` and
+//!   dictionary entries. It knows markers only through `fiducial`'s dictionary indices.
+//! - [`mount`]: the camera mount on the follower and the measurement transform of spec 2.5,
+//!   from a leader's pose in the camera frame to `(l12, alpha12, beta12)` and their
+//!   covariance.
+//!
+//! The `formation-tracker` binary's subcommands live beside `main.rs` in `cmd/`; they are
+//! thin wrappers that parse arguments, call these modules and write files.
 #![deny(missing_docs)]
+
+pub mod mount;
+pub mod rig;

@@ -25,12 +25,15 @@ struct Cli {
 enum Command {
     /// Print the versions of the library crates this binary was built from.
     Info,
+    /// Write print-ready marker images (PNG + SVG) for every robot's rig, and markers.json.
+    Markers(cmd::markers::Args),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result: Result<(), cmd::CliError> = match cli.command {
         Command::Info => cmd::info::run(),
+        Command::Markers(args) => cmd::markers::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

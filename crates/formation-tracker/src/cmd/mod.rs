@@ -4,3 +4,4 @@
 pub type CliError = Box<dyn std::error::Error + Send + Sync + 'static>;
 
 pub mod info;
+pub mod markers;

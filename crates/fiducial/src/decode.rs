@@ -1,0 +1,415 @@
+//! Reading a marker's code from an image, given its four refined corners (spec 3.4 step 4).
+//!
+//! Every cell centre is found by the cross-ratio construction ([`crate::cross_ratio`]) and
+//! the grey level around it is averaged over a small square (bilinear samples; samples
+//! outside the image are skipped) whose half-size is a fraction of the cell pitch measured
+//! from the quad's side lengths, so the same code reads a 20-pixel and a 200-pixel marker.
+//!
+//! The border ring gives the black reference, the ring of quiet-zone cells just outside it
+//! the white reference (medians, so a few bad cells do not move them). Their difference is
+//! the contrast; a data cell is black when darker than the midpoint. A quad is rejected
+//! when the contrast is too low, when more than a few border cells read light (the border
+//! must be dark), or when the code is not within the dictionary's correction radius.
+//!
+//! Orientation. The corners may start at any of the marker's corners (clockwise in the
+//! image). For a square family one reading suffices: the dictionary lookup tries all four
+//! rotations. A non-square `m x n` grid maps onto itself only under half turns, so the grid
+//! is read twice, with the corners as given and shifted by one; the reading whose samples
+//! fall most cleanly inside cells ([`CellReading::fit`]: samples of a grid read across the
+//! wrong aspect land on cell boundaries) is the one looked up. Choosing the aspect *before*
+//! the lookup keeps the guarantee that three flipped bits never give a wrong ID. The result carries the rotation found
+//! and the corners re-ordered into the marker's own NW, NE, SE, SW.
+//!
+//! Nothing here allocates: cell levels live in fixed arrays and the code in a `u64`.
+
+use crate::cross_ratio::{CrossRatioFrame, convex_quad_area2};
+use crate::dictionary::Dictionary;
+use crate::family::MarkerFamily;
+use crate::image::{Corners, GrayView};
+
+/// Tuning of [`decode`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DecodeParams {
+    /// Most bit errors to correct; capped at the dictionary's `(d_min - 1) / 2`.
+    pub max_errors: u32,
+    /// Smallest accepted difference between the white (quiet zone) and black (border)
+    /// reference levels, in grey levels.
+    pub min_contrast: f64,
+    /// Most border cells allowed to read light (above the midpoint).
+    pub max_light_border_cells: u32,
+    /// Half-size of the averaged square around each cell centre, as a fraction of the
+    /// smallest measured cell pitch (0 samples only the centre; at most 0.5).
+    pub sample_radius: f64,
+}
+
+impl Default for DecodeParams {
+    /// Full correction, contrast >= 20 grey levels, at most 1 light border cell, samples
+    /// over +-0.25 cell.
+    fn default() -> Self {
+        Self {
+            max_errors: u32::MAX,
+            min_contrast: 20.0,
+            max_light_border_cells: 1,
+            sample_radius: 0.25,
+        }
+    }
+}
+
+/// Why a quad was not read as a marker. Rejection is the decoder's normal outcome for
+/// candidates that are not markers; the variants say which test failed.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum Rejection {
+    /// The corners are not finite or do not form a convex, non-degenerate quadrilateral.
+    #[error("not a convex quadrilateral: {reason}")]
+    BadQuad {
+        /// What is wrong.
+        reason: &'static str,
+    },
+    /// The corners run counter-clockwise in the image (NW, NE, SE, SW must be clockwise
+    /// with v pointing down); a mirrored marker is never read.
+    #[error("corners run counter-clockwise in the image (see cross_ratio::clockwise)")]
+    CounterClockwise,
+    /// A border or data cell has no sample inside the image.
+    #[error("a marker cell lies outside the image")]
+    OutsideImage,
+    /// No quiet-zone sample lies inside the image, so there is no white reference.
+    #[error("the quiet zone lies outside the image")]
+    QuietZoneOutside,
+    /// The quiet zone is not lighter than the border by enough.
+    #[error("contrast {contrast:.1} grey levels is below the minimum {min:.1}")]
+    LowContrast {
+        /// White minus black reference level.
+        contrast: f64,
+        /// The minimum asked for.
+        min: f64,
+    },
+    /// Too many border cells read light: the border is not dark.
+    #[error("{light} border cells read light (at most {max} allowed)")]
+    BorderNotDark {
+        /// Border cells above the midpoint.
+        light: u32,
+        /// The maximum allowed.
+        max: u32,
+    },
+    /// The code read is not within the correction radius of any entry.
+    #[error("code {read:#x} is {nearest} bits from the nearest entry (at most {max} corrected)")]
+    NoMatch {
+        /// The code as read, in the corner order given.
+        read: u64,
+        /// Distance to the nearest entry under any rotation.
+        nearest: u32,
+        /// The correction limit used.
+        max: u32,
+    },
+    /// Invalid parameters.
+    #[error("bad decode parameters: {reason}")]
+    BadParams {
+        /// What is wrong.
+        reason: &'static str,
+    },
+}
+
+/// The grid read from an image in a given corner order, before lookup.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CellReading {
+    /// The data bits as read, bit `row * n + col` in the frame of the corners given.
+    pub code: u64,
+    /// Black reference: median level of the border cells.
+    pub black: f64,
+    /// White reference: median level of the quiet-zone cells inside the image.
+    pub white: f64,
+    /// Border cells above the midpoint.
+    pub light_border_cells: u32,
+    /// Smallest distance of a data cell's level from the midpoint, over half the contrast
+    /// (1 = every cell as dark or light as the references, 0 = a cell exactly at the
+    /// threshold).
+    pub confidence: f64,
+    /// Mean over data cells of the same normalised margin (each capped at 1): how cleanly
+    /// the sample squares fall inside cells. A grid read with the wrong aspect (a
+    /// non-square marker read across) puts samples on cell boundaries and scores lower.
+    pub fit: f64,
+}
+
+impl CellReading {
+    /// White minus black reference level.
+    pub fn contrast(&self) -> f64 {
+        self.white - self.black
+    }
+}
+
+/// A marker read from an image.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Decoded {
+    /// Index of the entry in the dictionary.
+    pub index: usize,
+    /// The entry's code (marker orientation).
+    pub code: u64,
+    /// Bit errors corrected.
+    pub distance: u32,
+    /// Clockwise quarter turns of the marker relative to the corner order given: the
+    /// marker's own NW corner is input corner `rotation` (so `corners[i] ==
+    /// input[(i + rotation) % 4]`).
+    pub rotation: u8,
+    /// The input corners re-ordered into the marker's own NW, NE, SE, SW.
+    pub corners: Corners,
+    /// White minus black reference level, in grey levels.
+    pub contrast: f64,
+    /// See [`CellReading::confidence`].
+    pub confidence: f64,
+}
+
+/// Samples per cell are at most `(2 MAX_STEPS + 1)^2`: a 5 x 5 grid of bilinear samples
+/// spread over the averaging square (about one sample per pixel up to 10-pixel cells,
+/// sparser beyond, where the image is anyway far above the noise).
+const MAX_STEPS: i32 = 2;
+
+/// Upper bounds of the fixed arrays (8 x 8 data cells, a 10 x 10 marker).
+const MAX_BORDER: usize = 4 * 10;
+const MAX_QUIET: usize = 4 * 12;
+
+/// Bilinear grey level at `(x, y)`, `None` outside `[0, w-1] x [0, h-1]`.
+#[inline]
+fn bilinear(image: &GrayView<'_>, x: f64, y: f64) -> Option<f64> {
+    let (w, h) = (image.width(), image.height());
+    if !(x >= 0.0 && y >= 0.0 && x <= (w - 1) as f64 && y <= (h - 1) as f64) {
+        return None;
+    }
+    let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+    let (fx, fy) = (x - x0 as f64, y - y0 as f64);
+    let x1 = (x0 + 1).min(w - 1);
+    let y1 = (y0 + 1).min(h - 1);
+    let (r0, r1) = (image.row(y0), image.row(y1));
+    let top = f64::from(r0[x0]) * (1.0 - fx) + f64::from(r0[x1]) * fx;
+    let bottom = f64::from(r1[x0]) * (1.0 - fx) + f64::from(r1[x1]) * fx;
+    Some(top * (1.0 - fy) + bottom * fy)
+}
+
+/// Samples and averages the grey levels around cells of one quad frame.
+struct Sampler<'v, 'a> {
+    image: &'v GrayView<'a>,
+    frame: CrossRatioFrame,
+    width: f64,
+    height: f64,
+    radius: f64,
+    steps: i32,
+}
+
+impl Sampler<'_, '_> {
+    /// Mean level around the centre of marker cell `(x, y)` (border cells at 0 and
+    /// `width - 1`; the quiet zone at -1 and `width`), `None` if no sample is inside.
+    fn cell(&self, x: i32, y: i32) -> Option<f64> {
+        let (a, b) =
+            CrossRatioFrame::cell_coords(f64::from(x), f64::from(y), self.width, self.height);
+        let c = self.frame.map(a, b)?;
+        let mut sum = 0.0;
+        let mut n = 0u32;
+        let step = if self.steps > 0 {
+            self.radius / f64::from(self.steps)
+        } else {
+            0.0
+        };
+        for j in -self.steps..=self.steps {
+            for i in -self.steps..=self.steps {
+                if let Some(v) = bilinear(
+                    self.image,
+                    c.x + f64::from(i) * step,
+                    c.y + f64::from(j) * step,
+                ) {
+                    sum += v;
+                    n += 1;
+                }
+            }
+        }
+        (n > 0).then(|| sum / f64::from(n))
+    }
+}
+
+fn median(values: &mut [f64]) -> f64 {
+    values.sort_unstable_by(f64::total_cmp);
+    let n = values.len();
+    if n % 2 == 1 {
+        values[n / 2]
+    } else {
+        0.5 * (values[n / 2 - 1] + values[n / 2])
+    }
+}
+
+/// Reads the data bits of the quad `corners` (taken as NW, NE, SE, SW of the grid) with
+/// reference levels, without dictionary lookup. Checks the corners, the contrast and the
+/// border, as [`decode`] does.
+pub fn read_cells(
+    image: &GrayView<'_>,
+    corners: &Corners,
+    family: MarkerFamily,
+    params: &DecodeParams,
+) -> Result<CellReading, Rejection> {
+    if !(params.sample_radius >= 0.0 && params.sample_radius <= 0.5) {
+        return Err(Rejection::BadParams {
+            reason: "sample_radius must be in [0, 0.5]",
+        });
+    }
+    if !params.min_contrast.is_finite() {
+        return Err(Rejection::BadParams {
+            reason: "min_contrast must be finite",
+        });
+    }
+    let area2 = convex_quad_area2(corners).map_err(|e| match e {
+        crate::FiducialError::BadQuad { reason } => Rejection::BadQuad { reason },
+        _ => Rejection::BadQuad {
+            reason: "invalid corners",
+        },
+    })?;
+    if area2 < 0.0 {
+        return Err(Rejection::CounterClockwise);
+    }
+    let frame = CrossRatioFrame::new(corners).map_err(|_| Rejection::BadQuad {
+        reason: "degenerate geometry in the cross-ratio construction",
+    })?;
+    let wc = family.width_cells() as i32;
+    let hc = family.height_cells() as i32;
+    let side = |i: usize, j: usize| (corners[j] - corners[i]).norm();
+    let pitch = (side(0, 1).min(side(3, 2)) / f64::from(wc))
+        .min(side(0, 3).min(side(1, 2)) / f64::from(hc));
+    let radius = params.sample_radius * pitch;
+    let sampler = Sampler {
+        image,
+        frame,
+        width: f64::from(wc),
+        height: f64::from(hc),
+        radius,
+        steps: (radius.floor() as i32).clamp(if radius > 0.25 { 1 } else { 0 }, MAX_STEPS),
+    };
+
+    // Border ring: black reference.
+    let mut border = [0.0f64; MAX_BORDER];
+    let mut nb = 0;
+    for y in 0..hc {
+        for x in 0..wc {
+            if x == 0 || y == 0 || x == wc - 1 || y == hc - 1 {
+                border[nb] = sampler.cell(x, y).ok_or(Rejection::OutsideImage)?;
+                nb += 1;
+            }
+        }
+    }
+    // Quiet-zone ring: white reference (cells outside the image are skipped).
+    let mut quiet = [0.0f64; MAX_QUIET];
+    let mut nq = 0;
+    for y in -1..=hc {
+        for x in -1..=wc {
+            let ring = x == -1 || y == -1 || x == wc || y == hc;
+            if let Some(v) = ring.then(|| sampler.cell(x, y)).flatten() {
+                quiet[nq] = v;
+                nq += 1;
+            }
+        }
+    }
+    if nq == 0 {
+        return Err(Rejection::QuietZoneOutside);
+    }
+    // Data cells, read before sorting the border (the median reorders it).
+    let mut data = [0.0f64; 64];
+    let (m, n) = (family.rows() as i32, family.cols() as i32);
+    for r in 0..m {
+        for c in 0..n {
+            data[(r * n + c) as usize] =
+                sampler.cell(c + 1, r + 1).ok_or(Rejection::OutsideImage)?;
+        }
+    }
+    let black = median(&mut border[..nb]);
+    let white = median(&mut quiet[..nq]);
+    let contrast = white - black;
+    if contrast.is_nan() || contrast < params.min_contrast.max(f64::MIN_POSITIVE) {
+        return Err(Rejection::LowContrast {
+            contrast,
+            min: params.min_contrast,
+        });
+    }
+    let threshold = 0.5 * (black + white);
+    let light = border[..nb].iter().filter(|&&v| v > threshold).count() as u32;
+    if light > params.max_light_border_cells {
+        return Err(Rejection::BorderNotDark {
+            light,
+            max: params.max_light_border_cells,
+        });
+    }
+    let mut code = 0u64;
+    let mut margin = f64::INFINITY;
+    let mut fit = 0.0;
+    let half = 0.5 * contrast;
+    for (k, &v) in data.iter().take((m * n) as usize).enumerate() {
+        if v < threshold {
+            code |= 1 << k;
+        }
+        let d = (v - threshold).abs();
+        margin = margin.min(d);
+        fit += (d / half).min(1.0);
+    }
+    Ok(CellReading {
+        code,
+        black,
+        white,
+        light_border_cells: light,
+        confidence: (margin / half).min(1.0),
+        fit: fit / f64::from(m * n),
+    })
+}
+
+/// Reads the marker whose black border's outer corners are `corners` (clockwise in the
+/// image, starting at any corner; pixel-centre coordinates, sub-pixel) and looks its code
+/// up in `dictionary`.
+///
+/// Returns the entry, the bit errors corrected, the rotation and the corners re-ordered
+/// into the marker's own NW, NE, SE, SW, or why the quad is not a marker.
+pub fn decode(
+    image: &GrayView<'_>,
+    corners: &Corners,
+    dictionary: &Dictionary,
+    params: &DecodeParams,
+) -> Result<Decoded, Rejection> {
+    let family = dictionary.family();
+    let max = params.max_errors.min(dictionary.max_correctable());
+    // Corner shifts to read: the grid maps onto itself under all quarter turns for a
+    // square family (lookup covers them), under half turns otherwise (so also read with
+    // the corners shifted by one).
+    let shifts: &[u8] = if family.is_square() { &[0] } else { &[0, 1] };
+    // Of the readings that pass the border and contrast checks, keep the one whose samples
+    // fall most cleanly inside cells (the right aspect); only that one is looked up, so a
+    // code read across the grid can never stand in for a rejected right reading.
+    let mut chosen: Option<(u8, CellReading)> = None;
+    let mut first_rejection = None;
+    for &s in shifts {
+        let frame_corners: Corners = core::array::from_fn(|i| corners[(i + s as usize) % 4]);
+        match read_cells(image, &frame_corners, family, params) {
+            Ok(r) => {
+                if chosen.as_ref().is_none_or(|(_, c)| r.fit > c.fit) {
+                    chosen = Some((s, r));
+                }
+            }
+            Err(e) => {
+                first_rejection.get_or_insert(e);
+            }
+        }
+    }
+    let Some((s, reading)) = chosen else {
+        return Err(first_rejection.unwrap_or(Rejection::BadQuad {
+            reason: "no reading",
+        }));
+    };
+    let Some(m) = dictionary.lookup_within(reading.code, max) else {
+        return Err(Rejection::NoMatch {
+            read: reading.code,
+            nearest: dictionary.nearest(reading.code).distance,
+            max,
+        });
+    };
+    let rotation = (s + m.rotation) % 4;
+    Ok(Decoded {
+        index: m.index,
+        code: m.code,
+        distance: m.distance,
+        rotation,
+        corners: core::array::from_fn(|i| corners[(i + rotation as usize) % 4]),
+        contrast: reading.contrast(),
+        confidence: reading.confidence,
+    })
+}

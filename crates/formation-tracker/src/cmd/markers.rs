@@ -1,0 +1,117 @@
+//! `formation-tracker markers`: print-ready marker images for every robot's rig.
+//!
+//! For each robot 1..N and face 1..5 writes `robotR-faceF.png` (exact raster, for tests
+//! and screens) and `robotR-faceF.svg` (vector, sized in millimetres for printing at the
+//! rig's cell size), plus `markers.json` listing every marker with its code and the exact
+//! pixel corners of its black border in the PNG.
+
+use std::path::PathBuf;
+
+use clap::Args as ClapArgs;
+use fiducial::{Dictionary, RenderOptions, render_marker, render_svg};
+use formation_tracker::rig::{self, Rig};
+use serde::Serialize;
+
+use super::CliError;
+
+/// Arguments of `formation-tracker markers`.
+#[derive(Debug, ClapArgs)]
+pub struct Args {
+    /// Directory to write into (created if missing).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Number of robots (each gets faces 1..5).
+    #[arg(long, default_value_t = 4)]
+    pub robots: u32,
+    /// Pixels per marker cell in the PNGs.
+    #[arg(long = "px-per-cell", default_value_t = 20)]
+    pub px_per_cell: u32,
+}
+
+/// One line of `markers.json`.
+#[derive(Debug, Serialize)]
+struct Entry {
+    robot: u32,
+    face: u8,
+    /// Dictionary index, `(robot - 1) * 5 + (face - 1)`.
+    index: usize,
+    code: u64,
+    png: String,
+    svg: String,
+    /// Outer corners of the black border in the PNG (pixel centres at integers), NW, NE,
+    /// SE, SW.
+    corners_px: [[f64; 2]; 4],
+    /// Width and height of the black border, metres.
+    size_m: [f64; 2],
+}
+
+/// Writes the markers and `markers.json`.
+pub fn run(args: &Args) -> Result<(), CliError> {
+    let dict = Dictionary::paper();
+    let rig = Rig::reference();
+    rig.validate()?;
+    if args.robots == 0 {
+        return Err("--robots must be at least 1".into());
+    }
+    let max = rig::max_robots(dict);
+    if args.robots > max {
+        return Err(format!(
+            "--robots {} is more than the {max} robots the dictionary supports ({} codes, 5 \
+             faces each)",
+            args.robots,
+            dict.len()
+        )
+        .into());
+    }
+    let options = RenderOptions {
+        px_per_cell: args.px_per_cell,
+        quiet_cells: 1,
+    };
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
+    let family = rig.family()?;
+    let size_m = rig.marker_size_m()?;
+    let mut entries = Vec::new();
+    for robot in 1..=args.robots {
+        for face in 1..=rig::FACES_PER_ROBOT {
+            let index = rig::marker_index(robot, face)?;
+            let code = rig::marker_code(dict, robot, face)?;
+            let stem = format!("robot{robot}-face{face}");
+            let marker = render_marker(family, code, &options)?;
+            let corners_px = marker.corners().map(|p| [p.x, p.y]);
+            let png = format!("{stem}.png");
+            let path = args.out.join(&png);
+            marker
+                .into_gray_image()
+                .save(&path)
+                .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+            let svg = format!("{stem}.svg");
+            let path = args.out.join(&svg);
+            std::fs::write(
+                &path,
+                render_svg(family, code, rig.cell_size_m * 1000.0, 1)?,
+            )
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+            entries.push(Entry {
+                robot,
+                face,
+                index,
+                code,
+                png,
+                svg,
+                corners_px,
+                size_m,
+            });
+        }
+    }
+    let path = args.out.join("markers.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&entries)? + "\n")
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    eprintln!(
+        "markers: wrote {} markers ({} robots x 5 faces) to {}",
+        entries.len(),
+        args.robots,
+        args.out.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,400 @@
+//! The scene: robots on a ground plane, their bodies and their rigs of textured faces.
+//!
+//! Everything is plain data with public fields, so a caller (the composition layer) can build
+//! scenes from its own types directly; [`Scene::validate`] (called by the renderer) checks the
+//! whole scene and returns a typed error for anything non-finite or degenerate.
+
+use std::sync::Arc;
+
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+
+use crate::error::{SynthError, finite, finite_vec, in_range, positive};
+use crate::texture::Texture;
+
+/// Wrap an angle to `(-pi, pi]`.
+pub fn wrap_angle(a: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    let w = a - TAU * ((a + PI) / TAU).floor(); // [-pi, pi)
+    if w <= -PI { w + TAU } else { w }
+}
+
+/// A planar robot pose on the ground: position `(x, y)` in metres and heading `theta` in
+/// radians (counter-clockwise from the world x axis).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Pose2 {
+    /// World x of the reference point (m).
+    pub x: f64,
+    /// World y of the reference point (m).
+    pub y: f64,
+    /// Heading (rad, CCW positive).
+    pub theta: f64,
+}
+
+impl Pose2 {
+    /// A pose.
+    pub fn new(x: f64, y: f64, theta: f64) -> Self {
+        Self { x, y, theta }
+    }
+
+    /// Check that all three numbers are finite.
+    pub fn validate(&self) -> Result<(), SynthError> {
+        finite("pose x", self.x)?;
+        finite("pose y", self.y)?;
+        finite("pose theta", self.theta)?;
+        Ok(())
+    }
+
+    /// The rigid transform body frame -> world frame (the body frame's origin is the reference
+    /// point on the ground, x forward, y left, z up).
+    pub fn body_to_world(&self) -> Isometry3<f64> {
+        Isometry3::from_parts(
+            Translation3::new(self.x, self.y, 0.0),
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), self.theta),
+        )
+    }
+}
+
+/// A robot's opaque body, standing on the ground and centred on its reference point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Body {
+    /// No body: only the faces are drawn (useful for tests).
+    None,
+    /// An axis-aligned box in the body frame: `x` in `[-length/2, length/2]`,
+    /// `y` in `[-width/2, width/2]`, `z` in `[0, height]`.
+    Box {
+        /// Extent along body x (m).
+        length: f64,
+        /// Extent along body y (m).
+        width: f64,
+        /// Extent along body z (m).
+        height: f64,
+        /// Grey albedo in `[0, 1]`.
+        albedo: f64,
+    },
+    /// A vertical cylinder about the body z axis, `z` in `[0, height]`.
+    Cylinder {
+        /// Radius (m).
+        radius: f64,
+        /// Height (m).
+        height: f64,
+        /// Grey albedo in `[0, 1]`.
+        albedo: f64,
+    },
+}
+
+impl Body {
+    fn validate(&self) -> Result<(), SynthError> {
+        match *self {
+            Body::None => Ok(()),
+            Body::Box {
+                length,
+                width,
+                height,
+                albedo,
+            } => {
+                positive("box length", length)?;
+                positive("box width", width)?;
+                positive("box height", height)?;
+                in_range("box albedo", albedo, 0.0, 1.0)?;
+                Ok(())
+            }
+            Body::Cylinder {
+                radius,
+                height,
+                albedo,
+            } => {
+                positive("cylinder radius", radius)?;
+                positive("cylinder height", height)?;
+                in_range("cylinder albedo", albedo, 0.0, 1.0)?;
+                Ok(())
+            }
+        }
+    }
+}
+
+/// Where a planar rectangular face sits in its robot's body frame.
+///
+/// The face is seen from the side its outward `normal` points to. `up` need not be exactly
+/// perpendicular to `normal`: its component along the normal is removed. Looking at the face
+/// from outside, `right = up x normal`; texture coordinate `s` runs along `right` and `t` along
+/// `-up`, so corner NW is `centre - right w/2 + up h/2`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FacePlacement {
+    /// Centre of the rectangle (m, body frame).
+    pub centre: Point3<f64>,
+    /// Outward normal (any non-zero length).
+    pub normal: Vector3<f64>,
+    /// Up direction on the face (any length, not parallel to `normal`).
+    pub up: Vector3<f64>,
+    /// Width along `right` (m).
+    pub width: f64,
+    /// Height along `up` (m).
+    pub height: f64,
+}
+
+/// The orthonormal frame of a face: unit `right`, `up`, outward `normal`, all in the frame the
+/// placement was given in.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FaceFrame {
+    /// Unit vector along increasing texture `s`.
+    pub right: Vector3<f64>,
+    /// Unit vector along decreasing texture `t`.
+    pub up: Vector3<f64>,
+    /// Unit outward normal.
+    pub normal: Vector3<f64>,
+}
+
+impl FacePlacement {
+    /// Check finiteness, positive size and a usable normal/up pair, and return the frame.
+    pub fn frame(&self) -> Result<FaceFrame, SynthError> {
+        finite_vec("face centre", &self.centre.coords)?;
+        finite_vec("face normal", &self.normal)?;
+        finite_vec("face up", &self.up)?;
+        positive("face width", self.width)?;
+        positive("face height", self.height)?;
+        let normal = self
+            .normal
+            .try_normalize(1e-12)
+            .ok_or(SynthError::DegenerateGeometry {
+                what: "face normal is zero",
+            })?;
+        let up = (self.up - normal * self.up.dot(&normal))
+            .try_normalize(1e-9 * self.up.norm().max(1e-300))
+            .ok_or(SynthError::DegenerateGeometry {
+                what: "face up vector is zero or parallel to the normal",
+            })?;
+        let right = up.cross(&normal);
+        Ok(FaceFrame { right, up, normal })
+    }
+
+    /// The four corners NW, NE, SE, SW (as seen from outside), in the placement's frame.
+    pub fn corners(&self) -> Result<[Point3<f64>; 4], SynthError> {
+        let f = self.frame()?;
+        let r = f.right * (self.width / 2.0);
+        let u = f.up * (self.height / 2.0);
+        let c = self.centre;
+        Ok([c - r + u, c + r + u, c + r - u, c - r - u])
+    }
+}
+
+/// A textured face of a robot's rig.
+#[derive(Clone, Debug)]
+pub struct Face {
+    /// A label reported in the ground truth (the octagon helper uses the spec's face numbers 1..5).
+    pub label: u32,
+    /// Where the face is, in the body frame.
+    pub placement: FacePlacement,
+    /// What is drawn on its outer side.
+    pub texture: Arc<dyn Texture>,
+    /// Grey albedo of its back side, in `[0, 1]`.
+    pub back_albedo: f64,
+}
+
+impl Face {
+    /// A face with the default back albedo (0.25).
+    pub fn new(label: u32, placement: FacePlacement, texture: Arc<dyn Texture>) -> Self {
+        Self {
+            label,
+            placement,
+            texture,
+            back_albedo: 0.25,
+        }
+    }
+}
+
+/// A robot: a planar pose, a body and a rig of faces given in the body frame.
+#[derive(Clone, Debug)]
+pub struct Robot {
+    /// Pose on the ground.
+    pub pose: Pose2,
+    /// The opaque body.
+    pub body: Body,
+    /// The rig's faces (body frame).
+    pub faces: Vec<Face>,
+}
+
+impl Robot {
+    /// A robot with a body and no faces yet.
+    pub fn new(pose: Pose2, body: Body) -> Self {
+        Self {
+            pose,
+            body,
+            faces: Vec::new(),
+        }
+    }
+    /// Add a face (builder style).
+    pub fn with_face(mut self, face: Face) -> Self {
+        self.faces.push(face);
+        self
+    }
+    /// Add several faces (builder style).
+    pub fn with_faces(mut self, faces: impl IntoIterator<Item = Face>) -> Self {
+        self.faces.extend(faces);
+        self
+    }
+}
+
+/// The ground plane `z = 0`, textured by tiling a texture: one texture period covers
+/// `tile x tile` metres, with `s` along world x and `t` along world -y.
+#[derive(Clone, Debug)]
+pub struct Ground {
+    /// The tiled texture.
+    pub texture: Arc<dyn Texture>,
+    /// Size of one tile (m).
+    pub tile: f64,
+}
+
+/// A whole scene.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The robots (their index is their id in the ground truth).
+    pub robots: Vec<Robot>,
+    /// The ground plane, if any (without one, rays that miss everything see the background).
+    pub ground: Option<Ground>,
+    /// Grey albedo in `[0, 1]` of everything the rays do not hit (sky or far wall).
+    pub background: f64,
+}
+
+impl Scene {
+    /// An empty scene with no ground and the given background albedo.
+    pub fn new(background: f64) -> Self {
+        Self {
+            robots: Vec::new(),
+            ground: None,
+            background,
+        }
+    }
+
+    /// Check every number in the scene (finite poses, positive sizes, albedos in `[0, 1]`,
+    /// usable face frames).
+    pub fn validate(&self) -> Result<(), SynthError> {
+        in_range("background albedo", self.background, 0.0, 1.0)?;
+        if let Some(g) = &self.ground {
+            positive("ground tile", g.tile)?;
+        }
+        for r in &self.robots {
+            r.pose.validate()?;
+            r.body.validate()?;
+            for f in &r.faces {
+                f.placement.frame()?;
+                in_range("face back albedo", f.back_albedo, 0.0, 1.0)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Width of each face of the spec's reference octagon rig (m, spec 3.3).
+pub const REFERENCE_FACE_WIDTH: f64 = 0.18;
+/// Height of the reference rig's face centres above the ground (m, spec 3.3).
+pub const REFERENCE_FACE_CENTRE_HEIGHT: f64 = 0.30;
+/// Yaw of the outward normals of faces 1..5 in the body frame (degrees, spec 3.3).
+pub const OCTAGON_FACE_YAWS_DEG: [f64; 5] = [90.0, 135.0, 180.0, -135.0, -90.0];
+
+/// Apothem (centre-to-face distance) of a regular octagon with side `width`:
+/// `width / (2 tan(22.5 deg))`.
+pub fn octagon_apothem(width: f64) -> f64 {
+    width / (2.0 * (std::f64::consts::PI / 8.0).tan())
+}
+
+/// The five faces of an octagon rig centred over the reference point: faces numbered 1..5
+/// (index `i` is face `i + 1`), outward normals at yaw +90, +135, 180, -135, -90 degrees,
+/// each `width` wide and `height` tall, centres `centre_height` above the ground at the
+/// octagon's apothem, up = body z.
+pub fn octagon_faces(
+    width: f64,
+    height: f64,
+    centre_height: f64,
+) -> Result<[FacePlacement; 5], SynthError> {
+    positive("octagon face width", width)?;
+    positive("octagon face height", height)?;
+    finite("octagon face centre height", centre_height)?;
+    let a = octagon_apothem(width);
+    Ok(OCTAGON_FACE_YAWS_DEG.map(|yaw_deg| {
+        let (s, c) = yaw_deg.to_radians().sin_cos();
+        FacePlacement {
+            centre: Point3::new(a * c, a * s, centre_height),
+            normal: Vector3::new(c, s, 0.0),
+            up: Vector3::z(),
+            width,
+            height,
+        }
+    }))
+}
+
+/// The spec's reference octagon (faces 0.18 m wide, centres at 0.30 m), with faces of the given
+/// height (e.g. 0.16 m for a 4 x 5 marker of 20 mm cells with border and one-cell quiet zone).
+pub fn reference_octagon_faces(height: f64) -> Result<[FacePlacement; 5], SynthError> {
+    octagon_faces(REFERENCE_FACE_WIDTH, height, REFERENCE_FACE_CENTRE_HEIGHT)
+}
+
+/// The spec's reference octagon rig as faces: [`reference_octagon_faces`] with `textures[i]`
+/// on face `i + 1` (labels 1..5).
+pub fn reference_octagon_rig(
+    height: f64,
+    textures: [Arc<dyn Texture>; 5],
+) -> Result<Vec<Face>, SynthError> {
+    let placements = reference_octagon_faces(height)?;
+    Ok(placements
+        .into_iter()
+        .zip(textures)
+        .enumerate()
+        .map(|(i, (placement, texture))| Face::new(i as u32 + 1, placement, texture))
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wrap_angle_lands_in_half_open_interval() {
+        use std::f64::consts::PI;
+        assert_eq!(wrap_angle(PI), PI);
+        assert!((wrap_angle(-PI) - PI).abs() < 1e-15);
+        assert!((wrap_angle(3.0 * PI / 2.0) + PI / 2.0).abs() < 1e-12);
+        assert!((wrap_angle(0.3) - 0.3).abs() < 1e-15);
+    }
+
+    #[test]
+    fn octagon_faces_meet_edge_to_edge() {
+        let faces = reference_octagon_faces(0.16).unwrap();
+        for pair in faces.windows(2) {
+            // Seen from outside, face i+1 lies to the right of face i (going round the back
+            // from the left side), so face i's NE corner is face i+1's NW corner.
+            let a = pair[0].corners().unwrap();
+            let b = pair[1].corners().unwrap();
+            assert!((a[1] - b[0]).norm() < 1e-12, "{:?} vs {:?}", a[1], b[0]);
+            assert!((a[2] - b[3]).norm() < 1e-12);
+        }
+        // Face 3 looks backwards, centred at the apothem behind the reference point.
+        let c = faces[2].centre;
+        assert!(
+            (c.x + octagon_apothem(0.18)).abs() < 1e-12
+                && c.y.abs() < 1e-12
+                && (c.z - 0.30).abs() < 1e-15
+        );
+        assert!((octagon_apothem(0.18) - 0.217_279).abs() < 1e-6);
+    }
+
+    #[test]
+    fn degenerate_faces_are_errors() {
+        let mut p = reference_octagon_faces(0.16).unwrap()[0];
+        p.up = p.normal * 2.0;
+        assert!(matches!(
+            p.frame(),
+            Err(SynthError::DegenerateGeometry { .. })
+        ));
+        p.up = Vector3::z();
+        p.normal = Vector3::zeros();
+        assert!(matches!(
+            p.frame(),
+            Err(SynthError::DegenerateGeometry { .. })
+        ));
+        p.normal = Vector3::x();
+        p.width = 0.0;
+        assert!(matches!(p.frame(), Err(SynthError::NotPositive { .. })));
+        p.width = f64::NAN;
+        assert!(matches!(p.frame(), Err(SynthError::NonFinite { .. })));
+    }
+}
