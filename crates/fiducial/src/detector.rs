@@ -8,11 +8,18 @@
 //! Stages: [`Binarizer`] (adaptive tile threshold, or Otsu), [`Labeller`] (run-length
 //! union-find), cheap rejection of components by size, shape and frame-border contact,
 //! [`trace_outer`] (Moore border following) and [`fit_quad`] (four-vertex polygon), then
-//! [`Refiner`] (sub-pixel corners from grey-level edge lines).
+//! [`Refiner`] (sub-pixel corners from grey-level edge lines), and finally [`decode()`]
+//! (cross-ratio cell sampling and dictionary lookup) on each quad.
+//!
+//! The two phases are exposed separately ([`Detector::find_quads`] and
+//! [`Detector::decode_quads`]) so callers can time or visualise them apart;
+//! [`Detector::detect`] runs both.
 
 use nalgebra::Point2;
 
 use crate::contour::{Labeller, trace_outer};
+use crate::decode::{DecodeParams, Decoded, decode};
+use crate::dictionary::Dictionary;
 use crate::image::{Corners, GrayView};
 use crate::quad::{QuadLimits, fit_quad};
 use crate::refine::{RefineConfig, Refiner};
@@ -35,6 +42,8 @@ pub struct DetectorConfig {
     pub border_margin: u32,
     /// Sub-pixel refinement settings (default: [`RefineConfig::default`]).
     pub refine: RefineConfig,
+    /// Decoding settings (default: [`DecodeParams::default`]).
+    pub decode: DecodeParams,
 }
 
 impl Default for DetectorConfig {
@@ -47,8 +56,23 @@ impl Default for DetectorConfig {
             line_tolerance_rel: 0.05,
             border_margin: 2,
             refine: RefineConfig::default(),
+            decode: DecodeParams::default(),
         }
     }
+}
+
+/// Two readings of one marker: their centres are within half a side of each other.
+fn overlaps(a: &Decoded, b: &Decoded) -> bool {
+    let ca = a
+        .corners
+        .iter()
+        .fold([0.0, 0.0], |s, p| [s[0] + p.x / 4.0, s[1] + p.y / 4.0]);
+    let cb = b
+        .corners
+        .iter()
+        .fold([0.0, 0.0], |s, p| [s[0] + p.x / 4.0, s[1] + p.y / 4.0]);
+    let side = (a.corners[1] - a.corners[0]).norm();
+    (ca[0] - cb[0]).hypot(ca[1] - cb[1]) < 0.5 * side
 }
 
 /// A candidate marker outline with sub-pixel corners.
@@ -62,9 +86,10 @@ pub struct Quad {
 }
 
 /// The marker detector; reuse one per stream of frames.
-#[derive(Debug, Default, Clone)]
+#[derive(Debug, Clone)]
 pub struct Detector {
     config: DetectorConfig,
+    dictionary: Dictionary,
     binarizer: Binarizer,
     bin: Vec<u8>,
     labeller: Labeller,
@@ -73,13 +98,77 @@ pub struct Detector {
     quads: Vec<Quad>,
 }
 
+impl Default for Detector {
+    /// Default settings and the paper's dictionary.
+    fn default() -> Self {
+        Self::new(DetectorConfig::default())
+    }
+}
+
 impl Detector {
-    /// A detector with the given settings; buffers grow on the first frame.
+    /// A detector with the given settings for the paper's dictionary
+    /// ([`Dictionary::paper`]); buffers grow on the first frame.
     pub fn new(config: DetectorConfig) -> Self {
+        Self::with_dictionary(config, Dictionary::paper().clone())
+    }
+
+    /// A detector that reads codes of `dictionary`.
+    pub fn with_dictionary(config: DetectorConfig, dictionary: Dictionary) -> Self {
         Self {
             config,
-            ..Self::default()
+            dictionary,
+            binarizer: Binarizer::default(),
+            bin: Vec::new(),
+            labeller: Labeller::default(),
+            contour: Vec::new(),
+            refiner: Refiner::default(),
+            quads: Vec::new(),
         }
+    }
+
+    /// The dictionary codes are looked up in.
+    pub fn dictionary(&self) -> &Dictionary {
+        &self.dictionary
+    }
+
+    /// Finds and decodes the markers in `img` into `out` (cleared first; it keeps its
+    /// capacity, so a reused `Vec` makes steady-state detection allocation-free). Each
+    /// [`Decoded`] carries the dictionary index, code, Hamming distance corrected, corners
+    /// in the marker's own NW, NE, SE, SW order and contrast/confidence. Returns the number
+    /// of quads examined.
+    pub fn detect(&mut self, img: &GrayView<'_>, out: &mut Vec<Decoded>) -> usize {
+        self.find_quads(img);
+        self.decode_quads(img, out)
+    }
+
+    /// The decoding phase alone: reads every quad of the last [`Detector::find_quads`] call
+    /// (which must have been on the same `img`) into `out` (cleared first). Quads that are
+    /// not markers are dropped; so is a second reading of a marker already read (kept: the
+    /// one with fewer bit errors, then higher contrast). Returns the number of quads examined.
+    pub fn decode_quads(&mut self, img: &GrayView<'_>, out: &mut Vec<Decoded>) -> usize {
+        out.clear();
+        for q in &self.quads {
+            let Ok(d) = decode(img, &q.corners, &self.dictionary, &self.config.decode) else {
+                continue;
+            };
+            match out
+                .iter_mut()
+                .find(|o| o.index == d.index && overlaps(o, &d))
+            {
+                Some(o) => {
+                    if (d.distance, -d.contrast) < (o.distance, -o.contrast) {
+                        *o = d;
+                    }
+                }
+                None => out.push(d),
+            }
+        }
+        self.quads.len()
+    }
+
+    /// The quads found by the last [`Detector::find_quads`] call.
+    pub fn quads(&self) -> &[Quad] {
+        &self.quads
     }
 
     /// The settings.
@@ -100,6 +189,12 @@ impl Detector {
         self.quads.clear();
         let cfg = self.config;
         let (w, h) = (img.width(), img.height());
+        // Reserve for the frame size once, so that later frames of this size do not grow
+        // the buffers (the run list grows only past one run per 16 pixels).
+        if self.bin.capacity() < w * h {
+            self.contour.reserve(2 * (w + h) + 16);
+            self.quads.reserve(64);
+        }
         self.binarizer.binarize(img, cfg.threshold, &mut self.bin);
         let limits = QuadLimits {
             min_side: cfg.min_side,

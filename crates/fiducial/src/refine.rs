@@ -219,9 +219,19 @@ impl Refiner {
         // Plausibility: close to the coarse corners, inside the frame, still convex.
         let w = img.width() as f64;
         let h = img.height() as f64;
+        // Blur and the threshold blunt sharp corners, so the coarse corner may sit a few
+        // pixels inside the true one on large markers.
+        let mean_side = (0..4)
+            .map(|i| {
+                let (p, q) = (coarse[i], coarse[(i + 1) % 4]);
+                (p[0] - q[0]).hypot(p[1] - q[1])
+            })
+            .sum::<f64>()
+            / 4.0;
+        let limit = 3.0 + 0.05 * mean_side;
         for (c, k) in corners.iter().zip(coarse) {
-            let side = ((k[0] - c[0]).powi(2) + (k[1] - c[1]).powi(2)).sqrt();
-            if !(side <= 3.0) || c[0] < -0.5 || c[1] < -0.5 || c[0] > w - 0.5 || c[1] > h - 0.5 {
+            let moved = (k[0] - c[0]).hypot(k[1] - c[1]);
+            if !(moved <= limit) || c[0] < -0.5 || c[1] < -0.5 || c[0] > w - 0.5 || c[1] > h - 0.5 {
                 return None;
             }
         }
@@ -274,7 +284,6 @@ impl Refiner {
         // stations next to a white data cell see a dark level lifted by blur, stations next to
         // a black one see the true dark, so a low percentile of the minima is the border's own
         // level; noise pushes minima and maxima alike, so their midpoint stays unbiased.
-        let (mut lo, mut hi);
         let mut mins = [0.0f64; 64];
         let mut maxs = [0.0f64; 64];
         for s in 0..stations {
@@ -304,8 +313,8 @@ impl Refiner {
         // and (negated) maxima, robust to single noisy samples.
         let rank = m / 10;
         let cmp = |a: &f64, b: &f64| a.total_cmp(b);
-        lo = *mins[..m].select_nth_unstable_by(rank, cmp).1;
-        hi = -*maxs[..m].select_nth_unstable_by(rank, cmp).1;
+        let lo = *mins[..m].select_nth_unstable_by(rank, cmp).1;
+        let hi = -*maxs[..m].select_nth_unstable_by(rank, cmp).1;
         if hi - lo < cfg.min_edge_contrast {
             return None;
         }

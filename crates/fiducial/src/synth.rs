@@ -14,6 +14,8 @@ use rand::{Rng, RngExt};
 use rand_distr::{Distribution, StandardNormal};
 use thiserror::Error;
 
+use crate::dictionary::Dictionary;
+use crate::family::MarkerFamily;
 use crate::image::Corners;
 
 /// Why a scene cannot be generated.
@@ -102,6 +104,20 @@ impl CellPattern {
             cells,
             quiet_cells: 1.0,
         }
+    }
+
+    /// The real marker with `code` of `family` (bit `k = row * cols + col`, black = 1, spec
+    /// 3.1) in a one-cell black border and a one-cell quiet zone: the same cells
+    /// [`crate::render_marker`] draws, sampled analytically at any pose.
+    pub fn from_code(family: MarkerFamily, code: u64) -> Self {
+        let (rows, cols) = (family.rows() as usize, family.cols() as usize);
+        let bits: Vec<bool> = (0..rows * cols).map(|k| (code >> k) & 1 == 1).collect();
+        Self::from_bits(rows, cols, &bits)
+    }
+
+    /// Width over height of the pattern (cells are square when drawn at this aspect).
+    pub fn aspect(&self) -> f64 {
+        self.cols as f64 / self.rows.max(1) as f64
     }
 
     /// Reflectance at unit-square coordinates `(u, v)`: `Some(0.0)` black, `Some(1.0)`
@@ -393,6 +409,8 @@ impl Default for SceneConfig {
 pub struct PlacedMarker {
     /// The drawn pattern.
     pub pattern: CellPattern,
+    /// Its dictionary index, for real markers ([`marker_scene`]).
+    pub index: Option<usize>,
     /// Exact image corners NW, NE, SE, SW of the black border's outer edge (pixel centres).
     pub corners: Corners,
 }
@@ -410,14 +428,26 @@ pub struct Scene {
     pub markers: Vec<PlacedMarker>,
 }
 
-/// Random non-overlapping marker outlines for a frame: `cfg.markers` quadrilaterals with sides
-/// in `[min_side, max_side]`, random rotation and perspective jitter, each with room for a
-/// quiet zone of `quiet` (fraction of the side) and a 3-pixel gap to the frame border.
+/// Random non-overlapping marker outlines for a frame: `cfg.markers` quadrilaterals whose
+/// longer side is in `[min_side, max_side]` and whose width over height is `aspect`, with
+/// random rotation and perspective jitter, each with room for a quiet zone of `quiet`
+/// (fraction of the side) and a 3-pixel gap to the frame border.
 pub fn random_placements<R: Rng + ?Sized>(
     cfg: &SceneConfig,
     quiet: f64,
+    aspect: f64,
     rng: &mut R,
 ) -> Result<Vec<[[f64; 2]; 4]>, SynthError> {
+    let aspect = if aspect.is_finite() && aspect > 0.0 {
+        aspect
+    } else {
+        1.0
+    };
+    let (sx, sy) = if aspect >= 1.0 {
+        (1.0, 1.0 / aspect)
+    } else {
+        (aspect, 1.0)
+    };
     if cfg.width == 0 || cfg.height == 0 || cfg.width > 16_384 || cfg.height > 16_384 {
         return Err(SynthError::BadSize {
             width: cfg.width,
@@ -456,7 +486,7 @@ pub fn random_placements<R: Rng + ?Sized>(
         let (s, co) = theta.sin_cos();
         let unit = [[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]];
         let corners = unit.map(|[u, v]| {
-            let (x, y) = (u * side, v * side);
+            let (x, y) = (u * side * sx, v * side * sy);
             [
                 c[0] + co * x - s * y + rng.random_range(-jitter..=jitter),
                 c[1] + s * x + co * y + rng.random_range(-jitter..=jitter),
@@ -483,11 +513,22 @@ pub fn render_scene<R: Rng + ?Sized>(
     patterns: &[CellPattern],
     rng: &mut R,
 ) -> Result<Scene, SynthError> {
+    render_indexed(cfg, patterns, &[], rng)
+}
+
+/// [`render_scene`] recording a dictionary index per pattern.
+fn render_indexed<R: Rng + ?Sized>(
+    cfg: &SceneConfig,
+    patterns: &[CellPattern],
+    indices: &[usize],
+    rng: &mut R,
+) -> Result<Scene, SynthError> {
     let quiet = patterns
         .iter()
         .map(|p| p.quiet_cells / p.cols.min(p.rows).max(1) as f64)
         .fold(0.0, f64::max);
-    let places = random_placements(cfg, quiet, rng)?;
+    let aspect = patterns.first().map_or(1.0, CellPattern::aspect);
+    let places = random_placements(cfg, quiet, aspect, rng)?;
     let mut canvas = Canvas::new(cfg.width, cfg.height, cfg.white)?;
     let mut markers = Vec::with_capacity(places.len());
     for (i, q) in places.iter().enumerate() {
@@ -497,6 +538,7 @@ pub fn render_scene<R: Rng + ?Sized>(
         canvas.draw_pattern(pattern, q, cfg.black, cfg.white);
         markers.push(PlacedMarker {
             pattern: pattern.clone(),
+            index: indices.get(i % indices.len().max(1)).copied(),
             corners: q.map(|[x, y]| Point2::new(x, y)),
         });
     }
@@ -509,6 +551,28 @@ pub fn render_scene<R: Rng + ?Sized>(
         pixels: canvas.to_gray(),
         markers,
     })
+}
+
+/// A scene of `cfg.markers` real markers: distinct random entries of `dictionary` drawn
+/// with their true aspect (square cells). Each [`PlacedMarker`] records its index.
+pub fn marker_scene<R: Rng + ?Sized>(
+    cfg: &SceneConfig,
+    dictionary: &Dictionary,
+    rng: &mut R,
+) -> Result<Scene, SynthError> {
+    let n = cfg.markers.max(1);
+    let mut indices: Vec<usize> = Vec::with_capacity(n);
+    while indices.len() < n {
+        let i = rng.random_range(0..dictionary.len().max(1));
+        if !indices.contains(&i) || indices.len() >= dictionary.len() {
+            indices.push(i);
+        }
+    }
+    let patterns: Vec<CellPattern> = indices
+        .iter()
+        .map(|&i| CellPattern::from_code(dictionary.family(), dictionary.code(i).unwrap_or(0)))
+        .collect();
+    render_indexed(cfg, &patterns, &indices, rng)
 }
 
 /// A scene of `cfg.markers` random marker-like patterns (`data_rows x data_cols` random cells
