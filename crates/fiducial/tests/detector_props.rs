@@ -1,8 +1,9 @@
-//! Property tests of the detector on synthetic views: a marker-like pattern warped by a random
-//! homography is found with sub-pixel corners, and arbitrary images never make it panic.
+//! Property tests of the detector on synthetic views: a real marker warped by a random
+//! homography is found with the right code and sub-pixel corners in its own NW, NE, SE, SW
+//! order, and arbitrary images never make it panic.
 
 use fiducial::synth::{Canvas, CellPattern};
-use fiducial::{Detector, DetectorConfig, GrayView, Threshold};
+use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Threshold};
 use proptest::prelude::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -26,7 +27,39 @@ fn corner_error(found: &fiducial::Corners, truth: &[[f64; 2]; 4]) -> f64 {
     errors(found, truth).1
 }
 
+/// A view of dictionary entry `index` (a 7 x 6 cell marker, square cells) warped to a random
+/// pose, and its true corners NW, NE, SE, SW.
+fn marker_view(
+    index: usize,
+    side: f64,
+    angle: f64,
+    jitter: [f64; 8],
+    blur: f64,
+    noise: f64,
+    seed: u64,
+) -> (Vec<u8>, [[f64; 2]; 4]) {
+    let dict = Dictionary::paper();
+    let code = dict.code(index % dict.len()).unwrap();
+    let pattern = CellPattern::from_code(dict.family(), code);
+    let (pixels, q) = warp(&pattern, side, angle, jitter, blur, noise, seed);
+    (pixels, q)
+}
+
 fn view(
+    side: f64,
+    angle: f64,
+    jitter: [f64; 8],
+    blur: f64,
+    noise: f64,
+    seed: u64,
+) -> (Vec<u8>, [[f64; 2]; 4]) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let pattern = CellPattern::random_marker(4, 5, &mut rng);
+    warp(&pattern, side, angle, jitter, blur, noise, seed)
+}
+
+fn warp(
+    pattern: &CellPattern,
     side: f64,
     angle: f64,
     jitter: [f64; 8],
@@ -36,18 +69,18 @@ fn view(
 ) -> (Vec<u8>, [[f64; 2]; 4]) {
     let (w, h) = (220usize, 200usize);
     let (c, s) = (angle.cos(), angle.sin());
+    let aspect = pattern.aspect();
     let q: [[f64; 2]; 4] = std::array::from_fn(|i| {
         let u = [[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]][i];
-        let (x, y) = (u[0] * side, u[1] * side);
+        let (x, y) = (u[0] * side, u[1] * side / aspect);
         [
             110.0 + c * x - s * y + jitter[2 * i] * side,
             100.0 + s * x + c * y + jitter[2 * i + 1] * side,
         ]
     });
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let pattern = CellPattern::random_marker(4, 5, &mut rng);
     let mut canvas = Canvas::new(w, h, 215.0).unwrap();
-    canvas.draw_pattern(&pattern, &q, 25.0, 215.0);
+    canvas.draw_pattern(pattern, &q, 25.0, 215.0);
     canvas.blur(blur);
     canvas.noise(noise, &mut rng);
     (canvas.to_gray(), q)
@@ -76,6 +109,34 @@ proptest! {
         // RMS over the four corners within 0.1 px; single corners (noise on unblurred edges
         // has a tail) within 0.15 px.
         prop_assert!(rms <= 0.1 && max <= 0.15, "corner errors rms {rms} max {max} px over {} quads", quads.len());
+    }
+
+    #[test]
+    fn warped_real_marker_is_read_with_its_code_and_corner_order(
+        index in 0usize..100,
+        side in 30.0f64..120.0,
+        angle in 0.0f64..std::f64::consts::TAU,
+        jitter in prop::array::uniform8(-0.08f64..0.08),
+        blur in 0.0f64..1.5,
+        noise in 0.0f64..3.0,
+        seed in any::<u64>(),
+    ) {
+        let (pixels, truth) = marker_view(index, side, angle, jitter, blur, noise, seed);
+        let img = GrayView::new(&pixels, 220, 200).unwrap();
+        let mut det = Detector::new(DetectorConfig::default());
+        let mut found = Vec::new();
+        det.detect(&img, &mut found);
+        prop_assert_eq!(found.len(), 1, "markers read: {:?}", found);
+        let d = found[0];
+        let dict = Dictionary::paper();
+        prop_assert_eq!(d.index, index % dict.len());
+        prop_assert_eq!(Some(d.code), dict.code(d.index));
+        // Corners in the marker's own order: no cyclic matching here.
+        let e: Vec<f64> = (0..4)
+            .map(|i| (d.corners[i].x - truth[i][0]).hypot(d.corners[i].y - truth[i][1]))
+            .collect();
+        let rms = (e.iter().map(|v| v * v).sum::<f64>() / 4.0).sqrt();
+        prop_assert!(rms <= 0.1 && e.iter().all(|&v| v <= 0.15), "corner errors {:?}", e);
     }
 
     #[test]
