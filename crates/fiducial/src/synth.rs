@@ -575,6 +575,21 @@ pub fn marker_scene<R: Rng + ?Sized>(
     render_indexed(cfg, &patterns, &indices, rng)
 }
 
+/// A foreign marker: a one-cell black border around a random `rows x cols` code that is
+/// *not* in `dictionary` (none of its entries in any orientation), with a one-cell quiet
+/// zone. A detector reading it as a dictionary entry has corrected bit errors that were
+/// never there; the rate of such reads is a property of the dictionary's distance and the
+/// correction allowed.
+pub fn foreign_marker<R: Rng + ?Sized>(dictionary: &Dictionary, rng: &mut R) -> CellPattern {
+    let family = dictionary.family();
+    loop {
+        let code = rng.random_range(0..=family.mask());
+        if dictionary.lookup_within(code, 0).is_none() {
+            return CellPattern::from_code(family, code);
+        }
+    }
+}
+
 /// A scene of `cfg.markers` random marker-like patterns (`data_rows x data_cols` random cells
 /// inside a black border): the stand-in for real markers in corner-accuracy tests.
 pub fn random_marker_scene<R: Rng + ?Sized>(
@@ -590,8 +605,9 @@ pub fn random_marker_scene<R: Rng + ?Sized>(
 }
 
 /// A marker-free clutter frame: smooth textured noise, random rectangles (some of them
-/// black-bordered squares with random insides, the hardest impostors), and short dark strokes
-/// like text, then blur `blur` and noise `noise`.
+/// black-bordered squares with random insides of any grid size, the hardest impostors),
+/// checker patches and short dark strokes like text, then
+/// blur `blur` and noise `noise`.
 pub fn clutter_frame<R: Rng + ?Sized>(
     width: usize,
     height: usize,
@@ -640,7 +656,8 @@ pub fn clutter_frame<R: Rng + ?Sized>(
                     p,
                 )
             }
-            // Black-bordered square with a random inside of random grid size.
+            // Black-bordered square with a random inside of random grid size (the markers'
+            // own 4 x 5 included: such a square is a foreign marker of the family).
             1 => {
                 let n = rng.random_range(1..8usize);
                 let m = rng.random_range(1..8usize);
