@@ -174,33 +174,6 @@ fn fit_line(contour: &[[i32; 2]], from: usize, count: usize) -> Option<[f64; 3]>
     Some([nx, ny, nx * mx + ny * my])
 }
 
-/// Largest distance from the chord `contour[a]`-`contour[b]` of the `count` contour points
-/// starting at index `from` (circular), with its index.
-fn farthest_between(
-    contour: &[[i32; 2]],
-    a: usize,
-    b: usize,
-    from: usize,
-    count: usize,
-) -> (usize, f64) {
-    let n = contour.len();
-    let pa = contour[a % n];
-    let pb = contour[b % n];
-    let (ax, ay) = (f64::from(pa[0]), f64::from(pa[1]));
-    let (dx, dy) = (f64::from(pb[0]) - ax, f64::from(pb[1]) - ay);
-    let len = (dx * dx + dy * dy).sqrt().max(1e-9);
-    let mut best = (from % n, 0.0f64);
-    for k in 0..count {
-        let i = (from + k) % n;
-        let q = contour[i];
-        let d = ((f64::from(q[0]) - ax) * dy - (f64::from(q[1]) - ay) * dx).abs() / len;
-        if d > best.1 {
-            best = (i, d);
-        }
-    }
-    best
-}
-
 /// True when the four corners form a convex quadrilateral, clockwise in the image (v down),
 /// with every interior angle between `min_angle_deg` and `180 - min_angle_deg`.
 pub fn convex_clockwise(c: &[[f64; 2]; 4], min_angle_deg: f64) -> bool {

@@ -25,5 +25,5 @@ fn clutter_frames_give_no_markers() {
         assert!(out.is_empty(), "clutter read as {out:?} (Otsu)");
     }
     // The clutter really offers candidates to the decoder (black-bordered squares etc.).
-    assert!(quads > 40, "only {quads} quads in 40 frames");
+    assert!(quads >= 20, "only {quads} quads in 40 frames");
 }
