@@ -7,6 +7,7 @@
 use std::process::ExitCode;
 
 mod bench_report;
+mod detector_accuracy;
 mod dictionary;
 
 type Result<T = ()> = std::result::Result<T, Box<dyn std::error::Error>>;
@@ -17,6 +18,8 @@ commands:
   no-c             fail if any crate in the dependency tree builds C code
   bench-report     run all criterion benchmarks and write docs/performance.md
                    (--quick: short measurements; --no-run: only rebuild the table)
+  detector-accuracy  measure the marker detector on synthetic scenes and write
+                   docs/detector-accuracy.md (--quick: fewer scenes)
   dictionary       regenerate crates/fiducial/data/dict-4x5-d6.txt (--check: only compare)
 ";
 
@@ -26,6 +29,7 @@ fn main() -> ExitCode {
         Some("no-c") => no_c(),
         Some("bench-report") => bench_report::run(&args[1..]),
         Some("dictionary") => dictionary::run(&args[1..]),
+        Some("detector-accuracy") => detector_accuracy::run(&args[1..]),
         _ => {
             eprint!("{USAGE}");
             return ExitCode::from(2);

@@ -5,8 +5,8 @@
 //! they are off by up to a pixel. Each side of the quadrilateral is refined on the grey image
 //! (never on the binary one): at regular stations along the side (away from the corners,
 //! which blur rounds off) the grey profile across the edge is sampled bilinearly every half
-//! pixel. The side's dark and light levels are low percentiles of the profiles' minima and
-//! maxima; the edge is first located where the profile crosses their midpoint, then by the
+//! pixel. A station's dark and light levels are low percentiles of the profiles' minima and
+//! maxima over each half of the side, interpolated along it; the edge is first located where the profile crosses their midpoint, then by the
 //! area under the normalised profile over a window centred there, which is exact for any
 //! symmetric blur and for unblurred, area-sampled edges (the plain crossing of interpolated
 //! samples is pulled towards pixel centres by up to a tenth of a pixel). A total-least-squares line is fitted to the
@@ -280,10 +280,6 @@ impl Refiner {
         let k_max = ((2.0 * half / STEP).round() as usize).min(PROFILE - 1);
         self.profiles.clear();
         self.pts.clear();
-        // The side's dark and light levels come from all its profiles together (below):
-        // stations next to a white data cell see a dark level lifted by blur, stations next to
-        // a black one see the true dark, so a low percentile of the minima is the border's own
-        // level; noise pushes minima and maxima alike, so their midpoint stays unbiased.
         let mut mins = [0.0f64; 64];
         let mut maxs = [0.0f64; 64];
         for s in 0..stations {
@@ -309,17 +305,58 @@ impl Refiner {
             self.profiles.push(([px, py], prof));
         }
         let m = stations.min(mins.len());
-        // The side's dark and light levels: the 10th percentiles of the profiles' minima
-        // and (negated) maxima, robust to single noisy samples.
-        let rank = m / 10;
-        let cmp = |a: &f64, b: &f64| a.total_cmp(b);
-        let lo = *mins[..m].select_nth_unstable_by(rank, cmp).1;
-        let hi = -*maxs[..m].select_nth_unstable_by(rank, cmp).1;
-        if hi - lo < cfg.min_edge_contrast {
-            return None;
-        }
-        let mid = 0.5 * (lo + hi);
-        for ([px, py], prof) in &self.profiles {
+        // Each station's dark and light levels. Stations next to a white data cell see a dark
+        // level lifted by blur (on small markers), stations next to a black one see the true
+        // dark, so a low percentile of the minima over the whole side is the border's own
+        // level; noise pushes minima and maxima alike, so their midpoint stays unbiased.
+        // Lighting may vary along the side: the light level (the quiet zone, never
+        // contaminated) is taken over each half of the side and interpolated linearly, and
+        // the dark level scales with it (reflectance times light).
+        let pct = |v: &mut [f64]| -> f64 {
+            let rank = v.len() / 10;
+            *v.select_nth_unstable_by(rank, |a: &f64, b: &f64| a.total_cmp(b))
+                .1
+        };
+        let lo_all = pct(&mut mins[..m]);
+        let mut all = [0.0f64; 64];
+        all[..m].copy_from_slice(&maxs[..m]);
+        let hi_all = -pct(&mut all[..m]);
+        let half_m = m / 2;
+        let (hi_a, hi_b, c_a, c_b) = if m >= 6 {
+            let mut a = [0.0f64; 64];
+            let mut b = [0.0f64; 64];
+            a[..half_m].copy_from_slice(&maxs[..half_m]);
+            b[..m - half_m].copy_from_slice(&maxs[half_m..m]);
+            let (ha, hb) = (-pct(&mut a[..half_m]), -pct(&mut b[..m - half_m]));
+            // Only a clear gradient (over 8 % along the side) is followed; otherwise the
+            // whole side's levels are steadier.
+            if (ha - hb).abs() > 0.08 * hi_all {
+                (
+                    ha,
+                    hb,
+                    (half_m as f64 - 1.0) / 2.0,
+                    half_m as f64 + ((m - half_m) as f64 - 1.0) / 2.0,
+                )
+            } else {
+                (hi_all, hi_all, 0.0, 1.0)
+            }
+        } else {
+            (hi_all, hi_all, 0.0, 1.0)
+        };
+        let mut csum = 0.0;
+        for (i, ([px, py], prof)) in self.profiles.iter().enumerate().take(m) {
+            let t = (i as f64 - c_a) / (c_b - c_a);
+            let hi = hi_a + (hi_b - hi_a) * t;
+            let lo = if hi_all > 0.0 {
+                lo_all * hi / hi_all
+            } else {
+                lo_all
+            };
+            if hi - lo < cfg.min_edge_contrast {
+                continue;
+            }
+            csum += hi - lo;
+            let mid = 0.5 * (lo + hi);
             // The upward crossing nearest the profile centre.
             let mut best: Option<f64> = None;
             for k in 0..k_max {
@@ -339,7 +376,7 @@ impl Refiner {
                 self.pts.push([px + pos * n[0], py + pos * n[1], 1.0]);
             }
         }
-        let contrast = hi - lo;
+        let contrast = csum / self.pts.len().max(1) as f64;
         if self.pts.len() < 2 || self.pts.len() * 2 < stations {
             return None;
         }
