@@ -25,6 +25,8 @@ struct Cli {
 enum Command {
     /// Print the versions of the library crates this binary was built from.
     Info,
+    /// Find and read the markers in images (PNG/JPEG); --json for one JSON line per image.
+    Detect(cmd::detect::Args),
     /// Write print-ready marker images (PNG + SVG) for every robot's rig, and markers.json.
     Markers(cmd::markers::Args),
 }
@@ -34,6 +36,7 @@ fn main() -> ExitCode {
     let result: Result<(), cmd::CliError> = match cli.command {
         Command::Info => cmd::info::run(),
         Command::Markers(args) => cmd::markers::run(&args),
+        Command::Detect(args) => cmd::detect::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
