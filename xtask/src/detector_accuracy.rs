@@ -34,7 +34,16 @@ pub fn run(args: &[String]) -> crate::Result {
     if cfg!(debug_assertions) && std::env::var_os("XTASK_DETECTOR_ACCURACY_RELEASE").is_none() {
         // Thousands of rendered frames: worth a release build.
         let status = std::process::Command::new(env!("CARGO"))
-            .args(["run", "--release", "-q", "-p", "xtask", "--bin", "xtask", "--"])
+            .args([
+                "run",
+                "--release",
+                "-q",
+                "-p",
+                "xtask",
+                "--bin",
+                "xtask",
+                "--",
+            ])
             .arg("detector-accuracy")
             .args(args)
             .env("XTASK_DETECTOR_ACCURACY_RELEASE", "1")
@@ -110,7 +119,10 @@ pub fn run(args: &[String]) -> crate::Result {
     writeln!(doc, "| corner RMS error | {:.4} px |", def.rms())?;
     writeln!(doc, "| largest corner error | {:.3} px |", def.max_err)?;
     writeln!(doc, "\nCorner RMS by marker size (longer side):\n")?;
-    writeln!(doc, "| side (px) | markers | corner RMS (px) |\n| --- | --- | --- |")?;
+    writeln!(
+        doc,
+        "| side (px) | markers | corner RMS (px) |\n| --- | --- | --- |"
+    )?;
     for (i, (se, count)) in def.by_size.iter().enumerate() {
         if *count > 0 {
             writeln!(
@@ -252,7 +264,8 @@ pub fn run(args: &[String]) -> crate::Result {
         for (label, cfg) in rows {
             let (mut a, mut o) = (Tally::default(), Tally::default());
             for seed in 0..per as u64 {
-                let scene = marker_scene(&cfg, dict, &mut ChaCha8Rng::seed_from_u64(50_000 + seed))?;
+                let scene =
+                    marker_scene(&cfg, dict, &mut ChaCha8Rng::seed_from_u64(50_000 + seed))?;
                 a.add(&scene, DetectorConfig::default())?;
                 o.add(
                     &scene,

@@ -50,7 +50,11 @@ fn frames() -> Vec<Vec<u8>> {
     let mut rng = ChaCha8Rng::seed_from_u64(11);
     let cfg = SceneConfig::default();
     let mut frames: Vec<Vec<u8>> = (0..3)
-        .map(|_| marker_scene(&cfg, Dictionary::paper(), &mut rng).unwrap().pixels)
+        .map(|_| {
+            marker_scene(&cfg, Dictionary::paper(), &mut rng)
+                .unwrap()
+                .pixels
+        })
         .collect();
     frames.push(clutter_frame(640, 480, 1.0, 3.0, &mut rng).unwrap());
     frames
