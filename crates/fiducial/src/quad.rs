@@ -135,7 +135,8 @@ pub fn fit_quad(contour: &[[i32; 2]], limits: &QuadLimits) -> Option<[[f64; 2]; 
         let y = (l1[0] * l2[2] - l2[0] * l1[2]) / det;
         let [vx, vy] = p(v[i]);
         // The intersection must stay near the vertex found (not run off along a side).
-        if !((x - vx).hypot(y - vy) <= 0.25 * limits.min_side.max(4.0) + 3.0) {
+        let moved = (x - vx).hypot(y - vy);
+        if moved.is_nan() || moved > 0.25 * limits.min_side.max(4.0) + 3.0 {
             return None;
         }
         *c = [x, y];
@@ -187,7 +188,7 @@ pub fn convex_clockwise(c: &[[f64; 2]; 4], min_angle_deg: f64) -> bool {
         let cross = e1[0] * e2[1] - e1[1] * e2[0];
         let n1 = (e1[0] * e1[0] + e1[1] * e1[1]).sqrt();
         let n2 = (e2[0] * e2[0] + e2[1] * e2[1]).sqrt();
-        if !(cross > 0.0) || n1 == 0.0 || n2 == 0.0 {
+        if cross.is_nan() || cross <= 0.0 || n1 == 0.0 || n2 == 0.0 {
             return false;
         }
         // Interior angle = 180 - turning angle; its cosine is -cos(turn).

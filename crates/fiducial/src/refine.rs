@@ -106,7 +106,7 @@ fn sample_profile(img: &GrayView<'_>, start: [f64; 2], step: [f64; 2], out: &mut
 fn area_edge(prof: &[f64], step: f64, half: f64, pos: f64, lo: f64, hi: f64) -> Option<f64> {
     let span = (prof.len() - 1) as f64 * step;
     let w = (pos + half).min(span - (pos + half)).min(1.0);
-    if w < 0.999 || !(hi > lo) {
+    if w < 0.999 || hi.is_nan() || lo.is_nan() || hi <= lo {
         return None;
     }
     // Window [a, b] in sample units.
@@ -150,7 +150,7 @@ fn intersect(a: &Line, b: &Line) -> Option<[f64; 2]> {
 /// Weighted total-least-squares line through points `(x, y, w)`.
 fn fit_line(pts: &[[f64; 3]]) -> Option<Line> {
     let sw: f64 = pts.iter().map(|p| p[2]).sum();
-    if pts.len() < 2 || !(sw > 0.0) {
+    if pts.len() < 2 || sw.is_nan() || sw <= 0.0 {
         return None;
     }
     let mx = pts.iter().map(|p| p[0] * p[2]).sum::<f64>() / sw;
@@ -231,7 +231,13 @@ impl Refiner {
         let limit = 3.0 + 0.05 * mean_side;
         for (c, k) in corners.iter().zip(coarse) {
             let moved = (k[0] - c[0]).hypot(k[1] - c[1]);
-            if !(moved <= limit) || c[0] < -0.5 || c[1] < -0.5 || c[0] > w - 0.5 || c[1] > h - 0.5 {
+            if moved.is_nan()
+                || moved > limit
+                || c[0] < -0.5
+                || c[1] < -0.5
+                || c[0] > w - 0.5
+                || c[1] > h - 0.5
+            {
                 return None;
             }
         }
@@ -251,7 +257,7 @@ impl Refiner {
     ) -> Option<(Line, f64)> {
         let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
         let len = (dx * dx + dy * dy).sqrt();
-        if !(len > 2.0) {
+        if len.is_nan() || len <= 2.0 {
             return None;
         }
         let t = [dx / len, dy / len];

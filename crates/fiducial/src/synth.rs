@@ -289,7 +289,7 @@ impl Canvas {
     /// Separable Gaussian blur with standard deviation `sigma` pixels (borders replicated);
     /// `sigma <= 0` does nothing.
     pub fn blur(&mut self, sigma: f64) {
-        if !(sigma > 0.0) || !sigma.is_finite() {
+        if !sigma.is_finite() || sigma <= 0.0 {
             return;
         }
         let r = (3.0 * sigma).ceil() as isize;
@@ -324,7 +324,7 @@ impl Canvas {
 
     /// Adds Gaussian noise of standard deviation `sigma` grey levels.
     pub fn noise<R: Rng + ?Sized>(&mut self, sigma: f64, rng: &mut R) {
-        if !(sigma > 0.0) || !sigma.is_finite() {
+        if !sigma.is_finite() || sigma <= 0.0 {
             return;
         }
         for v in &mut self.data {

@@ -289,7 +289,7 @@ fn to_gray<'a, const C: usize>(
     out: &'a mut Vec<u8>,
 ) -> Result<GrayView<'a>, ImageError> {
     // Validate the shape first (an empty `out` would be reported as too short otherwise).
-    let n = width.checked_mul(height).unwrap_or(usize::MAX);
+    let n = width.saturating_mul(height);
     if width == 0 || height == 0 || width > GrayView::MAX_SIDE || height > GrayView::MAX_SIDE {
         // Let GrayView produce the right error variant.
         return GrayView::new(&[], width, height);

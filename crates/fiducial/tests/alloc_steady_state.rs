@@ -1,6 +1,7 @@
 //! Steady-state detection allocates nothing: a counting global allocator watches a stream of
 //! frames of one size after a warm-up pass.
 #![allow(unsafe_code)]
+#![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;

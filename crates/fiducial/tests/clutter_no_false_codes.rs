@@ -1,5 +1,6 @@
 //! Marker-free clutter (textured noise, rectangles, black-bordered squares with random
 //! insides, text-like strokes, checkers) never produces a code.
+#![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
 use fiducial::synth::clutter_frame;
 use fiducial::{Detector, DetectorConfig, GrayView, Threshold};

@@ -1,6 +1,7 @@
 //! Property tests of the detector on synthetic views: a real marker warped by a random
 //! homography is found with the right code and sub-pixel corners in its own NW, NE, SE, SW
 //! order, and arbitrary images never make it panic.
+#![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
 use fiducial::synth::{Canvas, CellPattern};
 use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Threshold};

@@ -1,6 +1,7 @@
 //! `formation-tracker detect`: reads the markers of rendered scenes with the right robot,
 //! face and corners, one JSON line per image; an unreadable file is one error line and a
 //! non-zero exit while the other images are still reported.
+#![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
 use std::path::PathBuf;
 use std::process::Command;
