@@ -9,6 +9,7 @@ use std::process::ExitCode;
 mod bench_report;
 mod detector_accuracy;
 mod dictionary;
+mod dukf_table;
 
 type Result<T = ()> = std::result::Result<T, Box<dyn std::error::Error>>;
 
@@ -21,6 +22,8 @@ commands:
   detector-accuracy  measure the marker detector on synthetic scenes and write
                    docs/detector-accuracy.md (--quick: fewer scenes)
   dictionary       regenerate crates/fiducial/data/dict-4x5-d6.txt (--check: only compare)
+  dukf-table       run the dual-UKF reproduction over seeds 1..20 (with and without
+                   the paper's bias) and write docs/dukf-reproduction.md
 ";
 
 fn main() -> ExitCode {
@@ -30,6 +33,7 @@ fn main() -> ExitCode {
         Some("bench-report") => bench_report::run(&args[1..]),
         Some("dictionary") => dictionary::run(&args[1..]),
         Some("detector-accuracy") => detector_accuracy::run(&args[1..]),
+        Some("dukf-table") => dukf_table::run(&args[1..]),
         _ => {
             eprint!("{USAGE}");
             return ExitCode::from(2);

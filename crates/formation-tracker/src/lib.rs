@@ -11,10 +11,20 @@
 //! - [`mount`]: the camera mount on the follower and the measurement transform of spec 2.5,
 //!   from a leader's pose in the camera frame to `(l12, alpha12, beta12)` and their
 //!   covariance.
+//! - [`filter`]: [`filter::FormationFilter`], the dual UKF (`dukf`) over the polar
+//!   leader-follower model (`unicycle`), reused per tracked leader; and the dual-UKF
+//!   reproduction run (paper Figs. 12-13) with its figures of merit.
+//! - [`scenario`]: the reference scenario of that experiment: a Cartesian truth simulation
+//!   and seeded noisy measurements.
+//! - [`plot`]: figures as SVG and PNG with plotters' pure-Rust backends and an embedded font.
 //!
-//! The `formation-tracker` binary's subcommands live beside `main.rs` in `cmd/`; they are
-//! thin wrappers that parse arguments, call these modules and write files.
+//! Library modules never print or exit. The `formation-tracker` binary's subcommands live
+//! beside `main.rs` in `cmd/`; they are thin wrappers that parse arguments, call these
+//! modules and write files.
 #![deny(missing_docs)]
 
+pub mod filter;
 pub mod mount;
+pub mod plot;
 pub mod rig;
+pub mod scenario;

@@ -29,6 +29,10 @@ enum Command {
     Detect(cmd::detect::Args),
     /// Write print-ready marker images (PNG + SVG) for every robot's rig, and markers.json.
     Markers(cmd::markers::Args),
+    /// Regenerate one of the paper's results (e.g. `reproduce dukf`, Figs. 12-13).
+    Reproduce(cmd::reproduce::Args),
+    /// Run the demonstration (for now: the dual-UKF reproduction, seed 1, into out/demo).
+    Demo(cmd::demo::Args),
 }
 
 fn main() -> ExitCode {
@@ -37,6 +41,8 @@ fn main() -> ExitCode {
         Command::Info => cmd::info::run(),
         Command::Markers(args) => cmd::markers::run(&args),
         Command::Detect(args) => cmd::detect::run(&args),
+        Command::Reproduce(args) => cmd::reproduce::run(args),
+        Command::Demo(args) => cmd::demo::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
