@@ -61,6 +61,14 @@ const TARGETS: &[Target] = &[
     },
 ];
 
+/// Ratios of two benchmarks of the same run that an issue bounds.
+const RATIOS: &[(&str, &str, f64, &str)] = &[(
+    "fiducial/detect_640x480_noisy",
+    "fiducial/detect_640x480_clean",
+    1.5,
+    "noisy scene (sigma 10) vs the same scene clean",
+)];
+
 pub fn run(args: &[String]) -> Result {
     let no_run = args.iter().any(|a| a == "--no-run");
     let quick = args.iter().any(|a| a == "--quick");
@@ -237,6 +245,24 @@ fn render(rows: &[Row], machine: &str) -> String {
             ok,
             note
         );
+    }
+    let median = |id: &str| rows.iter().find(|r| r.id == id).map(|r| r.median_ns);
+    let mut ratio_lines = String::new();
+    for (num, den, limit, note) in RATIOS {
+        if let (Some(a), Some(b)) = (median(num), median(den)) {
+            let ratio = a / b;
+            let ok = if ratio <= *limit { "yes" } else { "**no**" };
+            let _ = writeln!(
+                ratio_lines,
+                "| `{num}` / `{den}` | {ratio:.2} | <= {limit} | {ok} | {note} |"
+            );
+        }
+    }
+    if !ratio_lines.is_empty() {
+        let _ = writeln!(s, "\nRatios within this run:\n");
+        let _ = writeln!(s, "| ratio | value | bound | within bound | note |");
+        let _ = writeln!(s, "|---|---|---|---|---|");
+        s.push_str(&ratio_lines);
     }
     s
 }
