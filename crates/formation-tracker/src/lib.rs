@@ -11,10 +11,18 @@
 //! - [`mount`]: the camera mount on the follower and the measurement transform of spec 2.5,
 //!   from a leader's pose in the camera frame to `(l12, alpha12, beta12)` and their
 //!   covariance.
+//! - [`rigfile`]: rig files (YAML/JSON) overriding the reference rig: faces, geometry and
+//!   the dictionary entry of each `(robot, face)`, with errors that name the bad field.
+//! - [`scene`]: scenes of leaders seen by a follower's camera, rendered by `synthcam` with
+//!   the markers as exact cell-grid textures, and their ground truth.
+//! - [`paper`]: the paper's configurations (Figs. 7-11) and seeded random scenes.
 //!
 //! The `formation-tracker` binary's subcommands live beside `main.rs` in `cmd/`; they are
 //! thin wrappers that parse arguments, call these modules and write files.
 #![deny(missing_docs)]
 
 pub mod mount;
+pub mod paper;
 pub mod rig;
+pub mod rigfile;
+pub mod scene;

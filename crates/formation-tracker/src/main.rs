@@ -27,6 +27,8 @@ enum Command {
     Info,
     /// Write print-ready marker images (PNG + SVG) for every robot's rig, and markers.json.
     Markers(cmd::markers::Args),
+    /// Render a synthetic frame of a paper scene (Figs. 7-11) or a scene file, with its truth.
+    Render(cmd::render::Args),
 }
 
 fn main() -> ExitCode {
@@ -34,6 +36,7 @@ fn main() -> ExitCode {
     let result: Result<(), cmd::CliError> = match cli.command {
         Command::Info => cmd::info::run(),
         Command::Markers(args) => cmd::markers::run(&args),
+        Command::Render(args) => cmd::render::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -5,3 +5,4 @@ pub type CliError = Box<dyn std::error::Error + Send + Sync + 'static>;
 
 pub mod info;
 pub mod markers;
+pub mod render;
