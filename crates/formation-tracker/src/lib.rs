@@ -21,6 +21,7 @@
 //! thin wrappers that parse arguments, call these modules and write files.
 #![deny(missing_docs)]
 
+pub mod annotate;
 pub mod mount;
 pub mod paper;
 pub mod rig;
