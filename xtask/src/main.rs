@@ -8,6 +8,7 @@ use std::process::ExitCode;
 
 mod bench_report;
 mod dictionary;
+mod dukf_table;
 
 type Result<T = ()> = std::result::Result<T, Box<dyn std::error::Error>>;
 
@@ -18,6 +19,8 @@ commands:
   bench-report     run all criterion benchmarks and write docs/performance.md
                    (--quick: short measurements; --no-run: only rebuild the table)
   dictionary       regenerate crates/fiducial/data/dict-4x5-d6.txt (--check: only compare)
+  dukf-table       run the dual-UKF reproduction over seeds 1..20 (with and without
+                   the paper's bias) and write docs/dukf-reproduction.md
 ";
 
 fn main() -> ExitCode {
@@ -26,6 +29,7 @@ fn main() -> ExitCode {
         Some("no-c") => no_c(),
         Some("bench-report") => bench_report::run(&args[1..]),
         Some("dictionary") => dictionary::run(&args[1..]),
+        Some("dukf-table") => dukf_table::run(&args[1..]),
         _ => {
             eprint!("{USAGE}");
             return ExitCode::from(2);

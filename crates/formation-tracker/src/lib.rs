@@ -16,14 +16,26 @@
 //! - [`scene`]: scenes of leaders seen by a follower's camera, rendered by `synthcam` with
 //!   the markers as exact cell-grid textures, and their ground truth.
 //! - [`paper`]: the paper's configurations (Figs. 7-11) and seeded random scenes.
+//! - [`annotate`]: annotated frames: markers read, labelled with robot and face, and each
+//!   robot's estimated rig reprojected over the image (the paper's Figs. 10-11).
+//! - [`filter`]: [`filter::FormationFilter`], the dual UKF (`dukf`) over the polar
+//!   leader-follower model (`unicycle`), reused per tracked leader; and the dual-UKF
+//!   reproduction run (paper Figs. 12-13) with its figures of merit.
+//! - [`scenario`]: the reference scenario of that experiment: a Cartesian truth simulation
+//!   and seeded noisy measurements.
+//! - [`plot`]: figures as SVG and PNG with plotters' pure-Rust backends and an embedded font.
 //!
-//! The `formation-tracker` binary's subcommands live beside `main.rs` in `cmd/`; they are
-//! thin wrappers that parse arguments, call these modules and write files.
+//! Library modules never print or exit. The `formation-tracker` binary's subcommands live
+//! beside `main.rs` in `cmd/`; they are thin wrappers that parse arguments, call these
+//! modules and write files.
 #![deny(missing_docs)]
 
 pub mod annotate;
+pub mod filter;
 pub mod mount;
 pub mod paper;
+pub mod plot;
 pub mod rig;
 pub mod rigfile;
+pub mod scenario;
 pub mod scene;

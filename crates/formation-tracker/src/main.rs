@@ -29,6 +29,10 @@ enum Command {
     Markers(cmd::markers::Args),
     /// Render a synthetic frame of a paper scene (Figs. 7-11) or a scene file, with its truth.
     Render(cmd::render::Args),
+    /// Regenerate one of the paper's results (e.g. `reproduce dukf`, Figs. 12-13).
+    Reproduce(cmd::reproduce::Args),
+    /// Run the demonstration (for now: the dual-UKF reproduction, seed 1, into out/demo).
+    Demo(cmd::demo::Args),
 }
 
 fn main() -> ExitCode {
@@ -37,6 +41,8 @@ fn main() -> ExitCode {
         Command::Info => cmd::info::run(),
         Command::Markers(args) => cmd::markers::run(&args),
         Command::Render(args) => cmd::render::run(&args),
+        Command::Reproduce(args) => cmd::reproduce::run(args),
+        Command::Demo(args) => cmd::demo::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

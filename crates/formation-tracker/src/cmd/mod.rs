@@ -3,6 +3,8 @@
 /// Any error a subcommand reports; printed as one line by `main`.
 pub type CliError = Box<dyn std::error::Error + Send + Sync + 'static>;
 
+pub mod demo;
 pub mod info;
 pub mod markers;
 pub mod render;
+pub mod reproduce;

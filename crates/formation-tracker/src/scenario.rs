@@ -1,0 +1,316 @@
+//! The reference scenario of the dual-UKF experiment (paper Figs. 12-13): a leader weaving
+//! ahead of a follower that holds formation, and noisy measurements of the formation
+//! variables. Documented in `docs/reference-scenario.md`.
+//!
+//! The truth is simulated in Cartesian form (both unicycles integrated exactly, spec 2.2,
+//! then spec 2.3), not with the polar model the filter uses, so the filter is not tested
+//! against its own equations. Inputs are held constant over each step (zero-order hold).
+
+use nalgebra::Vector3;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use unicycle::{
+    ControllerConfig, Formation, FormationMeasurement, Inputs, PolarModel, PolarState, Pose,
+    SeparationBearingController, UnicycleError, wrap_angle,
+};
+
+/// The paper's measurement bias `[l12, alpha12, beta12]` (Figs. 12-13).
+pub const PAPER_BIAS: [f64; 3] = [-0.0702, 0.0248, 0.0236];
+
+/// The paper's filter initial state `[x1, y1, theta1, l12, alpha12, beta12]`.
+pub const PAPER_X0: [f64; 6] = [1.5, 0.25, 0.0, 1.047, 0.233, 0.232];
+
+/// Errors of the scenario simulation.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ScenarioError {
+    /// The robot model refused a pose, an input or a step.
+    #[error(transparent)]
+    Model(#[from] UnicycleError),
+    /// A noise standard deviation is negative or not finite.
+    #[error("measurement noise standard deviation {index} = {value} must be finite and >= 0")]
+    InvalidNoise {
+        /// Component (0: l12, 1: alpha12, 2: beta12).
+        index: usize,
+        /// The value that was given.
+        value: f64,
+    },
+    /// The duration or step gives no step at all, or is not finite.
+    #[error("duration {duration} s with dt = {dt} s gives no simulation step")]
+    NoSteps {
+        /// Duration, seconds.
+        duration: f64,
+        /// Step, seconds.
+        dt: f64,
+    },
+}
+
+/// Everything that defines one run of the reference scenario.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScenarioConfig {
+    /// Camera offset `d`, metres.
+    pub d: f64,
+    /// Time step, seconds.
+    pub dt: f64,
+    /// Duration, seconds.
+    pub duration: f64,
+    /// Follower's initial pose.
+    pub follower0: Pose,
+    /// Leader's initial pose.
+    pub leader0: Pose,
+    /// Standard deviations of the measurement noise `[l12, alpha12, beta12]`.
+    pub noise_std: [f64; 3],
+    /// Constant bias added to every measurement, if any.
+    pub bias: Option<[f64; 3]>,
+    /// Seed of the measurement noise (`ChaCha8Rng::seed_from_u64`).
+    pub seed: u64,
+}
+
+impl ScenarioConfig {
+    /// The reference scenario (see `docs/reference-scenario.md`) with the given seed, without
+    /// bias: follower at (0, 0, 0), leader at (1.5, 0.25, 0), d = 0.5 m, dt = 1/30 s, 8 s,
+    /// noise standard deviations (0.07 m, 0.03 rad, 0.03 rad).
+    pub fn reference(seed: u64) -> Self {
+        Self {
+            d: 0.5,
+            dt: 1.0 / 30.0,
+            duration: 8.0,
+            follower0: Pose::new(0.0, 0.0, 0.0),
+            leader0: Pose::new(1.5, 0.25, 0.0),
+            noise_std: [0.07, 0.03, 0.03],
+            bias: None,
+            seed,
+        }
+    }
+
+    /// The same scenario with the paper's measurement bias [`PAPER_BIAS`] added.
+    pub fn with_paper_bias(mut self) -> Self {
+        self.bias = Some(PAPER_BIAS);
+        self
+    }
+
+    /// Measurement noise covariance `diag(std^2)`.
+    pub fn noise_covariance(&self) -> nalgebra::Matrix3<f64> {
+        let [a, b, c] = self.noise_std;
+        nalgebra::Matrix3::from_diagonal(&Vector3::new(a * a, b * b, c * c))
+    }
+
+    /// Number of steps after the initial instant: `round(duration / dt)`.
+    pub fn steps(&self) -> usize {
+        let n = (self.duration / self.dt).round();
+        if n.is_finite() && n >= 1.0 {
+            n as usize
+        } else {
+            0
+        }
+    }
+}
+
+/// The leader's inputs of the reference scenario at time `t`:
+/// `v1 = 0.8 + 0.2 sin(0.5 t)` m/s, `w1 = 0.2 sin(0.4 t)` rad/s.
+pub fn reference_leader_inputs(t: f64) -> Inputs {
+    Inputs::new(0.8 + 0.2 * (0.5 * t).sin(), 0.2 * (0.4 * t).sin())
+}
+
+/// One instant `t_k = k dt` of a simulated run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sample {
+    /// Time, seconds.
+    pub t: f64,
+    /// True polar state `[x1, y1, theta1, l12, alpha12, beta12]`.
+    pub truth: PolarState,
+    /// True follower pose.
+    pub follower: Pose,
+    /// Leader inputs applied from `t_k` to `t_{k+1}`.
+    pub leader_inputs: Inputs,
+    /// Follower inputs (from the formation controller) applied from `t_k` to `t_{k+1}`.
+    pub follower_inputs: Inputs,
+    /// Measurement `h(x_k) + n_k` (+ bias), angles wrapped.
+    pub measurement: FormationMeasurement,
+}
+
+/// A simulated run: `steps() + 1` samples from `t = 0` to `t = duration`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scenario {
+    /// The configuration that produced it.
+    pub config: ScenarioConfig,
+    /// The samples, `samples[k]` at `t = k dt`.
+    pub samples: Vec<Sample>,
+}
+
+/// Simulates the scenario: both unicycles integrated exactly, the follower driven by the
+/// separation-bearing controller on the true formation variables and the true leader inputs
+/// (holding the initial `l12` and `alpha12`), measurements drawn from the seeded noise.
+///
+/// # Errors
+/// A bad configuration ([`ScenarioError`]) or a model error (e.g. a collision).
+pub fn simulate(config: &ScenarioConfig) -> Result<Scenario, ScenarioError> {
+    simulate_with(config, reference_leader_inputs)
+}
+
+/// As [`simulate`] with other leader inputs.
+///
+/// # Errors
+/// As [`simulate`].
+pub fn simulate_with(
+    config: &ScenarioConfig,
+    leader_inputs: impl Fn(f64) -> Inputs,
+) -> Result<Scenario, ScenarioError> {
+    let n = config.steps();
+    if n == 0 || !config.dt.is_finite() {
+        return Err(ScenarioError::NoSteps {
+            duration: config.duration,
+            dt: config.dt,
+        });
+    }
+    let mut noise = Vec::with_capacity(3);
+    for (index, &s) in config.noise_std.iter().enumerate() {
+        // Normal::new refuses only non-finite deviations; a negative one is refused here.
+        let invalid = ScenarioError::InvalidNoise { index, value: s };
+        if s < 0.0 {
+            return Err(invalid);
+        }
+        noise.push(Normal::new(0.0, s).map_err(|_| invalid)?);
+    }
+    let bias = config.bias.unwrap_or([0.0; 3]);
+    let model = PolarModel::new(config.d)?;
+    let start = Formation::from_poses(&config.leader0, &config.follower0, config.d)?;
+    let controller = SeparationBearingController::new(config.d, ControllerConfig::hold(&start))?;
+    let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
+
+    let mut leader = config.leader0;
+    let mut follower = config.follower0;
+    let mut samples = Vec::with_capacity(n + 1);
+    for k in 0..=n {
+        let t = k as f64 * config.dt;
+        let truth = model.state_from_poses(&leader, &follower)?;
+        let formation = Formation::from_vector(&PolarModel::h(&truth));
+        let u1 = leader_inputs(t);
+        let u2 = controller.inputs(&formation, u1)?;
+        let mut y = PolarModel::h(&truth);
+        for i in 0..3 {
+            y[i] += bias[i] + noise[i].sample(&mut rng);
+        }
+        y[1] = wrap_angle(y[1]);
+        y[2] = wrap_angle(y[2]);
+        samples.push(Sample {
+            t,
+            truth,
+            follower,
+            leader_inputs: u1,
+            follower_inputs: u2,
+            measurement: y,
+        });
+        if k < n {
+            leader = leader.integrate_exact(u1, config.dt)?;
+            follower = follower.integrate_exact(u2, config.dt)?;
+        }
+    }
+    Ok(Scenario {
+        config: config.clone(),
+        samples,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn same_seed_same_run_other_seed_other_noise() {
+        let a = simulate(&ScenarioConfig::reference(7)).unwrap();
+        let b = simulate(&ScenarioConfig::reference(7)).unwrap();
+        let c = simulate(&ScenarioConfig::reference(8)).unwrap();
+        assert_eq!(a, b);
+        assert_eq!(a.samples.len(), 241);
+        // The truth does not depend on the seed, the measurements do.
+        assert_eq!(a.samples[100].truth, c.samples[100].truth);
+        assert_ne!(a.samples[100].measurement, c.samples[100].measurement);
+    }
+
+    #[test]
+    fn truth_starts_at_the_poses_and_the_controller_holds_the_formation() {
+        let s = simulate(&ScenarioConfig::reference(1)).unwrap();
+        let x0 = s.samples[0].truth;
+        // Follower (0, 0, 0) with d = 0.5: camera at (0.5, 0), leader at (1.5, 0.25).
+        assert!((x0[3] - (1.0f64 + 0.0625).sqrt()).abs() < 1e-12);
+        assert!((x0[4] - 0.25f64.atan2(1.0)).abs() < 1e-12);
+        for sample in &s.samples {
+            assert!(
+                (sample.truth[3] - x0[3]).abs() < 5e-3,
+                "l12 {}",
+                sample.truth[3]
+            );
+            assert!(
+                (sample.truth[4] - x0[4]).abs() < 5e-3,
+                "alpha12 {}",
+                sample.truth[4]
+            );
+        }
+        let last = s.samples.last().unwrap();
+        assert!((last.t - 8.0).abs() < 1e-12);
+        // The leader really moved: about 6.4 m along its path.
+        assert!(last.truth[0] > 6.0);
+    }
+
+    #[test]
+    fn measurement_noise_has_the_configured_spread_and_bias() {
+        let noise = |bias: bool| {
+            let mut cfg = ScenarioConfig::reference(3);
+            cfg.duration = 200.0;
+            if bias {
+                cfg = cfg.with_paper_bias();
+            }
+            let s = simulate(&cfg).unwrap();
+            let n = s.samples.len() as f64;
+            let mut mean = Vector3::zeros();
+            let mut sq = Vector3::zeros();
+            for x in &s.samples {
+                let mut e = x.measurement - PolarModel::h(&x.truth);
+                e[1] = wrap_angle(e[1]);
+                e[2] = wrap_angle(e[2]);
+                mean += e / n;
+                sq += e.component_mul(&e) / n;
+            }
+            (mean, sq - mean.component_mul(&mean))
+        };
+        let (mean, var) = noise(false);
+        for (i, s) in [0.07f64, 0.03, 0.03].iter().enumerate() {
+            assert!(mean[i].abs() < 3.0 * s / 77.0, "mean {i} = {}", mean[i]);
+            assert!(
+                (var[i].sqrt() / s - 1.0).abs() < 0.05,
+                "std {i} = {}",
+                var[i].sqrt()
+            );
+        }
+        let (mean, _) = noise(true);
+        for i in 0..3 {
+            assert!(
+                (mean[i] - PAPER_BIAS[i]).abs() < 0.005,
+                "bias {i} = {}",
+                mean[i]
+            );
+        }
+    }
+
+    #[test]
+    fn bad_configurations_are_errors() {
+        let mut cfg = ScenarioConfig::reference(1);
+        cfg.noise_std[1] = -0.1;
+        assert!(matches!(
+            simulate(&cfg),
+            Err(ScenarioError::InvalidNoise { index: 1, .. })
+        ));
+        let mut cfg = ScenarioConfig::reference(1);
+        cfg.duration = 0.0;
+        assert!(matches!(simulate(&cfg), Err(ScenarioError::NoSteps { .. })));
+        let mut cfg = ScenarioConfig::reference(1);
+        cfg.leader0 = Pose::new(0.5, 0.0, 0.0);
+        assert!(matches!(
+            simulate(&cfg),
+            Err(ScenarioError::Model(
+                UnicycleError::SeparationTooSmall { .. }
+            ))
+        ));
+    }
+}
