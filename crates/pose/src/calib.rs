@@ -1,0 +1,252 @@
+//! Camera calibration files: OpenCV `FileStorage` YAML and ROS `camera_info` YAML (feature
+//! `calib`).
+//!
+//! Both formats store the same fields, so one reader serves both:
+//!
+//! ```yaml
+//! image_width: 640
+//! image_height: 480
+//! camera_matrix: { rows: 3, cols: 3, data: [fx, s, cx, 0, fy, cy, 0, 0, 1] }
+//! distortion_coefficients: { rows: 1, cols: 5, data: [k1, k2, p1, p2, k3] }
+//! distortion_model: plumb_bob      # ROS only
+//! ```
+//!
+//! OpenCV writes the matrices as `!!opencv-matrix` nodes with an extra `dt: d` entry and starts
+//! the file with `%YAML:1.0`. serde-saphyr 2 ignores unknown tags such as `!!opencv-matrix` (its
+//! default, documented behaviour) and, although `%YAML:1.0` is not the YAML spelling of the
+//! directive (`%YAML 1.0`), accepts that first line as it stands: the tests parse the
+//! unmodified OpenCV fixture, so nothing is stripped or rewritten. The line is only used to
+//! recognise the format: OpenCV when that header or a `dt` entry is present, ROS otherwise.
+//! `dt` must be `d` or `f`; `data` is read as `f64` either way.
+//!
+//! A missing or malformed field gives [`CalibrationError::MissingField`] or
+//! [`CalibrationError::BadField`] naming it.
+
+use crate::{Distortion, Intrinsics};
+use nalgebra::Matrix3;
+use serde::Deserialize;
+use std::path::Path;
+
+/// Why a calibration file could not be used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum CalibrationError {
+    /// The file could not be read.
+    #[error("cannot read calibration file {path}: {message}")]
+    Io {
+        /// The path.
+        path: String,
+        /// The operating system's message.
+        message: String,
+    },
+    /// The text is not YAML of the expected shape.
+    #[error("calibration file is not valid YAML for a camera calibration: {message}")]
+    Yaml {
+        /// The parser's message (with line and column).
+        message: String,
+    },
+    /// A required field is absent.
+    #[error("calibration file has no `{field}`")]
+    MissingField {
+        /// The field, e.g. `camera_matrix.data`.
+        field: &'static str,
+    },
+    /// A field is present but unusable.
+    #[error("calibration field `{field}` is invalid: {reason}")]
+    BadField {
+        /// The field.
+        field: &'static str,
+        /// What is wrong with it.
+        reason: String,
+    },
+}
+
+/// Which file format a calibration came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CalibrationFormat {
+    /// OpenCV `FileStorage` YAML (`%YAML:1.0`, `!!opencv-matrix`).
+    OpenCv,
+    /// ROS `camera_info` YAML (`distortion_model`).
+    Ros,
+}
+
+/// A camera calibration: intrinsics, distortion and image size.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Calibration {
+    /// Pinhole intrinsics.
+    pub intrinsics: Intrinsics,
+    /// Lens distortion (all zero when the file has none).
+    pub distortion: Distortion,
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// The file format.
+    pub format: CalibrationFormat,
+}
+
+#[derive(Deserialize)]
+struct RawMatrix {
+    rows: Option<usize>,
+    cols: Option<usize>,
+    dt: Option<String>,
+    data: Option<Vec<f64>>,
+}
+
+#[derive(Deserialize)]
+struct RawFile {
+    image_width: Option<i64>,
+    image_height: Option<i64>,
+    camera_matrix: Option<RawMatrix>,
+    distortion_coefficients: Option<RawMatrix>,
+    distortion_model: Option<String>,
+}
+
+impl Calibration {
+    /// Reads a calibration file (OpenCV or ROS YAML).
+    pub fn from_file(path: impl AsRef<Path>) -> Result<Self, CalibrationError> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path).map_err(|e| CalibrationError::Io {
+            path: path.display().to_string(),
+            message: e.to_string(),
+        })?;
+        Self::from_yaml_str(&text)
+    }
+
+    /// Parses calibration YAML text (OpenCV or ROS).
+    pub fn from_yaml_str(text: &str) -> Result<Self, CalibrationError> {
+        let text = text.trim_start_matches('\u{feff}');
+        let opencv_header = text.starts_with("%YAML:");
+        let raw: RawFile = serde_saphyr::from_str(text).map_err(|e| CalibrationError::Yaml {
+            message: e.to_string(),
+        })?;
+        let width = size(raw.image_width, "image_width")?;
+        let height = size(raw.image_height, "image_height")?;
+        let cm = raw.camera_matrix.ok_or(CalibrationError::MissingField {
+            field: "camera_matrix",
+        })?;
+        let k = matrix_data(
+            &cm,
+            "camera_matrix",
+            "camera_matrix.data",
+            |r, c| r == 3 && c == 3,
+            "must be 3x3",
+        )?;
+        let kmat = Matrix3::from_row_slice(k);
+        let intrinsics =
+            Intrinsics::from_matrix(&kmat).map_err(|e| CalibrationError::BadField {
+                field: "camera_matrix",
+                reason: e.to_string(),
+            })?;
+
+        let ros = raw.distortion_model.is_some();
+        if let Some(model) = &raw.distortion_model
+            && model != "plumb_bob"
+            && model != "rational_polynomial"
+        {
+            return Err(CalibrationError::BadField {
+                field: "distortion_model",
+                reason: format!("`{model}` is not supported (use plumb_bob)"),
+            });
+        }
+        let distortion = match &raw.distortion_coefficients {
+            None => Distortion::default(),
+            Some(d) => {
+                let data = matrix_data(
+                    d,
+                    "distortion_coefficients",
+                    "distortion_coefficients.data",
+                    |r, c| r == 1 || c == 1,
+                    "must be a row or column vector",
+                )?;
+                if data.is_empty() {
+                    Distortion::default()
+                } else {
+                    Distortion::from_slice(data).map_err(|e| CalibrationError::BadField {
+                        field: "distortion_coefficients",
+                        reason: e.to_string(),
+                    })?
+                }
+            }
+        };
+        let has_dt = cm.dt.is_some()
+            || raw
+                .distortion_coefficients
+                .as_ref()
+                .is_some_and(|d| d.dt.is_some());
+        let format = if opencv_header || (has_dt && !ros) {
+            CalibrationFormat::OpenCv
+        } else {
+            CalibrationFormat::Ros
+        };
+        Ok(Self {
+            intrinsics,
+            distortion,
+            width,
+            height,
+            format,
+        })
+    }
+}
+
+fn size(v: Option<i64>, field: &'static str) -> Result<u32, CalibrationError> {
+    let v = v.ok_or(CalibrationError::MissingField { field })?;
+    u32::try_from(v)
+        .ok()
+        .filter(|v| *v > 0)
+        .ok_or(CalibrationError::BadField {
+            field,
+            reason: format!("{v} is not a positive image size"),
+        })
+}
+
+fn matrix_data<'a>(
+    m: &'a RawMatrix,
+    field: &'static str,
+    data_field: &'static str,
+    shape_ok: impl Fn(usize, usize) -> bool,
+    shape_msg: &str,
+) -> Result<&'a [f64], CalibrationError> {
+    let data = m
+        .data
+        .as_deref()
+        .ok_or(CalibrationError::MissingField { field: data_field })?;
+    if let Some(dt) = &m.dt
+        && dt != "d"
+        && dt != "f"
+    {
+        return Err(CalibrationError::BadField {
+            field,
+            reason: format!("element type `{dt}` is not d or f"),
+        });
+    }
+    let rows = m
+        .rows
+        .unwrap_or(if shape_ok(1, data.len()) { 1 } else { 0 });
+    let cols = m
+        .cols
+        .unwrap_or_else(|| data.len().checked_div(rows).unwrap_or(0));
+    if !shape_ok(rows, cols) {
+        return Err(CalibrationError::BadField {
+            field,
+            reason: format!("{rows}x{cols}: {shape_msg}"),
+        });
+    }
+    if rows * cols != data.len() {
+        return Err(CalibrationError::BadField {
+            field,
+            reason: format!(
+                "{rows}x{cols} needs {} values, data has {}",
+                rows * cols,
+                data.len()
+            ),
+        });
+    }
+    if let Some(i) = data.iter().position(|v| !v.is_finite()) {
+        return Err(CalibrationError::BadField {
+            field,
+            reason: format!("value {i} is not finite"),
+        });
+    }
+    Ok(data)
+}

@@ -1,0 +1,132 @@
+//! Calibration files: OpenCV and ROS YAML, and malformed ones (fixtures/calibration).
+#![cfg(feature = "calib")]
+
+use pose::calib::{Calibration, CalibrationError, CalibrationFormat};
+use std::path::PathBuf;
+
+fn fixture(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures/calibration")
+        .join(name)
+}
+
+#[test]
+fn opencv_file_loads() {
+    let c = Calibration::from_file(fixture("opencv_640x480.yaml")).unwrap();
+    assert_eq!(c.format, CalibrationFormat::OpenCv);
+    assert_eq!((c.width, c.height), (640, 480));
+    let k = c.intrinsics;
+    assert!((k.alpha() - 554.256_258_422_040_8).abs() < 1e-9);
+    assert!((k.beta() - 553.125).abs() < 1e-9);
+    assert!((k.theta() - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
+    assert_eq!((k.u0(), k.v0()), (319.5, 239.5));
+    let d = c.distortion;
+    assert_eq!(
+        (d.k1, d.k2, d.p1, d.p2, d.k3),
+        (-0.12, 0.035, 0.001, -0.0005, 0.0)
+    );
+}
+
+#[test]
+fn ros_file_loads_and_matches_the_opencv_one() {
+    let ros = Calibration::from_file(fixture("ros_camera_info.yaml")).unwrap();
+    assert_eq!(ros.format, CalibrationFormat::Ros);
+    let cv = Calibration::from_file(fixture("opencv_640x480.yaml")).unwrap();
+    assert_eq!((ros.width, ros.height), (cv.width, cv.height));
+    assert!((ros.intrinsics.matrix() - cv.intrinsics.matrix()).amax() < 1e-9);
+    assert_eq!(ros.distortion, cv.distortion);
+}
+
+#[test]
+fn opencv_header_with_skew_and_no_distortion() {
+    let text = "%YAML:1.0\n---\nimage_width: 100\nimage_height: 80\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 100., -5., 49.5, 0., 101., 39.5, 0., 0., 1. ]\n";
+    let c = Calibration::from_yaml_str(text).unwrap();
+    assert_eq!(c.format, CalibrationFormat::OpenCv);
+    assert!((c.intrinsics.matrix()[(0, 1)] + 5.0).abs() < 1e-12);
+    assert!(c.distortion.is_zero());
+}
+
+#[test]
+fn missing_camera_matrix_is_named() {
+    let e = Calibration::from_file(fixture("malformed_missing_camera_matrix.yaml")).unwrap_err();
+    assert_eq!(
+        e,
+        CalibrationError::MissingField {
+            field: "camera_matrix"
+        }
+    );
+    assert!(e.to_string().contains("camera_matrix"));
+}
+
+#[test]
+fn missing_width_is_named() {
+    let e = Calibration::from_file(fixture("malformed_missing_width.yaml")).unwrap_err();
+    assert_eq!(
+        e,
+        CalibrationError::MissingField {
+            field: "image_width"
+        }
+    );
+}
+
+#[test]
+fn wrong_matrix_size_is_named() {
+    let e = Calibration::from_file(fixture("malformed_camera_matrix_shape.yaml")).unwrap_err();
+    assert!(
+        matches!(&e, CalibrationError::BadField { field: "camera_matrix", reason } if reason.contains("9 values")),
+        "{e}"
+    );
+}
+
+#[test]
+fn singular_camera_matrix_is_named() {
+    let e = Calibration::from_file(fixture("malformed_singular_camera_matrix.yaml")).unwrap_err();
+    assert!(
+        matches!(
+            &e,
+            CalibrationError::BadField {
+                field: "camera_matrix",
+                ..
+            }
+        ),
+        "{e}"
+    );
+}
+
+#[test]
+fn invalid_yaml_is_reported() {
+    let e = Calibration::from_file(fixture("malformed_not_yaml.yaml")).unwrap_err();
+    assert!(matches!(e, CalibrationError::Yaml { .. }), "{e}");
+}
+
+#[test]
+fn missing_file_is_an_io_error() {
+    let e = Calibration::from_file(fixture("no_such_file.yaml")).unwrap_err();
+    assert!(matches!(e, CalibrationError::Io { .. }), "{e}");
+}
+
+#[test]
+fn unsupported_distortion_model_is_named() {
+    let text = "image_width: 640\nimage_height: 480\ncamera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\ndistortion_model: equidistant\ndistortion_coefficients: {rows: 1, cols: 4, data: [0.1, 0, 0, 0]}\n";
+    let e = Calibration::from_yaml_str(text).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            CalibrationError::BadField {
+                field: "distortion_model",
+                ..
+            }
+        ),
+        "{e}"
+    );
+}
+
+#[test]
+fn wrong_type_in_a_field_is_reported_with_its_name() {
+    let text = "image_width: wide\nimage_height: 480\ncamera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\n";
+    let e = Calibration::from_yaml_str(text).unwrap_err();
+    assert!(
+        matches!(&e, CalibrationError::Yaml { message } if message.contains("image_width") || message.contains("line 1")),
+        "{e}"
+    );
+}
