@@ -16,6 +16,9 @@
 //! - [`scene`]: scenes of leaders seen by a follower's camera, rendered by `synthcam` with
 //!   the markers as exact cell-grid textures, and their ground truth.
 //! - [`paper`]: the paper's configurations (Figs. 7-11) and seeded random scenes.
+//! - [`robots`]: robot poses from the markers of a frame: grouped by robot, one joint pose
+//!   per robot (`pose`), inconsistent faces rejected, optionally refined on the ground plane,
+//!   turned into `(l12, alpha12, beta12)` with covariance.
 //! - [`annotate`]: annotated frames: markers read, labelled with robot and face, and each
 //!   robot's estimated rig reprojected over the image (the paper's Figs. 10-11).
 //! - [`filter`]: [`filter::FormationFilter`], the dual UKF (`dukf`) over the polar
@@ -37,5 +40,6 @@ pub mod paper;
 pub mod plot;
 pub mod rig;
 pub mod rigfile;
+pub mod robots;
 pub mod scenario;
 pub mod scene;
