@@ -15,6 +15,7 @@
 
 use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, Vector3};
 use serde::{Deserialize, Serialize};
+use unicycle::wrap_angle;
 
 /// Where and how the camera sits on the follower.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -170,13 +171,6 @@ where
     Ok((s + s.transpose()) * 0.5)
 }
 
-/// Wraps an angle to (-pi, pi].
-pub fn wrap_angle(a: f64) -> f64 {
-    use std::f64::consts::{PI, TAU};
-    let r = (a + PI).rem_euclid(TAU) - PI;
-    if r <= -PI { r + TAU } else { r }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -326,13 +320,5 @@ mod tests {
                 s[(i, i)]
             );
         }
-    }
-
-    #[test]
-    fn wrap_angle_range() {
-        use std::f64::consts::PI;
-        assert_eq!(wrap_angle(PI), PI);
-        assert_eq!(wrap_angle(-PI), PI);
-        assert!((wrap_angle(3.0 * PI + 0.1) - (-PI + 0.1)).abs() < 1e-12);
     }
 }
