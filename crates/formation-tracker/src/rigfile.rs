@@ -332,7 +332,7 @@ fn check_faces(faces: &[FaceSpec]) -> Result<(), RigFileError> {
                     format!("face {} is already faces[{j}]", f.face),
                 ));
             }
-            let gap = crate::mount::wrap_angle((f.yaw_deg - g.yaw_deg).to_radians()).abs();
+            let gap = unicycle::wrap_angle((f.yaw_deg - g.yaw_deg).to_radians()).abs();
             if gap.to_degrees() < 45.0 - 1e-9 {
                 return Err(field(
                     format!("faces[{i}].yaw_deg"),

@@ -217,7 +217,7 @@ fn refine_planar(
     let dof = (n as f64 - 3.0).max(1.0);
     let sigma2 = (cost / dof).max(0.01);
     let cov = jtj.try_inverse()? * sigma2;
-    q.z = mount::wrap_angle(q.z);
+    q.z = unicycle::wrap_angle(q.z);
     Some(Planar {
         q,
         rms: (cost / (n as f64 / 2.0)).sqrt(),
@@ -268,7 +268,7 @@ pub struct RobotMeasurement {
 impl RobotMeasurement {
     /// The leader's heading relative to the camera robot's: `beta12 - alpha12`.
     pub fn relative_heading(&self) -> f64 {
-        mount::wrap_angle(self.beta12 - self.alpha12)
+        unicycle::wrap_angle(self.beta12 - self.alpha12)
     }
 }
 

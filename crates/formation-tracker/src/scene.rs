@@ -536,7 +536,7 @@ fn truth_from(
             },
             rotation: [rv.x, rv.y, rv.z],
             translation: [t.x, t.y, t.z],
-            relative_heading: mount::wrap_angle(rb.theta - spec.camera_robot.theta),
+            relative_heading: unicycle::wrap_angle(rb.theta - spec.camera_robot.theta),
             l12: f[0],
             alpha12: f[1],
             beta12: f[2],

@@ -5,7 +5,6 @@
 //! these tests isolate `robots` from detection.
 
 use fiducial::Dictionary;
-use formation_tracker::mount::wrap_angle;
 use formation_tracker::paper::{paper_scene, random_scene};
 use formation_tracker::rigfile::RigModel;
 use formation_tracker::robots::{MarkerObservation, RobotConfig, measure_robots};
@@ -15,6 +14,7 @@ use proptest::prelude::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
+use unicycle::wrap_angle;
 
 fn truth_of(spec: &SceneSpec) -> SceneTruth {
     let rig = RigModel::reference();

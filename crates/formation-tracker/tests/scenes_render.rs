@@ -7,11 +7,11 @@ use std::path::PathBuf;
 use std::process::Command;
 
 use fiducial::{DecodeParams, Dictionary, GrayView, decode};
-use formation_tracker::mount::wrap_angle;
 use formation_tracker::paper::{PAPER_FIGURES, paper_scene, random_scene};
 use formation_tracker::rigfile::RigModel;
 use formation_tracker::scene::{SceneError, SceneSpec, SceneTruth, render_scene};
 use nalgebra::Point2;
+use unicycle::wrap_angle;
 
 fn fixture(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
