@@ -9,7 +9,6 @@ use std::process::ExitCode;
 mod bench_report;
 mod dictionary;
 mod dukf_table;
-mod random_scenes;
 
 type Result<T = ()> = std::result::Result<T, Box<dyn std::error::Error>>;
 
@@ -20,8 +19,6 @@ commands:
   bench-report     run all criterion benchmarks and write docs/performance.md
                    (--quick: short measurements; --no-run: only rebuild the table)
   dictionary       regenerate crates/fiducial/data/dict-4x5-d6.txt (--check: only compare)
-  random-scenes    score 100 seeded random scenes, write docs/random-scenes.md
-                   (--count N, --seed S; --check: only compare, fail on a failing scene)
   dukf-table       run the dual-UKF reproduction over seeds 1..20 (with and without
                    the paper's bias) and write docs/dukf-reproduction.md
 ";
@@ -32,7 +29,6 @@ fn main() -> ExitCode {
         Some("no-c") => no_c(),
         Some("bench-report") => bench_report::run(&args[1..]),
         Some("dictionary") => dictionary::run(&args[1..]),
-        Some("random-scenes") => random_scenes::run(&args[1..]),
         Some("dukf-table") => dukf_table::run(&args[1..]),
         _ => {
             eprint!("{USAGE}");
