@@ -5,7 +5,8 @@
 //! offset; we fix them: 640 x 480, horizontal field of view 60 degrees, the camera level at
 //! marker height (0.30 m) with no offset ahead of the robot's reference point
 //! ([`crate::scene::paper_mount`]), the reference rig, sensor noise sigma 3 grey levels and
-//! blur sigma 1 px, 4x supersampling, and the figure number as the noise seed.
+//! blur sigma 1 px, 8 x 8 samples per pixel (see [`RenderSpec`]), and the figure number as
+//! the noise seed.
 
 use std::f64::consts::FRAC_PI_2;
 

@@ -107,7 +107,7 @@ impl Default for CameraSpec {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RenderSpec {
-    /// Samples per pixel side (2: 4 samples per pixel).
+    /// Samples per pixel side (8: 64 samples per pixel).
     pub supersampling: usize,
     /// Sensor noise standard deviation, grey levels.
     pub noise_sigma: f64,
@@ -118,10 +118,14 @@ pub struct RenderSpec {
 }
 
 impl Default for RenderSpec {
-    /// The paper scenes' effects: 4x supersampling, noise sigma 3, blur sigma 1, seed 0.
+    /// The paper scenes' effects: 8 x 8 samples per pixel, noise sigma 3, blur sigma 1,
+    /// seed 0. The samples approximate a sensor's exact area integral: an axis-aligned edge
+    /// lands within `1 / (2 n)` px of its true place with `n x n` samples, so 2 x 2 would put
+    /// the level camera's vertical marker edges up to 0.25 px off (a bias the pose would
+    /// inherit), 8 x 8 at most 0.06 px.
     fn default() -> Self {
         Self {
-            supersampling: 2,
+            supersampling: 8,
             noise_sigma: 3.0,
             blur_sigma: 1.0,
             seed: 0,
