@@ -230,3 +230,39 @@ fn render_command_writes_png_and_truth() {
     assert_eq!(err.trim().lines().count(), 1, "{err}");
     assert!(err.contains("7 to 11"), "{err}");
 }
+
+/// Equal up to the last bit of the floats (serde_json's default float parsing may round the
+/// last bit differently).
+fn same(a: &SceneSpec, b: &SceneSpec) -> bool {
+    let close = |x: f64, y: f64| (x - y).abs() <= 1e-12 * x.abs().max(1.0);
+    a.name == b.name
+        && a.mount == b.mount
+        && a.camera == b.camera
+        && a.render == b.render
+        && a.camera_robot == b.camera_robot
+        && a.robots.len() == b.robots.len()
+        && a.robots.iter().zip(&b.robots).all(|(p, q)| {
+            p.robot == q.robot && close(p.x, q.x) && close(p.y, q.y) && close(p.theta, q.theta)
+        })
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+    /// Scene files round-trip through JSON and YAML, and building never panics: a valid
+    /// spec builds or fails with a typed error (a leader on the camera point).
+    #[test]
+    fn scene_files_round_trip(seed in 0u64..1_000_000, index in 0u64..100) {
+        let spec = random_scene(seed, index);
+        let json = serde_json::to_string(&spec).unwrap();
+        proptest::prop_assert!(same(&SceneSpec::from_text(&json, true, "p.json").unwrap(), &spec));
+        let yaml = serde_saphyr::to_string(&spec).unwrap();
+        proptest::prop_assert!(same(&SceneSpec::from_text(&yaml, false, "p.yaml").unwrap(), &spec));
+        let rig = RigModel::reference();
+        let built = formation_tracker::scene::build_scene(&spec, &rig, Dictionary::paper()).unwrap();
+        let truth = formation_tracker::scene::scene_truth(&spec, &built, &rig, Dictionary::paper()).unwrap();
+        proptest::prop_assert_eq!(truth.robots.len(), spec.robots.len());
+        for r in &truth.robots {
+            proptest::prop_assert!(r.l12.is_finite() && r.l12 >= 0.3 - 1e-9 && r.l12 <= 3.0 + 1e-9);
+        }
+    }
+}
