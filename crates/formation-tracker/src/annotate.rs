@@ -150,24 +150,24 @@ pub fn annotate(
                 polygon(&mut img, &px, colour, false);
             }
         }
-        // The robot's vertical axis, from the ground to the top of the faces.
+        // The robot's vertical axis from the ground up to its faces (not over the markers),
+        // and its number above the rig.
+        let top = rig.geometry.marker_centre_height_m + half_h;
+        let bottom = rig.geometry.marker_centre_height_m - half_h;
         if let Some(px) = project(
             k,
             &[
                 to_cam(Point3::origin()),
-                to_cam(Point3::new(
-                    0.0,
-                    0.0,
-                    rig.geometry.marker_centre_height_m + half_h,
-                )),
+                to_cam(Point3::new(0.0, 0.0, bottom.max(0.0))),
+                to_cam(Point3::new(0.0, 0.0, top)),
             ],
         ) {
             segment(&mut img, px[0], px[1], colour);
             draw_text_mut(
                 &mut img,
                 colour,
-                px[1].x as i32 - 10,
-                px[1].y as i32 - 34,
+                px[2].x as i32 - 10,
+                px[2].y as i32 - 34,
                 16.0,
                 &font,
                 &format!("R{}", overlay.robot),
