@@ -7,6 +7,7 @@
 use std::process::ExitCode;
 
 mod bench_report;
+mod detector_accuracy;
 mod dictionary;
 mod dukf_table;
 
@@ -18,6 +19,8 @@ commands:
   no-c             fail if any crate in the dependency tree builds C code
   bench-report     run all criterion benchmarks and write docs/performance.md
                    (--quick: short measurements; --no-run: only rebuild the table)
+  detector-accuracy  measure the marker detector on synthetic scenes and write
+                   docs/detector-accuracy.md (--quick: fewer scenes)
   dictionary       regenerate crates/fiducial/data/dict-4x5-d6.txt (--check: only compare)
   dukf-table       run the dual-UKF reproduction over seeds 1..20 (with and without
                    the paper's bias) and write docs/dukf-reproduction.md
@@ -29,6 +32,7 @@ fn main() -> ExitCode {
         Some("no-c") => no_c(),
         Some("bench-report") => bench_report::run(&args[1..]),
         Some("dictionary") => dictionary::run(&args[1..]),
+        Some("detector-accuracy") => detector_accuracy::run(&args[1..]),
         Some("dukf-table") => dukf_table::run(&args[1..]),
         _ => {
             eprint!("{USAGE}");

@@ -70,18 +70,26 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod contour;
 pub mod cross_ratio;
 pub mod decode;
+pub mod detector;
 pub mod dictionary;
 pub mod error;
 pub mod family;
 pub mod image;
+pub mod quad;
+pub mod refine;
 pub mod render;
+pub mod synth;
+pub mod threshold;
 
 pub use crate::cross_ratio::CrossRatioFrame;
 pub use crate::decode::{CellReading, DecodeParams, Decoded, Rejection, decode, read_cells};
+pub use crate::detector::{Detector, DetectorConfig, Quad};
 pub use crate::dictionary::{Dictionary, GenerateParams, Match, hamming};
 pub use crate::error::FiducialError;
 pub use crate::family::MarkerFamily;
 pub use crate::image::{Corners, GrayView, ImageError};
 pub use crate::render::{RenderOptions, RenderedMarker, render_marker, render_svg};
+pub use crate::threshold::{Threshold, rgb_to_gray, rgba_to_gray};

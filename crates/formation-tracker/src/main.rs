@@ -25,6 +25,8 @@ struct Cli {
 enum Command {
     /// Print the versions of the library crates this binary was built from.
     Info,
+    /// Find and read the markers in images (PNG/JPEG); --json for one JSON line per image.
+    Detect(cmd::detect::Args),
     /// Write print-ready marker images (PNG + SVG) for every robot's rig, and markers.json.
     Markers(cmd::markers::Args),
     /// Render a synthetic frame of a paper scene (Figs. 7-11) or a scene file, with its truth.
@@ -40,6 +42,7 @@ fn main() -> ExitCode {
     let result: Result<(), cmd::CliError> = match cli.command {
         Command::Info => cmd::info::run(),
         Command::Markers(args) => cmd::markers::run(&args),
+        Command::Detect(args) => cmd::detect::run(&args),
         Command::Render(args) => cmd::render::run(&args),
         Command::Reproduce(args) => cmd::reproduce::run(args),
         Command::Demo(args) => cmd::demo::run(args),

@@ -4,6 +4,7 @@
 pub type CliError = Box<dyn std::error::Error + Send + Sync + 'static>;
 
 pub mod demo;
+pub mod detect;
 pub mod info;
 pub mod markers;
 pub mod render;

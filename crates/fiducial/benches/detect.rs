@@ -1,0 +1,90 @@
+//! Criterion benchmarks of the marker detector on seeded synthetic scenes.
+//!
+//! `fiducial/detect_*`: full detection (quads + decoding) of 8-marker scenes (20-120 px,
+//! blur 1, noise 3) at three frame sizes; `_clean` (noise 0) against `_noisy` (noise 10) at
+//! 640x480; clutter without markers. `fiducial/find_quads_640x480` is the quad phase alone
+//! and `fiducial/baseline_sum_640x480` a plain pass summing the frame's bytes, measured in
+//! the same run so that ratios survive a loaded machine.
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use fiducial::synth::{SceneConfig, clutter_frame, marker_scene};
+use fiducial::{Detector, DetectorConfig, Dictionary, GrayView};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use std::hint::black_box;
+
+fn scene(width: usize, height: usize, noise: f64) -> Vec<u8> {
+    let cfg = SceneConfig {
+        width,
+        height,
+        noise,
+        ..SceneConfig::default()
+    };
+    marker_scene(
+        &cfg,
+        Dictionary::paper(),
+        &mut ChaCha8Rng::seed_from_u64(42),
+    )
+    .expect("the benchmark scene fits its frame")
+    .pixels
+}
+
+fn bench_detect(c: &mut Criterion, id: &str, pixels: &[u8], width: usize, height: usize) {
+    let img = GrayView::new(pixels, width, height).expect("valid frame");
+    let mut det = Detector::new(DetectorConfig::default());
+    let mut out = Vec::new();
+    c.bench_function(id, |b| {
+        b.iter(|| {
+            det.detect(black_box(&img), &mut out);
+            black_box(out.len())
+        })
+    });
+}
+
+fn benches(c: &mut Criterion) {
+    let vga = scene(640, 480, 3.0);
+    bench_detect(c, "fiducial/detect_640x480", &vga, 640, 480);
+    bench_detect(
+        c,
+        "fiducial/detect_1280x720",
+        &scene(1280, 720, 3.0),
+        1280,
+        720,
+    );
+    bench_detect(
+        c,
+        "fiducial/detect_1920x1080",
+        &scene(1920, 1080, 3.0),
+        1920,
+        1080,
+    );
+    bench_detect(
+        c,
+        "fiducial/detect_640x480_clean",
+        &scene(640, 480, 0.0),
+        640,
+        480,
+    );
+    bench_detect(
+        c,
+        "fiducial/detect_640x480_noisy",
+        &scene(640, 480, 10.0),
+        640,
+        480,
+    );
+    let clutter = clutter_frame(640, 480, 1.0, 3.0, &mut ChaCha8Rng::seed_from_u64(43))
+        .expect("valid clutter size");
+    bench_detect(c, "fiducial/detect_clutter_640x480", &clutter, 640, 480);
+
+    let img = GrayView::new(&vga, 640, 480).expect("valid frame");
+    let mut det = Detector::new(DetectorConfig::default());
+    c.bench_function("fiducial/find_quads_640x480", |b| {
+        b.iter(|| black_box(det.find_quads(black_box(&img)).len()))
+    });
+    c.bench_function("fiducial/baseline_sum_640x480", |b| {
+        b.iter(|| black_box(&vga).iter().map(|&v| u32::from(v)).sum::<u32>())
+    });
+}
+
+criterion_group!(detect, benches);
+criterion_main!(detect);

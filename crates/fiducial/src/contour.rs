@@ -1,0 +1,353 @@
+//! Connected components of the binary image and the outer contour of each candidate (spec
+//! 3.4, step 3).
+//!
+//! Components are found on runs, not pixels: each row is cut into runs of dark pixels, and a
+//! union-find over runs joins runs of consecutive rows that touch (8-connectivity). This costs
+//! one pass over the bytes plus work proportional to the number of runs. Per component we keep
+//! its pixel count, bounding box and first (top-left) pixel, which is enough to reject most
+//! components cheaply (too small, too large, touching the frame border, too sparse) before
+//! any contour is traced. Survivors get their outer border traced by Moore-neighbour
+//! following from the top-left pixel, clockwise in the image.
+
+use crate::threshold::DARK;
+
+/// Summary of one 8-connected dark component.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Component {
+    /// Number of dark pixels.
+    pub pixels: u32,
+    /// Smallest x of any pixel.
+    pub x_min: u32,
+    /// Largest x of any pixel.
+    pub x_max: u32,
+    /// Smallest y of any pixel.
+    pub y_min: u32,
+    /// Largest y of any pixel.
+    pub y_max: u32,
+    /// x of the leftmost pixel of the top row (the tracing start).
+    pub start_x: u32,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Run {
+    y: u32,
+    x0: u32,
+    /// Exclusive end.
+    x1: u32,
+}
+
+/// Run-length union-find labelling with reusable buffers.
+#[derive(Debug, Default, Clone)]
+pub struct Labeller {
+    runs: Vec<Run>,
+    parent: Vec<u32>,
+    /// Index into `components` for each root run, or `u32::MAX`.
+    slot: Vec<u32>,
+    components: Vec<Component>,
+}
+
+impl Labeller {
+    /// An empty labeller; buffers grow on the first frame.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Labels the dark components of `bin` (`width` bytes per row) and returns them in the
+    /// raster order of their top-left pixel.
+    pub fn label(&mut self, bin: &[u8], width: usize) -> &[Component] {
+        self.runs.clear();
+        self.parent.clear();
+        self.components.clear();
+        if width == 0 {
+            return &self.components;
+        }
+        let mut prev_start = 0usize;
+        let mut prev_end = 0usize;
+        for (y, row) in bin.chunks_exact(width).enumerate() {
+            let row_start = self.runs.len();
+            let mut x = 0usize;
+            while x < width {
+                // Skip light pixels.
+                match first_where(&row[x..], true) {
+                    None => break,
+                    Some(off) => x += off,
+                }
+                let x0 = x;
+                x += first_where(&row[x..], false).unwrap_or(width - x);
+                let idx = self.runs.len() as u32;
+                self.runs.push(Run {
+                    y: y as u32,
+                    x0: x0 as u32,
+                    x1: x as u32,
+                });
+                self.parent.push(idx);
+            }
+            let row_end = self.runs.len();
+            // Join with overlapping runs of the previous row (8-connectivity: pixel ranges
+            // [a0, a1) and [b0, b1) touch when a0 <= b1 and b0 <= a1).
+            let mut p = prev_start;
+            for r in row_start..row_end {
+                let b = self.runs[r];
+                while p < prev_end && self.runs[p].x1 < b.x0 {
+                    p += 1;
+                }
+                let mut q = p;
+                while q < prev_end && self.runs[q].x0 <= b.x1 {
+                    self.union(q as u32, r as u32);
+                    q += 1;
+                }
+            }
+            prev_start = row_start;
+            prev_end = row_end;
+        }
+        // Gather statistics per root, in order of each component's first run.
+        self.slot.clear();
+        self.slot.resize(self.runs.len(), u32::MAX);
+        for i in 0..self.runs.len() {
+            let root = self.find(i as u32) as usize;
+            let run = self.runs[i];
+            let len = run.x1 - run.x0;
+            let s = self.slot[root];
+            if s == u32::MAX {
+                self.slot[root] = self.components.len() as u32;
+                self.components.push(Component {
+                    pixels: len,
+                    x_min: run.x0,
+                    x_max: run.x1 - 1,
+                    y_min: run.y,
+                    y_max: run.y,
+                    start_x: run.x0,
+                });
+            } else {
+                let c = &mut self.components[s as usize];
+                c.pixels += len;
+                c.x_min = c.x_min.min(run.x0);
+                c.x_max = c.x_max.max(run.x1 - 1);
+                c.y_max = c.y_max.max(run.y);
+            }
+        }
+        &self.components
+    }
+
+    fn find(&mut self, mut i: u32) -> u32 {
+        while self.parent[i as usize] != i {
+            let gp = self.parent[self.parent[i as usize] as usize];
+            self.parent[i as usize] = gp;
+            i = gp;
+        }
+        i
+    }
+
+    fn union(&mut self, a: u32, b: u32) {
+        let ra = self.find(a);
+        let rb = self.find(b);
+        // The smaller index stays root, so a root is always its component's first run.
+        if ra < rb {
+            self.parent[rb as usize] = ra;
+        } else if rb < ra {
+            self.parent[ra as usize] = rb;
+        }
+    }
+}
+
+/// Index of the first dark (`dark == true`) or light pixel, eight bytes at a time: the first
+/// byte that differs from the skipped kind is found from the trailing zeros of a word.
+#[inline]
+fn first_where(row: &[u8], dark: bool) -> Option<usize> {
+    let skip = if dark {
+        0u64
+    } else {
+        u64::from_le_bytes([DARK; 8])
+    };
+    let mut chunks = row.chunks_exact(8);
+    let mut base = 0;
+    for c in chunks.by_ref() {
+        let word = u64::from_le_bytes(c.try_into().unwrap_or([0; 8])) ^ skip;
+        if word != 0 {
+            return Some(base + (word.trailing_zeros() / 8) as usize);
+        }
+        base += 8;
+    }
+    chunks
+        .remainder()
+        .iter()
+        .position(|&v| (v == DARK) == dark)
+        .map(|p| p + base)
+}
+
+/// Neighbour offsets clockwise in the image (v down), starting west.
+const DIRS: [(i32, i32); 8] = [
+    (-1, 0),
+    (-1, -1),
+    (0, -1),
+    (1, -1),
+    (1, 0),
+    (1, 1),
+    (0, 1),
+    (-1, 1),
+];
+
+/// For a step in direction `d`, the direction from the new pixel to the light pixel checked
+/// just before (direction `d - 1` from the old pixel).
+const BACK: [usize; 8] = [6, 6, 0, 0, 2, 2, 4, 4];
+
+/// Traces the outer border of the component whose top-left pixel is `(sx, sy)`, clockwise in
+/// the image, into `out` (pixel coordinates of border pixels, each visit once per pass).
+///
+/// The component must not touch the frame border (callers reject those first), so every
+/// neighbour visited is inside the image. Stops after `max_len` points and returns `false`
+/// in that case (a contour that long is not a candidate anyway).
+pub fn trace_outer(
+    bin: &[u8],
+    width: usize,
+    sx: u32,
+    sy: u32,
+    max_len: usize,
+    out: &mut Vec<[i32; 2]>,
+) -> bool {
+    out.clear();
+    let w = width as isize;
+    let start = sy as isize * w + sx as isize;
+    let offs: [isize; 8] = DIRS.map(|(dx, dy)| dy as isize * w + dx as isize);
+    let dark = |i: isize| bin.get(i as usize).copied() == Some(DARK);
+    out.push([sx as i32, sy as i32]);
+    // The west neighbour of the start is light; search clockwise from it.
+    let mut cur = start;
+    let mut back = 0usize; // direction from cur to the light pixel we came from
+    let mut first_dir: Option<usize> = None;
+    let (mut cx, mut cy) = (sx as i32, sy as i32);
+    loop {
+        let mut found = None;
+        for k in 1..=8 {
+            let d = (back + k) % 8;
+            if dark(cur + offs[d]) {
+                found = Some(d);
+                break;
+            }
+        }
+        let Some(d) = found else {
+            return true; // isolated pixel
+        };
+        if cur == start {
+            match first_dir {
+                None => first_dir = Some(d),
+                Some(f) if f == d => {
+                    out.pop(); // the start was pushed twice
+                    return true;
+                }
+                Some(_) => {}
+            }
+        }
+        cur += offs[d];
+        cx += DIRS[d].0;
+        cy += DIRS[d].1;
+        // The light pixel checked just before `d`, as seen from the new pixel.
+        back = BACK[d];
+        out.push([cx, cy]);
+        if out.len() > max_len {
+            return false;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(rows: &[&str]) -> (Vec<u8>, usize) {
+        let w = rows[0].len();
+        let bin = rows
+            .iter()
+            .flat_map(|r| r.bytes().map(|b| u8::from(b == b'#')))
+            .collect();
+        (bin, w)
+    }
+
+    #[test]
+    fn labels_with_8_connectivity() {
+        let (bin, w) = parse(&[
+            "##...#", //
+            "..#..#", //
+            "......", //
+            "###..#",
+        ]);
+        let mut l = Labeller::new();
+        let comps = l.label(&bin, w).to_vec();
+        assert_eq!(comps.len(), 4);
+        assert_eq!(comps[0].pixels, 3);
+        assert_eq!((comps[0].x_min, comps[0].x_max, comps[0].y_max), (0, 2, 1));
+        assert_eq!(comps[1].pixels, 2);
+        assert_eq!(
+            (comps[2].pixels, comps[2].start_x, comps[2].y_min),
+            (3, 0, 3)
+        );
+        assert_eq!(comps[3].pixels, 1);
+    }
+
+    #[test]
+    fn first_where_finds_every_position() {
+        for len in 0..40 {
+            for at in 0..len {
+                let mut row = vec![0u8; len];
+                row[at] = DARK;
+                assert_eq!(first_where(&row, true), Some(at));
+                let mut row = vec![DARK; len];
+                row[at] = 0;
+                assert_eq!(first_where(&row, false), Some(at));
+            }
+            assert_eq!(first_where(&vec![0u8; len], true), None);
+            assert_eq!(first_where(&vec![DARK; len], false), None);
+        }
+    }
+
+    #[test]
+    fn u_shape_merges_late() {
+        let (bin, w) = parse(&[
+            "#...#", //
+            "#...#", //
+            "#####",
+        ]);
+        let mut l = Labeller::new();
+        let comps = l.label(&bin, w);
+        assert_eq!(comps.len(), 1);
+        assert_eq!(comps[0].pixels, 9);
+    }
+
+    #[test]
+    fn traces_a_square_ring_clockwise() {
+        let (bin, w) = parse(&[
+            ".......", //
+            ".####..", //
+            ".#..#..", //
+            ".#..#..", //
+            ".####..", //
+            ".......",
+        ]);
+        let mut pts = Vec::new();
+        assert!(trace_outer(&bin, w, 1, 1, 100, &mut pts));
+        assert_eq!(pts.len(), 12);
+        assert_eq!(pts[0], [1, 1]);
+        assert_eq!(pts[1], [2, 1]);
+        assert_eq!(pts[3], [4, 1]);
+        assert_eq!(pts[6], [4, 4]);
+        assert_eq!(pts[11], [1, 2]);
+    }
+
+    #[test]
+    fn traces_thin_and_single_shapes() {
+        let (bin, w) = parse(&[
+            ".....", //
+            ".#...", //
+            "..#..", //
+            ".#.#.", //
+            ".....",
+        ]);
+        let mut pts = Vec::new();
+        assert!(trace_outer(&bin, w, 1, 1, 100, &mut pts));
+        // A Y of single pixels: the junction is passed once per branch.
+        assert_eq!(pts, vec![[1, 1], [2, 2], [3, 3], [2, 2], [1, 3], [2, 2]]);
+        let (bin, w) = parse(&["...", ".#.", "..."]);
+        assert!(trace_outer(&bin, w, 1, 1, 100, &mut pts));
+        assert_eq!(pts, vec![[1, 1]]);
+    }
+}

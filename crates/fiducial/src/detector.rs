@@ -1,0 +1,257 @@
+//! The detector: grey frame in, refined marker quadrilaterals out (spec 3.4).
+//!
+//! A [`Detector`] owns every buffer of every stage (smoothed frame, tile statistics, binary
+//! image, runs and components, contour, edge points, output quads). Buffers grow to fit the
+//! first frame of a size and are then reused, so a steady stream of frames of one size is
+//! detected without touching the heap (an integration test counts allocations to prove it).
+//!
+//! Stages: [`Binarizer`] (adaptive tile threshold, or Otsu), [`Labeller`] (run-length
+//! union-find), cheap rejection of components by size, shape and frame-border contact,
+//! [`trace_outer`] (Moore border following) and [`fit_quad`] (four-vertex polygon), then
+//! [`Refiner`] (sub-pixel corners from grey-level edge lines), and finally [`decode()`]
+//! (cross-ratio cell sampling and dictionary lookup) on each quad.
+//!
+//! The two phases are exposed separately ([`Detector::find_quads`] and
+//! [`Detector::decode_quads`]) so callers can time or visualise them apart;
+//! [`Detector::detect`] runs both.
+
+use nalgebra::Point2;
+
+use crate::contour::{Labeller, trace_outer};
+use crate::decode::{DecodeParams, Decoded, decode};
+use crate::dictionary::Dictionary;
+use crate::image::{Corners, GrayView};
+use crate::quad::{QuadLimits, fit_quad};
+use crate::refine::{RefineConfig, Refiner};
+use crate::threshold::{Binarizer, Threshold};
+
+/// Every tunable of the detector, with documented defaults ([`DetectorConfig::default`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DetectorConfig {
+    /// Binarization (default: adaptive tiles of 8 px, minimum contrast 30).
+    pub threshold: Threshold,
+    /// Shortest marker side in pixels (default 10).
+    pub min_side: f64,
+    /// Smallest interior corner angle in degrees, allowing for perspective (default 30).
+    pub min_angle_deg: f64,
+    /// Straightness tolerance of a side: absolute pixels (default 1.5)...
+    pub line_tolerance: f64,
+    /// ...plus this fraction of the side length (default 0.05).
+    pub line_tolerance_rel: f64,
+    /// Components closer than this many pixels to the frame border are rejected (default 2).
+    pub border_margin: u32,
+    /// Sub-pixel refinement settings (default: [`RefineConfig::default`]).
+    pub refine: RefineConfig,
+    /// Decoding settings (default: [`DecodeParams::default`] but without bit correction and
+    /// with samples over +-0.1 cell, see [`DetectorConfig::default`]).
+    pub decode: DecodeParams,
+}
+
+impl Default for DetectorConfig {
+    /// The defaults documented on each field. Bit correction is off by default (the
+    /// dictionary allows two bits; set `decode.max_errors` to use them): a black-bordered
+    /// square with random content lies within two bits of one of the paper dictionary's 100
+    /// codes (in either orientation) with probability about 4 %, within one bit about 0.4 %,
+    /// exactly on one about 0.02 %. In cluttered scenes correction therefore invents markers
+    /// (`docs/detector-accuracy.md` counts them), while real markers rarely need it (about
+    /// 1 % of reads on the accuracy scenes). Cells are sampled over +-0.1 cell rather than
+    /// +-0.25: on the smallest markers (cells of about 3 px, blur sigma 1) the wider square
+    /// reaches into the blur of neighbouring cells, and 8 of 9 markers lost on the accuracy
+    /// scenes were such misreads.
+    fn default() -> Self {
+        Self {
+            threshold: Threshold::default(),
+            min_side: 10.0,
+            min_angle_deg: 30.0,
+            line_tolerance: 1.5,
+            line_tolerance_rel: 0.05,
+            border_margin: 2,
+            refine: RefineConfig::default(),
+            decode: DecodeParams {
+                max_errors: 0,
+                sample_radius: 0.1,
+                ..DecodeParams::default()
+            },
+        }
+    }
+}
+
+/// Two readings of one marker: their centres are within half a side of each other.
+fn overlaps(a: &Decoded, b: &Decoded) -> bool {
+    let ca = a
+        .corners
+        .iter()
+        .fold([0.0, 0.0], |s, p| [s[0] + p.x / 4.0, s[1] + p.y / 4.0]);
+    let cb = b
+        .corners
+        .iter()
+        .fold([0.0, 0.0], |s, p| [s[0] + p.x / 4.0, s[1] + p.y / 4.0]);
+    let side = (a.corners[1] - a.corners[0]).norm();
+    (ca[0] - cb[0]).hypot(ca[1] - cb[1]) < 0.5 * side
+}
+
+/// A candidate marker outline with sub-pixel corners.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Quad {
+    /// Corners in pixel-centre coordinates, clockwise in the image (v down). Which corner is
+    /// the marker's north-west is only known after decoding.
+    pub corners: Corners,
+    /// Mean grey-level step across the four edges (0-255): a confidence measure.
+    pub contrast: f64,
+}
+
+/// The marker detector; reuse one per stream of frames.
+#[derive(Debug, Clone)]
+pub struct Detector {
+    config: DetectorConfig,
+    dictionary: Dictionary,
+    binarizer: Binarizer,
+    bin: Vec<u8>,
+    labeller: Labeller,
+    contour: Vec<[i32; 2]>,
+    refiner: Refiner,
+    quads: Vec<Quad>,
+}
+
+impl Default for Detector {
+    /// Default settings and the paper's dictionary.
+    fn default() -> Self {
+        Self::new(DetectorConfig::default())
+    }
+}
+
+impl Detector {
+    /// A detector with the given settings for the paper's dictionary
+    /// ([`Dictionary::paper`]); buffers grow on the first frame.
+    pub fn new(config: DetectorConfig) -> Self {
+        Self::with_dictionary(config, Dictionary::paper().clone())
+    }
+
+    /// A detector that reads codes of `dictionary`.
+    pub fn with_dictionary(config: DetectorConfig, dictionary: Dictionary) -> Self {
+        Self {
+            config,
+            dictionary,
+            binarizer: Binarizer::default(),
+            bin: Vec::new(),
+            labeller: Labeller::default(),
+            contour: Vec::new(),
+            refiner: Refiner::default(),
+            quads: Vec::new(),
+        }
+    }
+
+    /// The dictionary codes are looked up in.
+    pub fn dictionary(&self) -> &Dictionary {
+        &self.dictionary
+    }
+
+    /// Finds and decodes the markers in `img` into `out` (cleared first; it keeps its
+    /// capacity, so a reused `Vec` makes steady-state detection allocation-free). Each
+    /// [`Decoded`] carries the dictionary index, code, Hamming distance corrected, corners
+    /// in the marker's own NW, NE, SE, SW order and contrast/confidence. Returns the number
+    /// of quads examined.
+    pub fn detect(&mut self, img: &GrayView<'_>, out: &mut Vec<Decoded>) -> usize {
+        self.find_quads(img);
+        self.decode_quads(img, out)
+    }
+
+    /// The decoding phase alone: reads every quad of the last [`Detector::find_quads`] call
+    /// (which must have been on the same `img`) into `out` (cleared first). Quads that are
+    /// not markers are dropped; so is a second reading of a marker already read (kept: the
+    /// one with fewer bit errors, then higher contrast). Returns the number of quads examined.
+    pub fn decode_quads(&mut self, img: &GrayView<'_>, out: &mut Vec<Decoded>) -> usize {
+        out.clear();
+        for q in &self.quads {
+            let Ok(d) = decode(img, &q.corners, &self.dictionary, &self.config.decode) else {
+                continue;
+            };
+            match out
+                .iter_mut()
+                .find(|o| o.index == d.index && overlaps(o, &d))
+            {
+                Some(o) => {
+                    if (d.distance, -d.contrast) < (o.distance, -o.contrast) {
+                        *o = d;
+                    }
+                }
+                None => out.push(d),
+            }
+        }
+        self.quads.len()
+    }
+
+    /// The quads found by the last [`Detector::find_quads`] call.
+    pub fn quads(&self) -> &[Quad] {
+        &self.quads
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &DetectorConfig {
+        &self.config
+    }
+
+    /// The binary image of the last frame (`width` bytes per row, 1 = dark), for debugging
+    /// and visualisation.
+    pub fn binary(&self) -> &[u8] {
+        &self.bin
+    }
+
+    /// Finds the quadrilateral outlines of dark regions in `img` with sub-pixel corners: the
+    /// quad-finding phase of detection (no decoding). The returned slice lives in the
+    /// detector and is overwritten by the next call.
+    pub fn find_quads(&mut self, img: &GrayView<'_>) -> &[Quad] {
+        self.quads.clear();
+        let cfg = self.config;
+        let (w, h) = (img.width(), img.height());
+        // Reserve for the frame size once, so that later frames of this size do not grow
+        // the buffers (the run list grows only past one run per 16 pixels).
+        if self.bin.capacity() < w * h {
+            self.contour.reserve(2 * (w + h) + 16);
+            self.quads.reserve(64);
+        }
+        self.binarizer.binarize(img, cfg.threshold, &mut self.bin);
+        let limits = QuadLimits {
+            min_side: cfg.min_side,
+            min_angle_deg: cfg.min_angle_deg,
+            line_tolerance: cfg.line_tolerance,
+            line_tolerance_rel: cfg.line_tolerance_rel,
+        };
+        let m = cfg.border_margin.max(1);
+        let min_side = cfg.min_side.max(3.0) as u32;
+        let components = self.labeller.label(&self.bin, w);
+        for c in components {
+            let bw = c.x_max - c.x_min + 1;
+            let bh = c.y_max - c.y_min + 1;
+            // Cheap rejections first: size, frame border, sparsity.
+            if bw.max(bh) < min_side
+                || bw.min(bh) < min_side / 2
+                || c.pixels < bw.max(bh) + bw.min(bh)
+                || c.x_min < m
+                || c.y_min < m
+                || c.x_max as usize + m as usize >= w
+                || c.y_max as usize + m as usize >= h
+            {
+                continue;
+            }
+            let max_len = 2 * (bw + bh) as usize + 16;
+            if !trace_outer(&self.bin, w, c.start_x, c.y_min, max_len, &mut self.contour) {
+                continue;
+            }
+            let Some(coarse) = fit_quad(&self.contour, &limits) else {
+                continue;
+            };
+            let Some((corners, contrast)) =
+                self.refiner
+                    .refine(img, &coarse, &cfg.refine, cfg.min_angle_deg)
+            else {
+                continue;
+            };
+            self.quads.push(Quad {
+                corners: corners.map(|[x, y]| Point2::new(x, y)),
+                contrast,
+            });
+        }
+        &self.quads
+    }
+}

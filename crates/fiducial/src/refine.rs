@@ -1,0 +1,432 @@
+//! Sub-pixel corner refinement by fitting lines to the grey-level edges (spec 3.4, step 3,
+//! "beyond").
+//!
+//! The coarse corners from the contour are pixel centres of the outermost dark pixels, so
+//! they are off by up to a pixel. Each side of the quadrilateral is refined on the grey image
+//! (never on the binary one): at regular stations along the side (away from the corners,
+//! which blur rounds off) the grey profile across the edge is sampled bilinearly every half
+//! pixel. A station's dark and light levels are low percentiles of the profiles' minima and
+//! maxima over each half of the side, interpolated along it; the edge is first located where the profile crosses their midpoint, then by the
+//! area under the normalised profile over a window centred there, which is exact for any
+//! symmetric blur and for unblurred, area-sampled edges (the plain crossing of interpolated
+//! samples is pulled towards pixel centres by up to a tenth of a pixel). A total-least-squares line is fitted to the
+//! edge points of each side, points far off the line are dropped and the line refitted; the
+//! corners are the intersections of adjacent lines. The whole is done twice, the second
+//! time with stations placed on the refined lines so the profiles are centred on the edge.
+
+use crate::image::GrayView;
+use crate::quad::convex_clockwise;
+
+/// Settings of the refinement.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RefineConfig {
+    /// Stations closer than this fraction of the side length to a corner are skipped.
+    pub corner_margin_rel: f64,
+    /// ...and closer than this many pixels.
+    pub corner_margin_px: f64,
+    /// Smallest grey-level step (max - min of a profile) that counts as an edge.
+    pub min_edge_contrast: f64,
+    /// Largest number of stations per side.
+    pub max_stations: usize,
+    /// Spacing of stations along a side, in pixels.
+    pub station_spacing: f64,
+    /// Largest half-length of an edge profile (second pass), in pixels.
+    pub max_half_profile: f64,
+}
+
+impl Default for RefineConfig {
+    fn default() -> Self {
+        Self {
+            corner_margin_rel: 0.12,
+            corner_margin_px: 2.0,
+            min_edge_contrast: 10.0,
+            max_stations: 32,
+            station_spacing: 1.0,
+            max_half_profile: 2.5,
+        }
+    }
+}
+
+/// Bilinear grey level at `(x, y)` (pixel-centre convention), clamped to the frame.
+#[inline]
+pub fn bilinear(img: &GrayView<'_>, x: f64, y: f64) -> f64 {
+    let wmax = (img.width() - 1) as f64;
+    let hmax = (img.height() - 1) as f64;
+    // Clamped to >= 0, so truncation is floor (and NaN becomes 0).
+    let x = x.max(0.0).min(wmax);
+    let y = y.max(0.0).min(hmax);
+    let (xi, yi) = (x as usize, y as usize);
+    let fx = x - xi as f64;
+    let fy = y - yi as f64;
+    let xj = (xi + 1).min(img.width() - 1);
+    let r0 = img.row(yi);
+    let r1 = img.row((yi + 1).min(img.height() - 1));
+    let top = f64::from(r0[xi]) + (f64::from(r0[xj]) - f64::from(r0[xi])) * fx;
+    let bot = f64::from(r1[xi]) + (f64::from(r1[xj]) - f64::from(r1[xi])) * fx;
+    top + (bot - top) * fy
+}
+
+/// Samples `out.len()` bilinear grey levels at `start + k * step`. When the whole segment
+/// lies inside the frame the samples are read without clamping.
+fn sample_profile(img: &GrayView<'_>, start: [f64; 2], step: [f64; 2], out: &mut [f64]) {
+    let last = (out.len().max(1) - 1) as f64;
+    let end = [start[0] + last * step[0], start[1] + last * step[1]];
+    let (w, h) = ((img.width() - 1) as f64, (img.height() - 1) as f64);
+    let inside = |p: [f64; 2]| p[0] >= 0.0 && p[1] >= 0.0 && p[0] < w && p[1] < h;
+    if !(inside(start) && inside(end)) {
+        for (k, v) in out.iter_mut().enumerate() {
+            let t = k as f64;
+            *v = bilinear(img, start[0] + t * step[0], start[1] + t * step[1]);
+        }
+        return;
+    }
+    for (k, v) in out.iter_mut().enumerate() {
+        let t = k as f64;
+        let (x, y) = (start[0] + t * step[0], start[1] + t * step[1]);
+        let (xi, yi) = (x as usize, y as usize);
+        let (fx, fy) = (x - xi as f64, y - yi as f64);
+        let r0 = &img.row(yi)[xi..];
+        let r1 = &img.row(yi + 1)[xi..];
+        let (a, b) = (f64::from(r0[0]), f64::from(r0[1]));
+        let (c, d) = (f64::from(r1[0]), f64::from(r1[1]));
+        let top = a + (b - a) * fx;
+        let bot = c + (d - c) * fx;
+        *v = top + (bot - top) * fy;
+    }
+}
+
+/// Refines an edge position `pos` (profile coordinates: sample `k` is at `k * step - half`)
+/// by the area method: over a window of one pixel either side of `pos`, the edge lies at the
+/// window start plus the integral of the normalised darkness `1 - (g - lo) / (hi - lo)` of
+/// the piecewise-linear profile. For a symmetric edge profile an error `e` in `pos` becomes
+/// `2 e t`, where `t` is the profile's tail mass beyond the window, and the area-sampled step
+/// of an unblurred edge is located exactly, whereas the midpoint crossing of interpolated
+/// samples is off by up to an eighth of a pixel on sharp edges. `None` if the window would
+/// leave the profile.
+fn area_edge(prof: &[f64], step: f64, half: f64, pos: f64, lo: f64, hi: f64) -> Option<f64> {
+    let span = (prof.len() - 1) as f64 * step;
+    let w = (pos + half).min(span - (pos + half)).min(1.0);
+    if w < 0.999 || hi.is_nan() || lo.is_nan() || hi <= lo {
+        return None;
+    }
+    // Window [a, b] in sample units.
+    let a = (pos + half - w) / step;
+    let b = (pos + half + w) / step;
+    let inv = 1.0 / (hi - lo);
+    let dark = |g: f64| 1.0 - ((g - lo) * inv).clamp(0.0, 1.0);
+    let at = |t: f64| -> f64 {
+        let k = (t as usize).min(prof.len() - 2);
+        let f = t - k as f64;
+        prof[k] + (prof[k + 1] - prof[k]) * f
+    };
+    // Trapezoids over [a, b], split at sample points (the profile is linear between them).
+    let mut sum = 0.0;
+    let mut t0 = a;
+    while t0 < b - 1e-12 {
+        let t1 = (t0.floor() + 1.0).min(b);
+        sum += 0.5 * (dark(at(t0)) + dark(at(t1))) * (t1 - t0);
+        t0 = t1;
+    }
+    Some(pos - w + sum * step)
+}
+
+/// A line `n . p = c` with unit normal `n`.
+#[derive(Debug, Clone, Copy)]
+struct Line {
+    n: [f64; 2],
+    c: f64,
+}
+
+fn intersect(a: &Line, b: &Line) -> Option<[f64; 2]> {
+    let det = a.n[0] * b.n[1] - a.n[1] * b.n[0];
+    if det.abs() < 1e-9 {
+        return None;
+    }
+    let x = (a.c * b.n[1] - b.c * a.n[1]) / det;
+    let y = (a.n[0] * b.c - b.n[0] * a.c) / det;
+    (x.is_finite() && y.is_finite()).then_some([x, y])
+}
+
+/// Weighted total-least-squares line through points `(x, y, w)`.
+fn fit_line(pts: &[[f64; 3]]) -> Option<Line> {
+    let sw: f64 = pts.iter().map(|p| p[2]).sum();
+    if pts.len() < 2 || sw.is_nan() || sw <= 0.0 {
+        return None;
+    }
+    let mx = pts.iter().map(|p| p[0] * p[2]).sum::<f64>() / sw;
+    let my = pts.iter().map(|p| p[1] * p[2]).sum::<f64>() / sw;
+    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
+    for p in pts {
+        let (dx, dy) = (p[0] - mx, p[1] - my);
+        sxx += p[2] * dx * dx;
+        sxy += p[2] * dx * dy;
+        syy += p[2] * dy * dy;
+    }
+    // Direction of largest spread: angle of the principal axis.
+    let theta = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    let n = [-theta.sin(), theta.cos()];
+    let c = n[0] * mx + n[1] * my;
+    c.is_finite().then_some(Line { n, c })
+}
+
+/// Scratch space of the refinement (edge points of one side).
+#[derive(Debug, Default, Clone)]
+pub struct Refiner {
+    pts: Vec<[f64; 3]>,
+    profiles: Vec<([f64; 2], [f64; PROFILE])>,
+}
+
+/// Most samples in one edge profile.
+const PROFILE: usize = 16;
+
+impl Refiner {
+    /// An empty refiner.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Refines clockwise coarse corners (pixel centres of the outermost dark pixels). Returns
+    /// the refined corners and the mean edge contrast (grey levels), or `None` if an edge
+    /// cannot be found or the refined quadrilateral is implausible.
+    pub fn refine(
+        &mut self,
+        img: &GrayView<'_>,
+        coarse: &[[f64; 2]; 4],
+        cfg: &RefineConfig,
+        min_angle_deg: f64,
+    ) -> Option<([[f64; 2]; 4], f64)> {
+        let mut corners = *coarse;
+        let mut contrast = 0.0;
+        // First pass: the true edge lies about half a pixel outside the dark pixel centres.
+        for (pass, offset) in [(0, 0.5), (1, 0.0)] {
+            let mut lines = [Line {
+                n: [0.0, 0.0],
+                c: 0.0,
+            }; 4];
+            let mut csum = 0.0;
+            for (i, line) in lines.iter_mut().enumerate() {
+                let (l, c) = self.side(img, corners[i], corners[(i + 1) % 4], offset, pass, cfg)?;
+                *line = l;
+                csum += c;
+            }
+            contrast = csum / 4.0;
+            let mut next = [[0.0; 2]; 4];
+            for (i, corner) in next.iter_mut().enumerate() {
+                *corner = intersect(&lines[(i + 3) % 4], &lines[i])?;
+            }
+            corners = next;
+        }
+        // Plausibility: close to the coarse corners, inside the frame, still convex.
+        let w = img.width() as f64;
+        let h = img.height() as f64;
+        // Blur and the threshold blunt sharp corners, so the coarse corner may sit a few
+        // pixels inside the true one on large markers.
+        let mean_side = (0..4)
+            .map(|i| {
+                let (p, q) = (coarse[i], coarse[(i + 1) % 4]);
+                (p[0] - q[0]).hypot(p[1] - q[1])
+            })
+            .sum::<f64>()
+            / 4.0;
+        let limit = 3.0 + 0.05 * mean_side;
+        for (c, k) in corners.iter().zip(coarse) {
+            let moved = (k[0] - c[0]).hypot(k[1] - c[1]);
+            if moved.is_nan()
+                || moved > limit
+                || c[0] < -0.5
+                || c[1] < -0.5
+                || c[0] > w - 0.5
+                || c[1] > h - 0.5
+            {
+                return None;
+            }
+        }
+        convex_clockwise(&corners, min_angle_deg).then_some((corners, contrast))
+    }
+
+    /// Fits the edge line of the side from `a` to `b` (clockwise, so the outside is on the
+    /// left of the direction of travel in the image).
+    fn side(
+        &mut self,
+        img: &GrayView<'_>,
+        a: [f64; 2],
+        b: [f64; 2],
+        offset: f64,
+        pass: usize,
+        cfg: &RefineConfig,
+    ) -> Option<(Line, f64)> {
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let len = (dx * dx + dy * dy).sqrt();
+        if len.is_nan() || len <= 2.0 {
+            return None;
+        }
+        let t = [dx / len, dy / len];
+        let n = [t[1], -t[0]]; // outward
+        let margin = (cfg.corner_margin_rel * len).max(cfg.corner_margin_px);
+        let usable = len - 2.0 * margin;
+        if usable <= 0.0 {
+            return None;
+        }
+        // The first pass only has to centre the second: a few stations suffice.
+        let cap = if pass == 0 {
+            8
+        } else {
+            cfg.max_stations.max(2)
+        };
+        let stations = ((usable / cfg.station_spacing.max(0.5)) as usize + 1).clamp(2, cap);
+        let step_s = usable / (stations - 1) as f64;
+        // Half-width of the profile: wide enough for blur, short enough to stay inside the
+        // border cell (about a seventh of the side) on small markers.
+        let half = if pass == 0 {
+            (0.12 * len).clamp(1.5, 3.5)
+        } else {
+            (0.1 * len).clamp(1.5, cfg.max_half_profile.max(1.5))
+        };
+        const STEP: f64 = 0.5;
+        let k_max = ((2.0 * half / STEP).round() as usize).min(PROFILE - 1);
+        self.profiles.clear();
+        self.pts.clear();
+        let mut mins = [0.0f64; 64];
+        let mut maxs = [0.0f64; 64];
+        for s in 0..stations {
+            let d = margin + s as f64 * step_s;
+            let px = a[0] + d * t[0] + offset * n[0];
+            let py = a[1] + d * t[1] + offset * n[1];
+            let mut prof = [0.0f64; PROFILE];
+            sample_profile(
+                img,
+                [px - half * n[0], py - half * n[1]],
+                [STEP * n[0], STEP * n[1]],
+                &mut prof[..=k_max],
+            );
+            let (mut plo, mut phi) = (f64::MAX, f64::MIN);
+            for &v in &prof[..=k_max] {
+                plo = plo.min(v);
+                phi = phi.max(v);
+            }
+            if s < mins.len() {
+                mins[s] = plo;
+                maxs[s] = -phi;
+            }
+            self.profiles.push(([px, py], prof));
+        }
+        let m = stations.min(mins.len());
+        // Each station's dark and light levels. Stations next to a white data cell see a dark
+        // level lifted by blur (on small markers), stations next to a black one see the true
+        // dark, so a low percentile of the minima over the whole side is the border's own
+        // level; noise pushes minima and maxima alike, so their midpoint stays unbiased.
+        // Lighting may vary along the side: the light level (the quiet zone, never
+        // contaminated) is taken over each half of the side and interpolated linearly, and
+        // the dark level scales with it (reflectance times light).
+        let pct = |v: &mut [f64]| -> f64 {
+            let rank = v.len() / 10;
+            *v.select_nth_unstable_by(rank, |a: &f64, b: &f64| a.total_cmp(b))
+                .1
+        };
+        let lo_all = pct(&mut mins[..m]);
+        let mut all = [0.0f64; 64];
+        all[..m].copy_from_slice(&maxs[..m]);
+        let hi_all = -pct(&mut all[..m]);
+        let half_m = m / 2;
+        let (hi_a, hi_b, c_a, c_b) = if m >= 6 {
+            let mut a = [0.0f64; 64];
+            let mut b = [0.0f64; 64];
+            a[..half_m].copy_from_slice(&maxs[..half_m]);
+            b[..m - half_m].copy_from_slice(&maxs[half_m..m]);
+            let (ha, hb) = (-pct(&mut a[..half_m]), -pct(&mut b[..m - half_m]));
+            // Only a clear gradient (over 8 % along the side) is followed; otherwise the
+            // whole side's levels are steadier.
+            if (ha - hb).abs() > 0.08 * hi_all {
+                (
+                    ha,
+                    hb,
+                    (half_m as f64 - 1.0) / 2.0,
+                    half_m as f64 + ((m - half_m) as f64 - 1.0) / 2.0,
+                )
+            } else {
+                (hi_all, hi_all, 0.0, 1.0)
+            }
+        } else {
+            (hi_all, hi_all, 0.0, 1.0)
+        };
+        let mut csum = 0.0;
+        for (i, ([px, py], prof)) in self.profiles.iter().enumerate().take(m) {
+            let t = (i as f64 - c_a) / (c_b - c_a);
+            let hi = hi_a + (hi_b - hi_a) * t;
+            let lo = if hi_all > 0.0 {
+                lo_all * hi / hi_all
+            } else {
+                lo_all
+            };
+            if hi - lo < cfg.min_edge_contrast {
+                continue;
+            }
+            csum += hi - lo;
+            let mid = 0.5 * (lo + hi);
+            // The upward crossing nearest the profile centre.
+            let mut best: Option<f64> = None;
+            for k in 0..k_max {
+                let (g0, g1) = (prof[k], prof[k + 1]);
+                if g0 < mid && g1 >= mid {
+                    let pos = (k as f64 + (mid - g0) / (g1 - g0)) * STEP - half;
+                    if best.is_none_or(|p| pos.abs() < p.abs()) {
+                        best = Some(pos);
+                    }
+                }
+            }
+            if let Some(pos) = best {
+                // The crossing of interpolated samples is biased by up to a tenth of a pixel
+                // depending on the edge's phase against the pixel grid ("pixel locking");
+                // the area over a window centred on it is not, and shrinks its error.
+                let pos = area_edge(&prof[..=k_max], STEP, half, pos, lo, hi).unwrap_or(pos);
+                self.pts.push([px + pos * n[0], py + pos * n[1], 1.0]);
+            }
+        }
+        let contrast = csum / self.pts.len().max(1) as f64;
+        if self.pts.len() < 2 || self.pts.len() * 2 < stations {
+            return None;
+        }
+        let line = fit_line(&self.pts)?;
+        // Drop outliers and refit.
+        let tol = 0.75;
+        self.pts
+            .retain(|p| (line.n[0] * p[0] + line.n[1] * p[1] - line.c).abs() <= tol);
+        if self.pts.len() < 2 {
+            return None;
+        }
+        Some((fit_line(&self.pts)?, contrast))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn line_fit_and_intersection() {
+        let pts: Vec<[f64; 3]> = (0..10)
+            .map(|i| [i as f64, 2.0 * i as f64 + 1.0, 1.0])
+            .collect();
+        let l = fit_line(&pts).unwrap();
+        for p in &pts {
+            assert!((l.n[0] * p[0] + l.n[1] * p[1] - l.c).abs() < 1e-9);
+        }
+        let h = Line {
+            n: [0.0, 1.0],
+            c: 5.0,
+        };
+        let x = intersect(&l, &h).unwrap();
+        assert!((x[0] - 2.0).abs() < 1e-9 && (x[1] - 5.0).abs() < 1e-9);
+        assert!(intersect(&h, &h).is_none());
+    }
+
+    #[test]
+    fn bilinear_is_clamped_and_exact_at_centres() {
+        let data = [0u8, 100, 200, 50];
+        let img = GrayView::new(&data, 2, 2).unwrap();
+        assert_eq!(bilinear(&img, 1.0, 0.0), 100.0);
+        assert_eq!(bilinear(&img, 0.5, 0.0), 50.0);
+        assert_eq!(bilinear(&img, -5.0, 9.0), 200.0);
+        assert_eq!(bilinear(&img, f64::NAN, 0.0), 0.0);
+    }
+}

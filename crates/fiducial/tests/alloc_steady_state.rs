@@ -1,0 +1,105 @@
+//! Steady-state detection allocates nothing: a counting global allocator watches a stream of
+//! frames of one size after a warm-up pass.
+#![allow(unsafe_code)]
+#![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use fiducial::synth::{SceneConfig, clutter_frame, marker_scene};
+use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Threshold};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+struct Counting;
+
+thread_local! {
+    // Per thread, so tests running in parallel do not count each other's allocations.
+    static ALLOCS: Cell<usize> = const { Cell::new(0) };
+}
+
+fn count() {
+    ALLOCS.with(|c| c.set(c.get() + 1));
+}
+
+fn allocs() -> usize {
+    ALLOCS.with(Cell::get)
+}
+
+// SAFETY: forwards every call to the system allocator unchanged; only counts.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        count();
+        // SAFETY: same contract as the caller's.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: same contract as the caller's.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        count();
+        // SAFETY: same contract as the caller's.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn frames() -> Vec<Vec<u8>> {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let cfg = SceneConfig::default();
+    let mut frames: Vec<Vec<u8>> = (0..3)
+        .map(|_| {
+            marker_scene(&cfg, Dictionary::paper(), &mut rng)
+                .unwrap()
+                .pixels
+        })
+        .collect();
+    frames.push(clutter_frame(640, 480, 1.0, 3.0, &mut rng).unwrap());
+    frames
+}
+
+fn allocations_in_second_pass(threshold: Threshold) -> (usize, usize) {
+    let frames = frames();
+    let mut det = Detector::new(DetectorConfig {
+        threshold,
+        ..DetectorConfig::default()
+    });
+    let mut out = Vec::new();
+    // Warm-up: buffers grow to the stream's needs.
+    for f in &frames {
+        det.detect(&GrayView::new(f, 640, 480).unwrap(), &mut out);
+    }
+    let before = allocs();
+    let mut read = 0;
+    for _ in 0..2 {
+        for f in &frames {
+            det.detect(&GrayView::new(f, 640, 480).unwrap(), &mut out);
+            read += out.len();
+        }
+    }
+    (allocs() - before, read)
+}
+
+#[test]
+fn steady_state_detection_allocates_nothing() {
+    let (allocs, read) = allocations_in_second_pass(Threshold::default());
+    assert_eq!(allocs, 0);
+    // The frames really contained markers that were read (6 frames with 8 each, 2 passes).
+    assert!(read >= 2 * 3 * 7, "only {read} markers read");
+    let (allocs, _) = allocations_in_second_pass(Threshold::Otsu);
+    assert_eq!(allocs, 0);
+}
+
+#[test]
+fn the_counter_sees_a_fresh_detector_allocate() {
+    // Guards the test above: a first frame must allocate, or the counter is not counting.
+    let frames = frames();
+    let before = allocs();
+    let mut det = Detector::new(DetectorConfig::default());
+    let mut out = Vec::new();
+    det.detect(&GrayView::new(&frames[0], 640, 480).unwrap(), &mut out);
+    assert!(allocs() > before);
+}

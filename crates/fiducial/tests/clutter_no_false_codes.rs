@@ -1,0 +1,30 @@
+//! Marker-free clutter (textured noise, rectangles, black-bordered squares with random
+//! insides, text-like strokes, checkers) never produces a code.
+#![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
+
+use fiducial::synth::clutter_frame;
+use fiducial::{Detector, DetectorConfig, GrayView, Threshold};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+#[test]
+fn clutter_frames_give_no_markers() {
+    let mut rng = ChaCha8Rng::seed_from_u64(2024);
+    let mut adaptive = Detector::new(DetectorConfig::default());
+    let mut otsu = Detector::new(DetectorConfig {
+        threshold: Threshold::Otsu,
+        ..DetectorConfig::default()
+    });
+    let mut out = Vec::new();
+    let mut quads = 0;
+    for _ in 0..40 {
+        let px = clutter_frame(240, 180, 1.0, 3.0, &mut rng).unwrap();
+        let img = GrayView::new(&px, 240, 180).unwrap();
+        quads += adaptive.detect(&img, &mut out);
+        assert!(out.is_empty(), "clutter read as {out:?}");
+        otsu.detect(&img, &mut out);
+        assert!(out.is_empty(), "clutter read as {out:?} (Otsu)");
+    }
+    // The clutter really offers candidates to the decoder (black-bordered squares etc.).
+    assert!(quads >= 20, "only {quads} quads in 40 frames");
+}

@@ -1,0 +1,126 @@
+//! `formation-tracker detect`: reads the markers of rendered scenes with the right robot,
+//! face and corners, one JSON line per image; an unreadable file is one error line and a
+//! non-zero exit while the other images are still reported.
+#![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use fiducial::Dictionary;
+use fiducial::synth::{SceneConfig, marker_scene};
+use formation_tracker::rig;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+fn dir(name: &str) -> PathBuf {
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("detect-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_formation-tracker"))
+}
+
+#[test]
+fn reads_scenes_and_reports_bad_files() {
+    let d = dir("scenes");
+    let cfg = SceneConfig {
+        markers: 5,
+        min_side: 40.0,
+        ..SceneConfig::default()
+    };
+    let scene = marker_scene(&cfg, Dictionary::paper(), &mut ChaCha8Rng::seed_from_u64(5)).unwrap();
+    let grey = image::GrayImage::from_raw(640, 480, scene.pixels.clone()).unwrap();
+    let png = d.join("scene.png");
+    grey.save(&png).unwrap();
+    // The same scene as RGB, to exercise colour conversion.
+    let rgb = image::DynamicImage::ImageLuma8(grey).into_rgb8();
+    let rgb_png = d.join("scene-rgb.png");
+    rgb.save(&rgb_png).unwrap();
+    let bad = d.join("not-an-image.png");
+    std::fs::write(&bad, b"definitely not a PNG").unwrap();
+
+    let out = bin()
+        .arg("detect")
+        .arg(&png)
+        .arg(&bad)
+        .arg(&rgb_png)
+        .arg("--json")
+        .output()
+        .unwrap();
+    assert!(!out.status.success(), "a bad file must fail the run");
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(
+        stderr
+            .lines()
+            .filter(|l| l.contains("not-an-image.png"))
+            .count(),
+        1,
+        "{stderr}"
+    );
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    let lines: Vec<serde_json::Value> = stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 2, "{stdout}");
+    for line in &lines {
+        assert_eq!(line["width"], 640);
+        assert_eq!(line["height"], 480);
+        assert!(line["robots"].as_array().unwrap().is_empty());
+        assert!(line["timing"]["detect_ms"].as_f64().unwrap() >= 0.0);
+        let markers = line["markers"].as_array().unwrap();
+        assert_eq!(markers.len(), scene.markers.len(), "{line}");
+        for truth in &scene.markers {
+            let index = truth.index.unwrap();
+            let (robot, face) = rig::robot_face(index);
+            let m = markers
+                .iter()
+                .find(|m| m["index"] == index)
+                .unwrap_or_else(|| panic!("marker {index} not reported"));
+            assert_eq!(m["robot"], robot);
+            assert_eq!(m["face"], face);
+            assert_eq!(m["code"], Dictionary::paper().codes()[index]);
+            assert_eq!(m["hamming"], 0);
+            for (i, c) in m["corners"].as_array().unwrap().iter().enumerate() {
+                let (x, y) = (c[0].as_f64().unwrap(), c[1].as_f64().unwrap());
+                let e = (x - truth.corners[i].x).hypot(y - truth.corners[i].y);
+                assert!(e < 0.2, "corner {i} of marker {index} off by {e} px");
+            }
+        }
+    }
+    assert_eq!(
+        lines[0]["markers"], lines[1]["markers"],
+        "grey and RGB differ"
+    );
+}
+
+#[test]
+fn human_listing_names_robots_and_faces() {
+    let d = dir("listing");
+    let cfg = SceneConfig {
+        markers: 2,
+        min_side: 60.0,
+        ..SceneConfig::default()
+    };
+    let scene = marker_scene(&cfg, Dictionary::paper(), &mut ChaCha8Rng::seed_from_u64(8)).unwrap();
+    let png = d.join("two.png");
+    image::GrayImage::from_raw(640, 480, scene.pixels.clone())
+        .unwrap()
+        .save(&png)
+        .unwrap();
+    let out = bin().arg("detect").arg(&png).output().unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("2 marker(s)"), "{text}");
+    for m in &scene.markers {
+        let (robot, face) = rig::robot_face(m.index.unwrap());
+        assert!(
+            text.contains(&format!("robot {robot} face {face} ")),
+            "{text}"
+        );
+    }
+}
