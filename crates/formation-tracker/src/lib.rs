@@ -19,6 +19,8 @@
 //! - [`robots`]: robot poses from the markers of a frame: grouped by robot, one joint pose
 //!   per robot (`pose`), inconsistent faces rejected, optionally refined on the ground plane,
 //!   turned into `(l12, alpha12, beta12)` with covariance.
+//! - [`evaluate`]: scoring the whole pipeline on a synthetic scene (render, detect, robots)
+//!   against its exact ground truth: faces read, wrong codes, pose errors; Markdown tables.
 //! - [`annotate`]: annotated frames: markers read, labelled with robot and face, and each
 //!   robot's estimated rig reprojected over the image (the paper's Figs. 10-11).
 //! - [`filter`]: [`filter::FormationFilter`], the dual UKF (`dukf`) over the polar
@@ -34,6 +36,7 @@
 #![deny(missing_docs)]
 
 pub mod annotate;
+pub mod evaluate;
 pub mod filter;
 pub mod mount;
 pub mod paper;
