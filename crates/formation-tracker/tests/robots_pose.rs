@@ -304,3 +304,37 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn non_finite_or_degenerate_corners_are_failures_not_panics() {
+    let truth = truth_of(&paper_scene(7).unwrap());
+    let rig = RigModel::reference();
+    let mut obs = observations(&truth, 0.0, 0);
+    let one = rig.index_of(2, 3).unwrap();
+    obs.retain(|o| o.index == one);
+    obs[0].corners[2].x = f64::NAN;
+    let found = measure_robots(
+        &obs,
+        &rig,
+        &solver(&truth),
+        &truth.mount,
+        &RobotConfig::default(),
+    );
+    assert!(found.robots.is_empty());
+    assert_eq!(found.failures.len(), 1);
+    assert!(
+        found.failures[0].to_string().contains("robot 2"),
+        "{}",
+        found.failures[0]
+    );
+    // All four corners on one point.
+    obs[0].corners = [Point2::new(100.0, 100.0); 4];
+    let found = measure_robots(
+        &obs,
+        &rig,
+        &solver(&truth),
+        &truth.mount,
+        &RobotConfig::default(),
+    );
+    assert!(found.robots.is_empty() && found.failures.len() == 1);
+}
