@@ -74,8 +74,9 @@ pub fn run(args: &[String]) -> crate::Result {
          field of view, headings uniform within +-90 deg, at least 0.6 m apart. Camera, rig and \
          effects are those of the paper scenes (`docs/paper-scenes.md`): 640 x 480, 60 deg \
          HFOV, level at 0.30 m, noise sigma 3, blur sigma 1, noise seed = scene number. \
-         Leaders closer than about 0.5 m have no face inside the image, so they have no face \
-         to read and are not measured.\n\n\
+         A leader closer than about 0.4 m shows no whole face, and one hidden behind another \
+         or cut by the image border may show none; such leaders have no face to read and \
+         are not required to be measured (the table lists them with `-`).\n\n\
          A scene passes when every face visible at most 75 deg off-axis and at least 14 px wide \
          is read, no code is wrong, and every robot with a face to read has a pose with \
          distance error <= 1 % and heading error <= 1 deg.\n\n## Summary\n\n{}",
