@@ -20,6 +20,21 @@
 //! the lookup keeps the guarantee that three flipped bits never give a wrong ID. The result carries the rotation found
 //! and the corners re-ordered into the marker's own NW, NE, SE, SW.
 //!
+//! Soft-decision correction. Hard correction ([`DecodeParams::max_errors`]) accepts any
+//! entry within that many bits, however clearly the disagreeing cells were read; on random
+//! dark-bordered clutter it invents markers. The decoder also knows how confident each bit
+//! is: a cell's *margin* is its distance from the threshold over half the contrast
+//! ([`CellReading::margin`]). The soft decision ([`DecodeParams::soft_errors`] `= k`,
+//! [`DecodeParams::soft_margin`] `= t`) is an erasure decode: when the reading is not an
+//! entry, the `k` least confident cells whose margin is below `t` are treated as unknown,
+//! each subset of them is flipped (fewest flips first) and the result must be an entry
+//! *exactly*. So an entry is accepted at Hamming distance 1 or 2 only if every disagreeing
+//! cell was among the `k` weakest of the reading and within `t` of the threshold; a reading
+//! that disagrees with every entry in some confident cell is rejected. `k` is capped at the
+//! dictionary's `(d_min - 1) / 2`, so a soft read is still never at distance `>= d_min / 2`
+//! and is the unique entry that close. The detector uses `k = 2`, `t = 0.3` and no hard
+//! correction (see [`crate::DetectorConfig::default`] for the measurements behind them).
+//!
 //! Nothing here allocates: cell levels live in fixed arrays and the code in a `u64`.
 
 use crate::cross_ratio::{CrossRatioFrame, convex_quad_area2};
@@ -40,17 +55,28 @@ pub struct DecodeParams {
     /// Half-size of the averaged square around each cell centre, as a fraction of the
     /// smallest measured cell pitch (0 samples only the centre; at most 0.5).
     pub sample_radius: f64,
+    /// Soft-decision correction: most bits that may be flipped among the *least confident*
+    /// cells of a reading (erasure-style decoding, see the module docs); capped at the
+    /// dictionary's `(d_min - 1) / 2`. 0 turns soft decisions off.
+    pub soft_errors: u32,
+    /// Soft-decision correction: a cell may be flipped only if its level is closer to the
+    /// threshold than this fraction of half the contrast (its normalised margin, 0 = on the
+    /// threshold, 1 = as dark or light as the references).
+    pub soft_margin: f64,
 }
 
 impl Default for DecodeParams {
-    /// Full correction, contrast >= 20 grey levels, at most 1 light border cell, samples
-    /// over +-0.25 cell.
+    /// Full (hard) correction, contrast >= 20 grey levels, at most 1 light border cell,
+    /// samples over +-0.25 cell, no soft decisions (full hard correction already covers
+    /// them).
     fn default() -> Self {
         Self {
             max_errors: u32::MAX,
             min_contrast: 20.0,
             max_light_border_cells: 1,
             sample_radius: 0.25,
+            soft_errors: 0,
+            soft_margin: 0.0,
         }
     }
 }
@@ -128,12 +154,49 @@ pub struct CellReading {
     /// the sample squares fall inside cells. A grid read with the wrong aspect (a
     /// non-square marker read across) puts samples on cell boundaries and scores lower.
     pub fit: f64,
+    /// Averaged grey level of each data cell, index `row * n + col` as the bits of
+    /// [`CellReading::code`] (entries past `m n` are 0).
+    pub levels: [f64; 64],
 }
 
 impl CellReading {
     /// White minus black reference level.
     pub fn contrast(&self) -> f64 {
         self.white - self.black
+    }
+
+    /// Normalised margin of data cell `k`: its distance from the midpoint threshold over
+    /// half the contrast (0 = on the threshold, 1 = as dark or light as the references;
+    /// may exceed 1).
+    pub fn margin(&self, k: usize) -> f64 {
+        let half = 0.5 * self.contrast();
+        let level = self.levels.get(k).copied().unwrap_or(f64::NAN);
+        (level - 0.5 * (self.black + self.white)).abs() / half
+    }
+
+    /// The `K` data cells of a grid of `cells` with the smallest margins, weakest first
+    /// (fewer if the grid is smaller), as (cell index, margin).
+    fn weakest<const K: usize>(&self, cells: usize) -> ([(usize, f64); K], usize) {
+        let mut out = [(0usize, f64::INFINITY); K];
+        let mut n = 0;
+        for k in 0..cells.min(64) {
+            let m = self.margin(k);
+            // Insertion into the sorted prefix.
+            let mut i = n.min(K);
+            if i == K && m >= out[K - 1].1 {
+                continue;
+            }
+            if i == K {
+                i = K - 1;
+            }
+            while i > 0 && m < out[i - 1].1 {
+                out[i] = out[i - 1];
+                i -= 1;
+            }
+            out[i] = (k, m);
+            n = (n + 1).min(K);
+        }
+        (out, n)
     }
 }
 
@@ -351,6 +414,7 @@ pub fn read_cells(
         light_border_cells: light,
         confidence: (margin / half).min(1.0),
         fit: fit / f64::from(m * n),
+        levels: data,
     })
 }
 
@@ -395,7 +459,10 @@ pub fn decode(
             reason: "no reading",
         }));
     };
-    let Some(m) = dictionary.lookup_within(reading.code, max) else {
+    let found = dictionary
+        .lookup_within(reading.code, max)
+        .or_else(|| soft_lookup(&reading, dictionary, params));
+    let Some(m) = found else {
         return Err(Rejection::NoMatch {
             read: reading.code,
             nearest: dictionary.nearest(reading.code).distance,
@@ -412,4 +479,49 @@ pub fn decode(
         contrast: reading.contrast(),
         confidence: reading.confidence,
     })
+}
+
+/// Most cells considered by the soft decision (the dictionary's correction radius is lower
+/// for any useful dictionary: 2 for the paper's).
+const MAX_SOFT: usize = 4;
+
+/// Soft-decision (erasure-style) lookup: flips subsets of the reading's weakest cells, those
+/// among its `soft_errors` least confident whose margin is below `soft_margin`, and accepts
+/// an entry matched *exactly* by the fewest flips. An entry that disagrees with the reading
+/// in any confident cell is never accepted, however close it is in Hamming distance.
+fn soft_lookup(
+    reading: &CellReading,
+    dictionary: &Dictionary,
+    params: &DecodeParams,
+) -> Option<crate::dictionary::Match> {
+    let k = (params.soft_errors.min(dictionary.max_correctable()) as usize).min(MAX_SOFT);
+    if k == 0 || params.soft_margin.is_nan() || params.soft_margin <= 0.0 {
+        return None;
+    }
+    let cells = dictionary.family().bits() as usize;
+    let (weak, n) = reading.weakest::<MAX_SOFT>(cells);
+    let weak = &weak[..n.min(k)];
+    let usable = weak
+        .iter()
+        .take_while(|(_, m)| *m < params.soft_margin)
+        .count();
+    let mut best: Option<crate::dictionary::Match> = None;
+    for subset in 1u32..(1 << usable) {
+        let flips = subset.count_ones();
+        if best.is_some_and(|b| b.distance <= flips) {
+            continue;
+        }
+        let mask = weak[..usable]
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| subset & (1 << i) != 0)
+            .fold(0u64, |acc, (_, (cell, _))| acc | (1u64 << cell));
+        if let Some(m) = dictionary.lookup_within(reading.code ^ mask, 0) {
+            best = Some(crate::dictionary::Match {
+                distance: flips,
+                ..m
+            });
+        }
+    }
+    best
 }

@@ -25,7 +25,42 @@
 //!
 //! **The hot path does not allocate.** [`decode()`] reads into fixed arrays and a `u64`;
 //! the thresholds come from the marker itself (its black border and white quiet zone),
-//! so no global threshold has to be right for the cells to read.
+//! so no global threshold has to be right for the cells to read. The [`Detector`] owns
+//! every buffer of every stage; they grow on the first frame of a size and are reused, so
+//! a stream of frames is detected without touching the heap (`tests/alloc_steady_state.rs`
+//! counts allocations to prove it).
+//!
+//! # The detector
+//!
+//! [`Detector::detect`] takes a grey frame ([`GrayView`]) to a list of [`Decoded`] markers
+//! (spec 3.4):
+//!
+//! 1. **Binarize** ([`threshold`]): local adaptive thresholds from 8 px tiles (minimum
+//!    contrast 30, so flat areas stay white) by default, or the paper's global Otsu.
+//! 2. **Components and contours** ([`contour`]): run-length union-find labelling; dark
+//!    components too small (side < 10 px), too sparse or touching the frame border (2 px)
+//!    are dropped before their outer border is traced.
+//! 3. **Quads** ([`quad`]): a four-vertex polygon fitted to the contour, with straight
+//!    sides (1.5 px + 5 % of the side) and interior angles >= 30 degrees.
+//! 4. **Sub-pixel corners** ([`refine`]): per side, up to 64 grey-level edge profiles away
+//!    from the corners, each edge located by the area under its normalised profile (exact
+//!    for any symmetric blur), a total-least-squares line with outliers dropped, corners
+//!    at the lines' intersections; done twice. On the accuracy scenes (`docs/
+//!    detector-accuracy.md`, markers of 20-120 px, blur 1, noise 3) the corner RMS error
+//!    is about 0.04 px; a property test holds every corner within 0.1 px for markers of
+//!    40-160 px.
+//! 5. **Decode** ([`decode()`]): cross-ratio cell centres, cells averaged over +-0.1 cell,
+//!    black/white references from border and quiet zone, dictionary lookup with
+//!    **soft-decision correction**: a reading that is not an entry may have its one or two
+//!    least confident cells flipped, each only if its level is within 0.3 of half the
+//!    contrast from the threshold, and the result must then be an entry exactly (hard
+//!    correction, which accepts any entry within two bits, is off by default because it
+//!    invents markers in clutter). A soft read is still never 3 or more bits from its
+//!    entry. Two readings of one marker are merged.
+//!
+//! Measured on seeded synthetic scenes (`cargo xtask detector-accuracy`): 1600 of 1600
+//! markers found, no wrong code, no code read in 1000 marker-free clutter frames or from
+//! 800 foreign (non-dictionary) markers. All defaults are in [`DetectorConfig::default`].
 //!
 //! # Modules
 //!
@@ -42,10 +77,14 @@
 //!   and quiet zone, lookup, orientation.
 //! - [`image`]: the borrowed [`GrayView`] every stage reads, and the [`Corners`] type.
 //!
-//! The detector (added alongside): `threshold` (binarization: Otsu and local adaptive),
-//! `contour` (border following), `quad` (four-corner polygons), `refine` (sub-pixel
-//! corners), `detector` (the pipeline of spec 3.4, ending in [`decode()`]) and `synth`
-//! (synthetic test views).
+//! Detector:
+//! - [`threshold`]: binarization (Otsu and local adaptive).
+//! - [`contour`]: run-length labelling and Moore border following.
+//! - [`quad`]: four-corner polygons from contours.
+//! - [`refine`]: sub-pixel corners from grey-level edge lines.
+//! - [`detector`](mod@detector): the pipeline ([`Detector`], [`DetectorConfig`]).
+//! - [`synth`]: seeded synthetic views with exact ground truth (scenes, clutter, foreign
+//!   markers) for tests, benchmarks and `cargo xtask detector-accuracy`.
 //!
 //! # Conventions
 //!
@@ -53,7 +92,12 @@
 //! always ordered NW, NE, SE, SW, clockwise in the image (v down). The decoder accepts the
 //! corners of a quad starting at any corner and returns them in the marker's own order.
 //!
-//! # Example
+//! # Examples
+//!
+//! `cargo run --release -p fiducial --example detect_scene [SEED]` detects a synthetic
+//! scene and prints each marker's code, bits corrected and corner error.
+//!
+//! Decoding a marker from known corners:
 //!
 //! ```
 //! use fiducial::{DecodeParams, Dictionary, RenderOptions, decode, render_marker};

@@ -35,12 +35,17 @@ pub struct RefineConfig {
 }
 
 impl Default for RefineConfig {
+    /// Stations at least 8 % of the side (and 2 px) from the corners, one per pixel up to
+    /// 64 per side, edges of at least 10 grey levels, profiles of at most +-2.5 px. 64
+    /// stations and the 8 % margin (rather than 32 and 12 %) keep every single corner
+    /// within 0.1 px of the truth for markers of 40-160 px under noise sigma 3 and blur up to
+    /// 1 (no case over 0.1 px in 6000 seeded views; 32 stations left about 1 in 3000 over).
     fn default() -> Self {
         Self {
-            corner_margin_rel: 0.12,
+            corner_margin_rel: 0.08,
             corner_margin_px: 2.0,
             min_edge_contrast: 10.0,
-            max_stations: 32,
+            max_stations: 64,
             station_spacing: 1.0,
             max_half_profile: 2.5,
         }

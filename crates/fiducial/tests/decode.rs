@@ -188,3 +188,141 @@ proptest! {
         }
     }
 }
+
+/// The detector's decoding: soft decisions only (2 weak cells, margin < 0.3), no hard
+/// correction.
+fn soft_params() -> DecodeParams {
+    fiducial::DetectorConfig::default().decode
+}
+
+/// Renders entry `code` (8 px per cell, 1 quiet cell) with data cell `k` painted at
+/// `levels[k]` where given (black 0, white 255, threshold 127.5).
+fn render_levels(
+    dict: &Dictionary,
+    code: u64,
+    levels: &[(usize, u8)],
+) -> (Vec<u8>, fiducial::Corners, usize, usize) {
+    let m = render_marker(
+        dict.family(),
+        code,
+        &RenderOptions {
+            px_per_cell: 8,
+            quiet_cells: 1,
+        },
+    )
+    .expect("valid code and options");
+    let (w, h) = (m.width(), m.height());
+    let mut px = m.pixels().to_vec();
+    let n = dict.family().cols() as usize;
+    for &(k, level) in levels {
+        let (r, c) = (k / n, k % n);
+        for y in (r + 2) * 8..(r + 3) * 8 {
+            for x in (c + 2) * 8..(c + 3) * 8 {
+                px[y * w + x] = level;
+            }
+        }
+    }
+    (px, m.corners(), w, h)
+}
+
+/// The level of a cell of `code` moved across the threshold to margin `margin` (0..1).
+fn wrong_side(code: u64, k: usize, margin: f64) -> u8 {
+    let black = code & (1 << k) != 0;
+    let offset = margin * 127.5;
+    // A black cell read light, a white one read dark.
+    (if black {
+        127.5 + offset
+    } else {
+        127.5 - offset
+    })
+    .round() as u8
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    /// Up to two cells that read wrong by a small margin are flipped back by the soft
+    /// decision, reporting their count as the distance.
+    #[test]
+    fn soft_decision_corrects_up_to_two_weak_cells(
+        index in 0usize..100,
+        flips in proptest::sample::subsequence((0..20).collect::<Vec<usize>>(), 1..=2),
+        margin in 0.03f64..0.25,
+        shift in 0usize..4,
+    ) {
+        let dict = Dictionary::paper();
+        let code = dict.codes()[index % dict.len()];
+        let levels: Vec<(usize, u8)> = flips.iter().map(|&k| (k, wrong_side(code, k, margin))).collect();
+        let (px, c, w, h) = render_levels(dict, code, &levels);
+        let view = GrayView::new(&px, w, h).unwrap();
+        let d = decode(&view, &shifted(&c, shift), dict, &soft_params()).unwrap();
+        prop_assert_eq!(d.index, index % dict.len());
+        prop_assert_eq!(d.distance as usize, flips.len());
+        prop_assert_eq!(d.corners, c);
+        // Without soft decisions (and without hard correction) the same view is rejected.
+        let hard0 = DecodeParams { soft_errors: 0, ..soft_params() };
+        let rejected = matches!(
+            decode(&view, &shifted(&c, shift), dict, &hard0),
+            Err(Rejection::NoMatch { .. })
+        );
+        prop_assert!(rejected);
+    }
+
+    /// A wrong cell read with a clear margin is never corrected by the soft decision, even
+    /// next to a weak one: one clearly wrong cell (plus up to one weak cell) is rejected,
+    /// and so are three weak cells.
+    #[test]
+    fn soft_decision_never_flips_confident_cells_or_three_weak_ones(
+        index in 0usize..100,
+        cells in proptest::sample::subsequence((0..20).collect::<Vec<usize>>(), 3),
+        strong in 0.4f64..1.0,
+        weak in 0.03f64..0.25,
+        case in 0usize..3,
+        shift in 0usize..4,
+    ) {
+        let dict = Dictionary::paper();
+        let code = dict.codes()[index % dict.len()];
+        let levels: Vec<(usize, u8)> = match case {
+            0 => vec![(cells[0], wrong_side(code, cells[0], strong))],
+            1 => vec![
+                (cells[0], wrong_side(code, cells[0], strong)),
+                (cells[1], wrong_side(code, cells[1], weak)),
+            ],
+            _ => cells.iter().map(|&k| (k, wrong_side(code, k, weak))).collect(),
+        };
+        let (px, c, w, h) = render_levels(dict, code, &levels);
+        let view = GrayView::new(&px, w, h).unwrap();
+        let r = decode(&view, &shifted(&c, shift), dict, &soft_params());
+        prop_assert!(matches!(r, Err(Rejection::NoMatch { .. })), "read {:?}", r);
+    }
+
+    /// Whatever grey levels the cells have, a soft-decision read is within
+    /// `(d_min - 1) / 2` bits of the turned entry, and exactly `distance` bits from the
+    /// thresholded cells.
+    #[test]
+    fn soft_reads_stay_within_half_the_minimum_distance(
+        index in 0usize..100,
+        levels in prop::array::uniform20(any::<u8>()),
+        mostly in any::<u64>(),
+        shift in 0usize..4,
+    ) {
+        let dict = Dictionary::paper();
+        let f = dict.family();
+        let code = dict.codes()[index % dict.len()];
+        // Keep most cells at the entry's clean levels so that reads are often accepted.
+        let painted: Vec<(usize, u8)> = (0..20)
+            .filter(|k| mostly & (0b111 << (3 * (k % 20))) == 0)
+            .map(|k| (k, levels[k]))
+            .collect();
+        let (px, c, w, h) = render_levels(dict, code, &painted);
+        let shown = painted.iter().fold(code, |acc, &(k, v)| {
+            if v < 128 { acc | (1 << k) } else { acc & !(1 << k) }
+        });
+        let view = GrayView::new(&px, w, h).unwrap();
+        if let Ok(d) = decode(&view, &shifted(&c, shift), dict, &soft_params()) {
+            prop_assert!(d.distance * 2 < dict.min_distance());
+            let turn = (d.rotation as usize + shift) % 4;
+            prop_assert_eq!(hamming(shown, f.rotate(d.code, turn as u8).unwrap()), d.distance);
+        }
+    }
+}
