@@ -253,21 +253,9 @@ pub fn evaluate_scene(
     })
 }
 
-/// Longest half-length of the detector's sub-pixel edge profiles used for scenes, pixels.
-///
-/// The detector's default (2.5 px) lets a profile across a marker's outer edge reach past the
-/// one-cell black border of a small marker: at 24 px wide and blur sigma 1 px the border is
-/// 3.4 px, a white data cell behind it lifts the profile's dark level and the edge moves
-/// inwards by about 0.15 px, which alone makes a single far face read about 1 % too far
-/// (Fig. 11, robot 2). 1.5 px (the detector's floor) removes most of that bias; the paper
-/// scenes were checked over several noise seeds with 1.5, 2, 2.5, 3 and 4 px.
-pub const SCENE_MAX_HALF_PROFILE_PX: f64 = 1.5;
-
-/// The detector used on scenes: default settings except [`SCENE_MAX_HALF_PROFILE_PX`].
+/// The detector used on scenes: the detector's default settings with `dictionary`.
 pub fn default_detector(dictionary: &Dictionary) -> Detector {
-    let mut config = DetectorConfig::default();
-    config.refine.max_half_profile = SCENE_MAX_HALF_PROFILE_PX;
-    Detector::with_dictionary(config, dictionary.clone())
+    Detector::with_dictionary(DetectorConfig::default(), dictionary.clone())
 }
 
 fn faces(list: &[u8]) -> String {
