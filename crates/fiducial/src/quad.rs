@@ -107,12 +107,19 @@ pub fn fit_quad(contour: &[[i32; 2]], limits: &QuadLimits) -> Option<[[f64; 2]; 
     // them: a trapezoid), every point of the side opposite that chord is equally far and the
     // vertex chosen may lie anywhere along it. Each vertex is therefore re-chosen as the
     // farthest point from the chord of its two neighbours, which is a true corner whenever
-    // those neighbours are (two rounds settle every case seen).
+    // those neighbours are (two rounds settle every case seen). A vertex moves only if the
+    // new one is over a pixel farther from the chord: a pixel is digitisation noise, and a
+    // small marker whose border the threshold notched keeps its first, equally good vertex.
     for _ in 0..2 {
         for i in 0..4 {
             let (a, b) = (v[(i + 3) % 4], v[(i + 1) % 4]);
             let (k, d) = farthest(a, b);
-            if d > 0.0 {
+            let [ax, ay] = p(a);
+            let [bx, by] = p(b);
+            let [qx, qy] = p(v[i]);
+            let (dx, dy) = (bx - ax, by - ay);
+            let current = ((qx - ax) * dy - (qy - ay) * dx).abs() / dx.hypot(dy).max(1e-9);
+            if d > current + 1.0 {
                 v[i] = k;
             }
         }
