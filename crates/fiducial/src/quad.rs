@@ -107,9 +107,10 @@ pub fn fit_quad(contour: &[[i32; 2]], limits: &QuadLimits) -> Option<[[f64; 2]; 
     // them: a trapezoid), every point of the side opposite that chord is equally far and the
     // vertex chosen may lie anywhere along it. Each vertex is therefore re-chosen as the
     // farthest point from the chord of its two neighbours, which is a true corner whenever
-    // those neighbours are (two rounds settle every case seen). A vertex moves only if the
-    // new one is over a pixel farther from the chord: a pixel is digitisation noise, and a
-    // small marker whose border the threshold notched keeps its first, equally good vertex.
+    // those neighbours are (two rounds settle every case seen). A vertex moves only to a
+    // point farther from the chord *and* more than 1.5 px away: two contour points within a
+    // diagonal step of each other are the same corner to digitisation, and a small marker
+    // whose border the threshold notched keeps its first, equally good vertex.
     for _ in 0..2 {
         for i in 0..4 {
             let (a, b) = (v[(i + 3) % 4], v[(i + 1) % 4]);
@@ -117,9 +118,10 @@ pub fn fit_quad(contour: &[[i32; 2]], limits: &QuadLimits) -> Option<[[f64; 2]; 
             let [ax, ay] = p(a);
             let [bx, by] = p(b);
             let [qx, qy] = p(v[i]);
+            let [kx, ky] = p(k);
             let (dx, dy) = (bx - ax, by - ay);
             let current = ((qx - ax) * dy - (qy - ay) * dx).abs() / dx.hypot(dy).max(1e-9);
-            if d > current + 1.0 {
+            if d > current && (kx - qx).hypot(ky - qy) > 1.5 {
                 v[i] = k;
             }
         }
