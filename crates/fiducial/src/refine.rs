@@ -305,7 +305,7 @@ impl Refiner {
         let stations = ((usable / cfg.station_spacing.max(0.5)) as usize + 1).clamp(2, cap);
         let step_s = usable / (stations - 1) as f64;
         // Half-width of the profile: wide enough for blur, short enough to stay inside the
-        // border cell on small markers (a NaN cell width leaves only the pixel cap).
+        // border cell on small markers (`min` ignores a NaN cell width, `max` a NaN cap).
         let half = if pass == 0 {
             (0.12 * len).clamp(1.5, 3.5)
         } else {
@@ -313,7 +313,7 @@ impl Refiner {
                 .max_half_profile
                 .min(cfg.max_half_profile_cells * cell)
                 .max(1.5);
-            (0.1 * len).clamp(1.5, if cap.is_nan() { 1.5 } else { cap })
+            (0.1 * len).clamp(1.5, cap)
         };
         const STEP: f64 = 0.5;
         let k_max = ((2.0 * half / STEP).round() as usize).min(PROFILE - 1);
