@@ -215,7 +215,7 @@ impl Refiner {
         let mut corners = *coarse;
         let mut contrast = 0.0;
         // First pass: the true edge lies about half a pixel outside the dark pixel centres.
-        for (pass, offset) in [(0, 0.5), (1, 0.0)] {
+        for pass in [0, 1] {
             let mut lines = [Line {
                 n: [0.0, 0.0],
                 c: 0.0,
@@ -233,7 +233,7 @@ impl Refiner {
                     .map(|p| ((p[0] - a[0]) * dy - (p[1] - a[1]) * dx).abs() / len)
                     .fold(f64::INFINITY, f64::min);
                 let cell = depth / cells_across.max(1.0);
-                let (l, c) = self.side(img, a, b, offset, pass, cell, cfg)?;
+                let (l, c) = self.side(img, a, b, pass, cell, cfg)?;
                 *line = l;
                 csum += c;
             }
@@ -279,7 +279,6 @@ impl Refiner {
         img: &GrayView<'_>,
         a: [f64; 2],
         b: [f64; 2],
-        offset: f64,
         pass: usize,
         cell: f64,
         cfg: &RefineConfig,
@@ -323,6 +322,9 @@ impl Refiner {
         let mut maxs = [0.0f64; 64];
         for s in 0..stations {
             let d = margin + s as f64 * step_s;
+            // The first pass starts from the coarse corners, whose true edge lies about half
+            // a pixel outside the dark pixel centres; the second from the refined lines.
+            let offset = if pass == 0 { 0.5 } else { 0.0 };
             let px = a[0] + d * t[0] + offset * n[0];
             let py = a[1] + d * t[1] + offset * n[1];
             let mut prof = [0.0f64; PROFILE];
