@@ -10,6 +10,7 @@ mod bench_report;
 mod detector_accuracy;
 mod dictionary;
 mod dukf_table;
+mod random_scenes;
 
 type Result<T = ()> = std::result::Result<T, Box<dyn std::error::Error>>;
 
@@ -22,6 +23,8 @@ commands:
   detector-accuracy  measure the marker detector on synthetic scenes and write
                    docs/detector-accuracy.md (--quick: fewer scenes)
   dictionary       regenerate crates/fiducial/data/dict-4x5-d6.txt (--check: only compare)
+  random-scenes    score 100 seeded random scenes, write docs/random-scenes.md
+                   (--count N, --seed S; --check: only compare)
   dukf-table       run the dual-UKF reproduction over seeds 1..20 (with and without
                    the paper's bias) and write docs/dukf-reproduction.md
 ";
@@ -32,6 +35,7 @@ fn main() -> ExitCode {
         Some("no-c") => no_c(),
         Some("bench-report") => bench_report::run(&args[1..]),
         Some("dictionary") => dictionary::run(&args[1..]),
+        Some("random-scenes") => random_scenes::run(&args[1..]),
         Some("detector-accuracy") => detector_accuracy::run(&args[1..]),
         Some("dukf-table") => dukf_table::run(&args[1..]),
         _ => {

@@ -150,8 +150,9 @@ pub struct CellReading {
     /// (1 = every cell as dark or light as the references, 0 = a cell exactly at the
     /// threshold).
     pub confidence: f64,
-    /// Mean over data cells of the same normalised margin (each capped at 1): how cleanly
-    /// the sample squares fall inside cells. A grid read with the wrong aspect (a
+    /// Mean over data cells of the same normalised margin (each capped at 1), leaving out
+    /// the [`DecodeParams::soft_errors`] lowest: how cleanly the sample squares fall inside
+    /// cells. A grid read with the wrong aspect (a
     /// non-square marker read across) puts samples on cell boundaries and scores lower.
     pub fit: f64,
     /// Averaged grey level of each data cell, index `row * n + col` as the bits of
@@ -397,23 +398,34 @@ pub fn read_cells(
     }
     let mut code = 0u64;
     let mut margin = f64::INFINITY;
-    let mut fit = 0.0;
     let half = 0.5 * contrast;
-    for (k, &v) in data.iter().take((m * n) as usize).enumerate() {
+    let cells = (m * n) as usize;
+    let mut scores = [0.0f64; 64];
+    for (k, &v) in data.iter().take(cells).enumerate() {
         if v < threshold {
             code |= 1 << k;
         }
         let d = (v - threshold).abs();
         margin = margin.min(d);
-        fit += (d / half).min(1.0);
+        scores[k] = (d / half).min(1.0);
     }
+    // The fit leaves out the `soft_errors` least clean cells: the soft decision tolerates
+    // that many weak cells, so the choice of aspect must too (two weak cells of the right
+    // grid otherwise let a grid read across the wrong aspect win).
+    let scores = &mut scores[..cells.min(64)];
+    scores.sort_unstable_by(f64::total_cmp);
+    let drop = (params.soft_errors as usize)
+        .min(MAX_SOFT)
+        .min(scores.len().saturating_sub(1));
+    let kept = &scores[drop..];
+    let fit = kept.iter().sum::<f64>() / kept.len().max(1) as f64;
     Ok(CellReading {
         code,
         black,
         white,
         light_border_cells: light,
         confidence: (margin / half).min(1.0),
-        fit: fit / f64::from(m * n),
+        fit,
         levels: data,
     })
 }

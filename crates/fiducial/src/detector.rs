@@ -216,6 +216,8 @@ impl Detector {
     pub fn find_quads(&mut self, img: &GrayView<'_>) -> &[Quad] {
         self.quads.clear();
         let cfg = self.config;
+        let family = self.dictionary.family();
+        let cells_across = f64::from(family.width_cells().max(family.height_cells()));
         let (w, h) = (img.width(), img.height());
         // Reserve for the frame size once, so that later frames of this size do not grow
         // the buffers (the run list grows only past one run per 16 pixels).
@@ -256,7 +258,7 @@ impl Detector {
             };
             let Some((corners, contrast)) =
                 self.refiner
-                    .refine(img, &coarse, &cfg.refine, cfg.min_angle_deg)
+                    .refine(img, &coarse, &cfg.refine, cfg.min_angle_deg, cells_across)
             else {
                 continue;
             };

@@ -43,7 +43,8 @@
 //! 3. **Quads** ([`quad`]): a four-vertex polygon fitted to the contour, with straight
 //!    sides (1.5 px + 5 % of the side) and interior angles >= 30 degrees.
 //! 4. **Sub-pixel corners** ([`refine`]): per side, up to 64 grey-level edge profiles away
-//!    from the corners, each edge located by the area under its normalised profile (exact
+//!    from the corners (each at most 2.5 px and 0.4 border cell long either side of the
+//!    edge, so it never reaches the data cells behind the border), each edge located by the area under its normalised profile (exact
 //!    for any symmetric blur), a total-least-squares line with outliers dropped, corners
 //!    at the lines' intersections; done twice. On the accuracy scenes (`docs/
 //!    detector-accuracy.md`, markers of 20-120 px, blur 1, noise 3) the corner RMS error

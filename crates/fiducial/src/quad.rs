@@ -3,7 +3,10 @@
 //! A polygonal approximation limited to four vertices, in the manner of Douglas-Peucker but
 //! greedy and bounded: the contour point farthest from the centroid is a vertex of any convex
 //! outline, the point farthest from it is another; then the point farthest from its chord is
-//! added twice, on whichever arc deviates most. The result is accepted only if every contour
+//! added twice, on whichever arc deviates most. Each vertex is then re-chosen as the point
+//! farthest from the chord of its two neighbours (twice round): when a side is parallel to
+//! the first chord (a trapezoid seen obliquely) all its points tie and the greedy choice
+//! may lie far from the corner. The result is accepted only if every contour
 //! point lies close to its side (a straightness tolerance that grows slowly with the side, to
 //! allow for blur and digitisation), the quadrilateral is convex and clockwise in the image,
 //! its sides are long enough and its corner angles are not too sharp (perspective makes them
@@ -98,6 +101,30 @@ pub fn fit_quad(contour: &[[i32; 2]], limits: &QuadLimits) -> Option<[[f64; 2]; 
         }
         v[slot] = best.1;
         count += 1;
+    }
+    // The first two vertices are the farthest pair, and the others the farthest from a chord
+    // through them; when two sides are parallel (a face turned about an axis parallel to
+    // them: a trapezoid), every point of the side opposite that chord is equally far and the
+    // vertex chosen may lie anywhere along it. Each vertex is therefore re-chosen as the
+    // farthest point from the chord of its two neighbours, which is a true corner whenever
+    // those neighbours are (two rounds settle every case seen). A vertex moves only to a
+    // point farther from the chord *and* more than 1.5 px away: two contour points within a
+    // diagonal step of each other are the same corner to digitisation, and a small marker
+    // whose border the threshold notched keeps its first, equally good vertex.
+    for _ in 0..2 {
+        for i in 0..4 {
+            let (a, b) = (v[(i + 3) % 4], v[(i + 1) % 4]);
+            let (k, d) = farthest(a, b);
+            let [ax, ay] = p(a);
+            let [bx, by] = p(b);
+            let [qx, qy] = p(v[i]);
+            let [kx, ky] = p(k);
+            let (dx, dy) = (bx - ax, by - ay);
+            let current = ((qx - ax) * dy - (qy - ay) * dx).abs() / dx.hypot(dy).max(1e-9);
+            if d > current && (kx - qx).hypot(ky - qy) > 1.5 {
+                v[i] = k;
+            }
+        }
     }
     // Each arc must be straight. Blur and the threshold blunt the corners, so the vertices
     // found may sit a pixel or more inside the true corners (most on small, sharp-cornered

@@ -32,11 +32,19 @@ pub struct RefineConfig {
     pub station_spacing: f64,
     /// Largest half-length of an edge profile (second pass), in pixels.
     pub max_half_profile: f64,
+    /// Largest half-length of an edge profile (second pass) as a fraction of the estimated
+    /// border-cell width across the side (the quadrilateral's depth across the side divided
+    /// by the marker's cells across), so that a profile never reaches through the one-cell
+    /// border into a white data cell behind it. The floor of 1.5 px still applies.
+    pub max_half_profile_cells: f64,
 }
 
 impl Default for RefineConfig {
     /// Stations at least 8 % of the side (and 2 px) from the corners, one per pixel up to
-    /// 64 per side, edges of at least 10 grey levels, profiles of at most +-2.5 px. 64
+    /// 64 per side, edges of at least 10 grey levels, profiles of at most +-2.5 px and at
+    /// most +-0.4 border cell (a longer profile on a small blurred marker sees the white
+    /// data cell behind the border, which lifts its dark level and pulls the edge inwards
+    /// by about 0.15 px at 24 px wide and blur sigma 1 px). 64
     /// stations and the 8 % margin (rather than 32 and 12 %) keep every single corner
     /// within 0.1 px of the truth for markers of 40-160 px under noise sigma 3 and blur up to
     /// 1 (no case over 0.1 px in 6000 seeded views; 32 stations left about 1 in 3000 over).
@@ -48,6 +56,7 @@ impl Default for RefineConfig {
             max_stations: 64,
             station_spacing: 1.0,
             max_half_profile: 2.5,
+            max_half_profile_cells: 0.4,
         }
     }
 }
@@ -192,25 +201,39 @@ impl Refiner {
 
     /// Refines clockwise coarse corners (pixel centres of the outermost dark pixels). Returns
     /// the refined corners and the mean edge contrast (grey levels), or `None` if an edge
-    /// cannot be found or the refined quadrilateral is implausible.
+    /// cannot be found or the refined quadrilateral is implausible. `cells_across` is the
+    /// marker's width in cells, border included (the larger of its two sides); it bounds
+    /// the edge profiles through [`RefineConfig::max_half_profile_cells`].
     pub fn refine(
         &mut self,
         img: &GrayView<'_>,
         coarse: &[[f64; 2]; 4],
         cfg: &RefineConfig,
         min_angle_deg: f64,
+        cells_across: f64,
     ) -> Option<([[f64; 2]; 4], f64)> {
         let mut corners = *coarse;
         let mut contrast = 0.0;
         // First pass: the true edge lies about half a pixel outside the dark pixel centres.
-        for (pass, offset) in [(0, 0.5), (1, 0.0)] {
+        for pass in [0, 1] {
             let mut lines = [Line {
                 n: [0.0, 0.0],
                 c: 0.0,
             }; 4];
             let mut csum = 0.0;
             for (i, line) in lines.iter_mut().enumerate() {
-                let (l, c) = self.side(img, corners[i], corners[(i + 1) % 4], offset, pass, cfg)?;
+                let (a, b) = (corners[i], corners[(i + 1) % 4]);
+                // The marker's depth across this side: the nearer of the two opposite
+                // corners' distances to the side's line; a border cell is that over the
+                // cells across (conservative for the shorter dimension of the marker).
+                let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+                let len = dx.hypot(dy);
+                let depth = [corners[(i + 2) % 4], corners[(i + 3) % 4]]
+                    .iter()
+                    .map(|p| ((p[0] - a[0]) * dy - (p[1] - a[1]) * dx).abs() / len)
+                    .fold(f64::INFINITY, f64::min);
+                let cell = depth / cells_across.max(1.0);
+                let (l, c) = self.side(img, a, b, pass, cell, cfg)?;
                 *line = l;
                 csum += c;
             }
@@ -256,8 +279,8 @@ impl Refiner {
         img: &GrayView<'_>,
         a: [f64; 2],
         b: [f64; 2],
-        offset: f64,
         pass: usize,
+        cell: f64,
         cfg: &RefineConfig,
     ) -> Option<(Line, f64)> {
         let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
@@ -281,11 +304,15 @@ impl Refiner {
         let stations = ((usable / cfg.station_spacing.max(0.5)) as usize + 1).clamp(2, cap);
         let step_s = usable / (stations - 1) as f64;
         // Half-width of the profile: wide enough for blur, short enough to stay inside the
-        // border cell (about a seventh of the side) on small markers.
+        // border cell on small markers (`min` ignores a NaN cell width, `max` a NaN cap).
         let half = if pass == 0 {
             (0.12 * len).clamp(1.5, 3.5)
         } else {
-            (0.1 * len).clamp(1.5, cfg.max_half_profile.max(1.5))
+            let cap = cfg
+                .max_half_profile
+                .min(cfg.max_half_profile_cells * cell)
+                .max(1.5);
+            (0.1 * len).clamp(1.5, cap)
         };
         const STEP: f64 = 0.5;
         let k_max = ((2.0 * half / STEP).round() as usize).min(PROFILE - 1);
@@ -295,6 +322,9 @@ impl Refiner {
         let mut maxs = [0.0f64; 64];
         for s in 0..stations {
             let d = margin + s as f64 * step_s;
+            // The first pass starts from the coarse corners, whose true edge lies about half
+            // a pixel outside the dark pixel centres; the second from the refined lines.
+            let offset = if pass == 0 { 0.5 } else { 0.0 };
             let px = a[0] + d * t[0] + offset * n[0];
             let py = a[1] + d * t[1] + offset * n[1];
             let mut prof = [0.0f64; PROFILE];

@@ -13,6 +13,11 @@ use rand_chacha::ChaCha8Rng;
 /// Scenes of the accuracy run that lost one marker each before soft decisions.
 const SEEDS: [u64; 6] = [17, 143, 146, 151, 155, 174];
 
+/// Those of them that still lose a marker to hard decisions alone. Scene 146 no longer does
+/// since the edge profiles are bounded by the border cell (`max_half_profile_cells`): its
+/// small marker's corners moved inwards less and every cell reads on the right side.
+const WEAK_CELL_SEEDS: [u64; 5] = [17, 143, 151, 155, 174];
+
 /// Markers of the scene `seed` read with their own index, and reads of other indices.
 fn found(seed: u64, cfg: DetectorConfig) -> (usize, usize, usize) {
     let dict = Dictionary::paper();
@@ -52,7 +57,7 @@ fn without_soft_decisions_those_scenes_lose_a_marker() {
     // in each (if this fails, the scenes no longer test the soft decision).
     let mut cfg = DetectorConfig::default();
     cfg.decode.soft_errors = 0;
-    for seed in SEEDS {
+    for seed in WEAK_CELL_SEEDS {
         let (right, wrong, total) = found(seed, cfg);
         assert_eq!((right, wrong), (total - 1, 0), "scene {seed}");
     }

@@ -11,6 +11,18 @@
 //! - [`mount`]: the camera mount on the follower and the measurement transform of spec 2.5,
 //!   from a leader's pose in the camera frame to `(l12, alpha12, beta12)` and their
 //!   covariance.
+//! - [`rigfile`]: rig files (YAML/JSON) overriding the reference rig: faces, geometry and
+//!   the dictionary entry of each `(robot, face)`, with errors that name the bad field.
+//! - [`scene`]: scenes of leaders seen by a follower's camera, rendered by `synthcam` with
+//!   the markers as exact cell-grid textures, and their ground truth.
+//! - [`paper`]: the paper's configurations (Figs. 7-11) and seeded random scenes.
+//! - [`robots`]: robot poses from the markers of a frame: grouped by robot, one joint pose
+//!   per robot (`pose`), inconsistent faces rejected, optionally refined on the ground plane,
+//!   turned into `(l12, alpha12, beta12)` with covariance.
+//! - [`evaluate`]: scoring the whole pipeline on a synthetic scene (render, detect, robots)
+//!   against its exact ground truth: faces read, wrong codes, pose errors; Markdown tables.
+//! - [`annotate`]: annotated frames: markers read, labelled with robot and face, and each
+//!   robot's estimated rig reprojected over the image (the paper's Figs. 10-11).
 //! - [`filter`]: [`filter::FormationFilter`], the dual UKF (`dukf`) over the polar
 //!   leader-follower model (`unicycle`), reused per tracked leader; and the dual-UKF
 //!   reproduction run (paper Figs. 12-13) with its figures of merit.
@@ -29,11 +41,17 @@
 //! modules and write files.
 #![deny(missing_docs)]
 
+pub mod annotate;
+pub mod evaluate;
 pub mod filter;
 pub mod frames;
 pub mod inputs;
 pub mod mount;
+pub mod paper;
 pub mod plot;
 pub mod rig;
+pub mod rigfile;
+pub mod robots;
 pub mod scenario;
+pub mod scene;
 pub mod tracker;

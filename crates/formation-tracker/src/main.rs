@@ -29,6 +29,8 @@ enum Command {
     Detect(cmd::detect::Args),
     /// Write print-ready marker images (PNG + SVG) for every robot's rig, and markers.json.
     Markers(cmd::markers::Args),
+    /// Render a synthetic frame of a paper scene (Figs. 7-11) or a scene file, with its truth.
+    Render(cmd::render::Args),
     /// Regenerate one of the paper's results (e.g. `reproduce dukf`, Figs. 12-13).
     Reproduce(cmd::reproduce::Args),
     /// Run the demonstration (for now: the dual-UKF reproduction, seed 1, into out/demo).
@@ -41,6 +43,7 @@ fn main() -> ExitCode {
         Command::Info => cmd::info::run(),
         Command::Markers(args) => cmd::markers::run(&args),
         Command::Detect(args) => cmd::detect::run(&args),
+        Command::Render(args) => cmd::render::run(&args),
         Command::Reproduce(args) => cmd::reproduce::run(args),
         Command::Demo(args) => cmd::demo::run(args),
     };

@@ -74,6 +74,14 @@ pub enum RigError {
         /// Face width, metres.
         face_m: f64,
     },
+    /// A rig file's marker table has no entry for this `(robot, face)`.
+    #[error("the rig's marker table gives no marker for robot {robot} face {face}")]
+    NoMarker {
+        /// The robot.
+        robot: u32,
+        /// The face.
+        face: u8,
+    },
     /// The marker family is invalid.
     #[error(transparent)]
     Family(#[from] fiducial::FiducialError),

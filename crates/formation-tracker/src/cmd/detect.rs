@@ -4,7 +4,8 @@
 //! `fiducial::Detector`. With `--json`, one JSON object per image, one per line, with the
 //! image's path and size, the markers read (code, robot and face from the rig mapping,
 //! Hamming distance corrected, sub-pixel corners NW, NE, SE, SW in pixel-centre convention),
-//! `robots` (filled by a later stage of the pipeline; empty here) and `timing.detect_ms`: the
+//! `robots` (with `--camera`: one joint pose per robot and its formation variables, see
+//! `detect_robots.rs`; empty otherwise) and `timing.detect_ms`: the
 //! detector's own time for the image, decoding excluded (quad finding, timed around
 //! `Detector::find_quads`). Without `--json`, a short listing. An unreadable file gets one
 //! error line on stderr and the others are still processed; the exit code is then non-zero.
@@ -14,7 +15,8 @@ use std::time::Instant;
 
 use clap::Args as ClapArgs;
 use fiducial::{Decoded, Detector, DetectorConfig, GrayView};
-use formation_tracker::rig;
+use formation_tracker::rigfile::RigModel;
+use formation_tracker::robots::RobotMeasurement;
 use serde::Serialize;
 
 use super::CliError;
@@ -28,6 +30,9 @@ pub struct Args {
     /// Print one JSON object per image (one line each) instead of a listing.
     #[arg(long)]
     pub json: bool,
+    /// The robot stage: `--camera`, `--rig`, `--pan`, `--mount`, `--free-pose`.
+    #[command(flatten)]
+    pub robots: super::detect_robots::RobotArgs,
 }
 
 /// One marker in the JSON output.
@@ -61,13 +66,14 @@ struct ImageOut {
     width: usize,
     height: usize,
     markers: Vec<MarkerOut>,
-    /// Robots seen (rig pose per robot): filled by a later stage; empty for now.
-    robots: Vec<serde_json::Value>,
+    /// Robots seen (rig pose per robot), with `--camera`; empty otherwise.
+    robots: Vec<RobotMeasurement>,
     timing: Timing,
 }
 
-fn marker_out(d: &Decoded) -> MarkerOut {
-    let (robot, face) = rig::robot_face(d.index);
+fn marker_out(d: &Decoded, rig: &RigModel) -> MarkerOut {
+    // A code on no face of the rig's table is reported as robot 0, face 0.
+    let (robot, face) = rig.robot_face(d.index).unwrap_or((0, 0));
     MarkerOut {
         code: d.code,
         index: d.index,
@@ -81,6 +87,12 @@ fn marker_out(d: &Decoded) -> MarkerOut {
 
 /// Reads every image; reports unreadable ones on stderr and fails at the end if any were.
 pub fn run(args: &Args) -> Result<(), CliError> {
+    let dict = fiducial::Dictionary::paper();
+    let stage = super::detect_robots::RobotStage::from_args(&args.robots, dict)?;
+    let rig = match &stage {
+        Some(stage) => stage.rig.clone(),
+        None => super::detect_robots::RobotStage::rig(&args.robots, dict)?,
+    };
     let mut detector = Detector::new(DetectorConfig::default());
     let mut found = Vec::new();
     let mut failed = 0usize;
@@ -111,8 +123,11 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             image: path.display().to_string(),
             width: w,
             height: h,
-            markers: found.iter().map(marker_out).collect(),
-            robots: Vec::new(),
+            markers: found.iter().map(|d| marker_out(d, &rig)).collect(),
+            robots: stage
+                .as_ref()
+                .map(|stage| stage.measure(&found))
+                .unwrap_or_default(),
             timing: Timing {
                 detect_ms: (t1 - t0).as_secs_f64() * 1e3,
                 decode_ms: (t2 - t1).as_secs_f64() * 1e3,
@@ -146,6 +161,18 @@ pub fn run(args: &Args) -> Result<(), CliError> {
                     c[2][1],
                     c[3][0],
                     c[3][1]
+                );
+            }
+            for r in &out.robots {
+                println!(
+                    "  robot {} pose from faces {:?}: l12 {:.3} m, alpha12 {:.2} deg, beta12 {:.2} deg, reprojection {:.2} px{}",
+                    r.robot,
+                    r.faces,
+                    r.l12,
+                    r.alpha12.to_degrees(),
+                    r.beta12.to_degrees(),
+                    r.reprojection_rms_px,
+                    if r.ambiguous { " (ambiguous)" } else { "" }
                 );
             }
         }

@@ -5,6 +5,9 @@ pub type CliError = Box<dyn std::error::Error + Send + Sync + 'static>;
 
 pub mod demo;
 pub mod detect;
+pub mod detect_robots;
 pub mod info;
 pub mod markers;
+pub mod render;
 pub mod reproduce;
+pub mod reproduce_scenes;

@@ -38,6 +38,13 @@ enum What {
     /// summary.json (mean square errors, RMS velocity errors after 2 s, seed, bias), and
     /// prints the summary as a table.
     Dukf(DukfArgs),
+    /// The paper's scenes, Figs. 7-11: render (640 x 480, 60 deg HFOV, camera level at
+    /// marker height, noise sigma 3, blur sigma 1), detect, measure each robot's pose and
+    /// score it against the ground truth.
+    ///
+    /// Writes into DIR: figN.png (annotated: markers read with robot/face, each robot's
+    /// estimated rig reprojected), figN-raw.png, scenes.md and scenes.json.
+    PaperScenes(super::reproduce_scenes::Args),
 }
 
 /// Options of `reproduce dukf`.
@@ -63,6 +70,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             print!("{}", summary_table(&summary));
             Ok(())
         }
+        What::PaperScenes(a) => super::reproduce_scenes::run(&a),
     }
 }
 

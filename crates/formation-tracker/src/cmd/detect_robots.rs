@@ -1,0 +1,149 @@
+//! The robot stage of `formation-tracker detect`: options `--camera`, `--rig`, `--pan`,
+//! `--mount`, `--free-pose`, and filling each image's `robots` from the markers read.
+//!
+//! Kept apart from `detect.rs` so the detector's command stays small: `detect` flattens
+//! [`RobotArgs`] into its arguments, builds a [`RobotStage`] once and calls
+//! [`RobotStage::measure`] per image.
+
+use std::path::PathBuf;
+
+use clap::Args as ClapArgs;
+use fiducial::{Decoded, Dictionary};
+use formation_tracker::mount::CameraMount;
+use formation_tracker::rigfile::RigModel;
+use formation_tracker::robots::{MarkerObservation, RobotConfig, RobotMeasurement, measure_robots};
+use pose::calib::Calibration;
+use pose::{Distortion, Intrinsics, PoseSolver};
+
+use super::CliError;
+
+/// Options of the robot stage.
+#[derive(Debug, Clone, ClapArgs)]
+pub struct RobotArgs {
+    /// Camera calibration (OpenCV FileStorage or ROS camera_info YAML). With it, `robots`
+    /// is filled: one joint pose per robot and its formation variables.
+    #[arg(long, value_name = "FILE")]
+    pub camera: Option<PathBuf>,
+    /// Rig file (YAML/JSON: faces, geometry, the marker of each robot and face); default:
+    /// the reference rig of spec 3.3.
+    #[arg(long, value_name = "FILE")]
+    pub rig: Option<PathBuf>,
+    /// Camera pan about the follower's vertical axis, radians, left positive.
+    #[arg(long, value_name = "RAD", allow_hyphen_values = true)]
+    pub pan: Option<f64>,
+    /// Camera mount as `OFFSET,HEIGHT[,TILT]`: metres ahead of the follower's reference
+    /// point, metres above the ground, radians down. Default `0.5,0.30,0` (the reference
+    /// mount).
+    #[arg(long, value_name = "D,H[,TILT]", allow_hyphen_values = true)]
+    pub mount: Option<String>,
+    /// Report the free 6-DOF pose instead of refining it on the ground plane.
+    #[arg(long = "free-pose")]
+    pub free_pose: bool,
+}
+
+/// Parses `OFFSET,HEIGHT[,TILT]`.
+fn parse_mount(text: &str, pan: f64) -> Result<CameraMount, CliError> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    if !(2..=3).contains(&parts.len()) {
+        return Err(format!("--mount {text}: expected OFFSET,HEIGHT or OFFSET,HEIGHT,TILT").into());
+    }
+    let mut v = [0.0; 3];
+    for (i, p) in parts.iter().enumerate() {
+        v[i] = p
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("--mount {text}: `{p}` is not a finite number"))?;
+    }
+    Ok(CameraMount {
+        offset: v[0],
+        height: v[1],
+        pan,
+        tilt: v[2],
+    })
+}
+
+/// Everything needed to turn the markers of an image into robots.
+#[derive(Debug, Clone)]
+pub struct RobotStage {
+    /// The rig.
+    pub rig: RigModel,
+    solver: PoseSolver,
+    intrinsics: Intrinsics,
+    distortion: Distortion,
+    mount: CameraMount,
+    config: RobotConfig,
+}
+
+impl RobotStage {
+    /// The rig of `args` (reference when none) whether or not a camera is given.
+    pub fn rig(args: &RobotArgs, dictionary: &Dictionary) -> Result<RigModel, CliError> {
+        Ok(match &args.rig {
+            Some(path) => RigModel::load(path, dictionary)?,
+            None => RigModel::reference(),
+        })
+    }
+
+    /// The stage, or `None` without `--camera`.
+    pub fn from_args(args: &RobotArgs, dictionary: &Dictionary) -> Result<Option<Self>, CliError> {
+        let pan = args.pan.unwrap_or(0.0);
+        if !pan.is_finite() {
+            return Err(format!("--pan {pan}: must be a finite angle in radians").into());
+        }
+        let mount = match &args.mount {
+            Some(text) => parse_mount(text, pan)?,
+            None => CameraMount {
+                pan,
+                ..CameraMount::default()
+            },
+        };
+        let Some(path) = &args.camera else {
+            if args.mount.is_some() || args.pan.is_some() || args.free_pose {
+                return Err("--mount, --pan and --free-pose need --camera FILE".into());
+            }
+            return Ok(None);
+        };
+        let calib = Calibration::from_file(path)
+            .map_err(|e| format!("--camera {}: {e}", path.display()))?;
+        Ok(Some(Self {
+            rig: Self::rig(args, dictionary)?,
+            solver: PoseSolver::new(calib.intrinsics),
+            intrinsics: calib.intrinsics,
+            distortion: calib.distortion,
+            mount,
+            config: RobotConfig {
+                ground_plane: !args.free_pose,
+                ..RobotConfig::default()
+            },
+        }))
+    }
+
+    /// The robots seen in an image from its markers (corners undistorted first). Robots
+    /// whose pose fails are reported on stderr and left out.
+    pub fn measure(&self, markers: &[Decoded]) -> Vec<RobotMeasurement> {
+        let observations: Vec<MarkerObservation> = markers
+            .iter()
+            .filter_map(|d| {
+                let mut corners = d.corners;
+                for c in &mut corners {
+                    *c = self.distortion.undistort_pixel(&self.intrinsics, c).ok()?;
+                }
+                Some(MarkerObservation {
+                    index: d.index,
+                    corners,
+                })
+            })
+            .collect();
+        let found = measure_robots(
+            &observations,
+            &self.rig,
+            &self.solver,
+            &self.mount,
+            &self.config,
+        );
+        for f in &found.failures {
+            eprintln!("formation-tracker: warning: {f}");
+        }
+        found.robots
+    }
+}

@@ -1,0 +1,450 @@
+//! Rig files: a YAML or JSON description of the marker rig that overrides the reference rig
+//! of spec 3.3 (faces, their geometry, and the dictionary entry on each `(robot, face)`).
+//!
+//! Every field is optional; what is left out keeps its reference value, so an empty file
+//! (`{}`) *is* the reference rig. Unknown fields are errors (a misspelt `cell_size_mm` must not
+//! silently fall back to the default), and every semantic check names the offending field,
+//! e.g. `faces[2].yaw_deg`.
+//!
+//! ```yaml
+//! face_width_m: 0.18            # octagon face width
+//! marker_centre_height_m: 0.30  # marker centres above the ground
+//! cell_size_m: 0.02             # one marker cell
+//! data_rows: 4
+//! data_cols: 5
+//! faces:                        # default: faces 1..5 at yaw 90, 135, 180, -135, -90 deg
+//!   - { face: 1, yaw_deg: 90 }
+//!   - { face: 3, yaw_deg: 180 }
+//! markers:                      # default: entry (robot - 1) * faces + position of face
+//!   - { robot: 1, face: 1, index: 40 }
+//!   - { robot: 1, face: 3, code: 663209 }
+//! ```
+//!
+//! Faces sit on the octagon (centred over the robot's reference point, at the apothem of
+//! the face width) with outward normals at `yaw_deg` in the robot's body frame; two faces must
+//! be at least 45 degrees apart so they cannot overlap. When `markers` is given it is the
+//! complete table: a `(robot, face)` not listed carries no marker.
+
+use std::path::Path;
+
+use fiducial::Dictionary;
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::rig::{FACE_YAWS_DEG, Face, Rig, RigError};
+
+/// What is wrong with a rig file.
+#[derive(Debug, Error)]
+pub enum RigFileError {
+    /// The file could not be read.
+    #[error("cannot read rig file {path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The file is not valid YAML/JSON for a rig (syntax, unknown or mistyped field).
+    #[error("rig file {path}: {message}")]
+    Parse {
+        /// The file (or `<string>`).
+        path: String,
+        /// The parser's message, naming the field and position.
+        message: String,
+    },
+    /// A field has a value that makes no rig.
+    #[error("rig file: field `{field}`: {reason}")]
+    Field {
+        /// The field, e.g. `faces[2].yaw_deg`.
+        field: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The geometry is invalid (lengths, marker family, marker too wide).
+    #[error(transparent)]
+    Rig(#[from] RigError),
+}
+
+/// One face of a rig file: its number and the yaw of its outward normal.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FaceSpec {
+    /// Face number (1..=255), as printed on the robot.
+    pub face: u8,
+    /// Yaw of the outward normal in the robot's body frame, degrees (left positive).
+    pub yaw_deg: f64,
+}
+
+/// One `(robot, face)` -> marker assignment of a rig file: either a dictionary `index` or
+/// the `code` itself (looked up in the dictionary).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MarkerSpec {
+    /// Robot number, from 1.
+    pub robot: u32,
+    /// Face number, one of the rig's faces.
+    pub face: u8,
+    /// Dictionary entry.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub index: Option<usize>,
+    /// The code (alternative to `index`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub code: Option<u64>,
+}
+
+/// The rig file as written: every field optional.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RigFile {
+    /// Width of each face, metres.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub face_width_m: Option<f64>,
+    /// Height of the marker centres, metres.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub marker_centre_height_m: Option<f64>,
+    /// Side of one marker cell, metres.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cell_size_m: Option<f64>,
+    /// Rows of data cells.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub data_rows: Option<u32>,
+    /// Columns of data cells.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub data_cols: Option<u32>,
+    /// The faces.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub faces: Option<Vec<FaceSpec>>,
+    /// The marker table.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub markers: Option<Vec<MarkerSpec>>,
+}
+
+/// A checked rig: geometry, faces and the `(robot, face)` <-> dictionary-entry table.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RigModel {
+    /// Face and marker geometry.
+    pub geometry: Rig,
+    /// Faces in the order given.
+    pub faces: Vec<FaceSpec>,
+    /// Explicit marker table (`None`: the default formula).
+    pub markers: Option<Vec<(u32, u8, usize)>>,
+}
+
+impl Default for RigModel {
+    fn default() -> Self {
+        Self::reference()
+    }
+}
+
+impl RigModel {
+    /// The reference rig of spec 3.3 with the default marker table.
+    pub fn reference() -> Self {
+        Self {
+            geometry: Rig::reference(),
+            faces: reference_faces(),
+            markers: None,
+        }
+    }
+
+    /// Parses and checks a rig file's text; `json` selects the JSON parser (otherwise YAML,
+    /// which also reads JSON). `path` only labels error messages.
+    pub fn from_text(
+        text: &str,
+        json: bool,
+        path: &str,
+        dictionary: &Dictionary,
+    ) -> Result<Self, RigFileError> {
+        let file: RigFile = if json {
+            serde_json::from_str(text).map_err(|e| RigFileError::Parse {
+                path: path.to_string(),
+                message: e.to_string(),
+            })?
+        } else if text.trim().is_empty() {
+            RigFile::default()
+        } else {
+            serde_saphyr::from_str(text).map_err(|e| RigFileError::Parse {
+                path: path.to_string(),
+                message: e.to_string(),
+            })?
+        };
+        Self::from_file(&file, dictionary)
+    }
+
+    /// Reads a rig file (`.json` is parsed as JSON, anything else as YAML).
+    pub fn load(path: &Path, dictionary: &Dictionary) -> Result<Self, RigFileError> {
+        let text = std::fs::read_to_string(path).map_err(|source| RigFileError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        let json = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+        Self::from_text(&text, json, &path.display().to_string(), dictionary)
+    }
+
+    /// Checks a parsed rig file and fills in the reference values.
+    pub fn from_file(file: &RigFile, dictionary: &Dictionary) -> Result<Self, RigFileError> {
+        let r = Rig::reference();
+        let geometry = Rig {
+            face_width_m: file.face_width_m.unwrap_or(r.face_width_m),
+            marker_centre_height_m: file
+                .marker_centre_height_m
+                .unwrap_or(r.marker_centre_height_m),
+            cell_size_m: file.cell_size_m.unwrap_or(r.cell_size_m),
+            data_rows: file.data_rows.unwrap_or(r.data_rows),
+            data_cols: file.data_cols.unwrap_or(r.data_cols),
+        };
+        geometry.validate()?;
+        let family = geometry.family()?;
+        if family != dictionary.family() {
+            return Err(field(
+                "data_rows/data_cols",
+                format!(
+                    "the rig's markers have {} x {} data cells but the dictionary's have {} x {}",
+                    family.rows(),
+                    family.cols(),
+                    dictionary.family().rows(),
+                    dictionary.family().cols()
+                ),
+            ));
+        }
+        let faces = file.faces.clone().unwrap_or_else(reference_faces);
+        check_faces(&faces)?;
+        let markers = match &file.markers {
+            None => None,
+            Some(list) => Some(check_markers(list, &faces, dictionary)?),
+        };
+        Ok(Self {
+            geometry,
+            faces,
+            markers,
+        })
+    }
+
+    /// The geometry of face number `face`.
+    pub fn face(&self, face: u8) -> Result<Face, RigError> {
+        let spec = self
+            .faces
+            .iter()
+            .find(|f| f.face == face)
+            .ok_or(RigError::NoSuchFace { face })?;
+        face_at_yaw(&self.geometry, face, spec.yaw_deg.to_radians())
+    }
+
+    /// Every face's geometry, in the rig's order.
+    pub fn face_geometries(&self) -> Result<Vec<Face>, RigError> {
+        self.faces.iter().map(|f| self.face(f.face)).collect()
+    }
+
+    /// The dictionary entry on `(robot, face)`, if that face carries one.
+    pub fn index_of(&self, robot: u32, face: u8) -> Option<usize> {
+        match &self.markers {
+            Some(list) => list
+                .iter()
+                .find(|&&(r, f, _)| r == robot && f == face)
+                .map(|&(_, _, i)| i),
+            None => {
+                let pos = self.faces.iter().position(|f| f.face == face)?;
+                let robot = usize::try_from(robot.checked_sub(1)?).ok()?;
+                robot.checked_mul(self.faces.len())?.checked_add(pos)
+            }
+        }
+    }
+
+    /// The `(robot, face)` carrying dictionary entry `index`, if any.
+    pub fn robot_face(&self, index: usize) -> Option<(u32, u8)> {
+        match &self.markers {
+            Some(list) => list
+                .iter()
+                .find(|&&(_, _, i)| i == index)
+                .map(|&(r, f, _)| (r, f)),
+            None => {
+                let n = self.faces.len();
+                let robot = u32::try_from(index / n).ok()?.checked_add(1)?;
+                Some((robot, self.faces.get(index % n)?.face))
+            }
+        }
+    }
+
+    /// The code on `(robot, face)`, or why there is none.
+    pub fn code(&self, dictionary: &Dictionary, robot: u32, face: u8) -> Result<u64, RigError> {
+        if robot == 0 {
+            return Err(RigError::RobotZero);
+        }
+        if !self.faces.iter().any(|f| f.face == face) {
+            return Err(RigError::NoSuchFace { face });
+        }
+        let needed = self
+            .index_of(robot, face)
+            .ok_or(RigError::NoMarker { robot, face })?;
+        dictionary.code(needed).ok_or(RigError::TooManyRobots {
+            robot,
+            needed,
+            len: dictionary.len(),
+            max_robots: (dictionary.len() / self.faces.len().max(1)) as u32,
+        })
+    }
+}
+
+fn reference_faces() -> Vec<FaceSpec> {
+    FACE_YAWS_DEG
+        .iter()
+        .enumerate()
+        .map(|(i, &yaw_deg)| FaceSpec {
+            face: i as u8 + 1,
+            yaw_deg,
+        })
+        .collect()
+}
+
+fn field(name: impl Into<String>, reason: impl Into<String>) -> RigFileError {
+    RigFileError::Field {
+        field: name.into(),
+        reason: reason.into(),
+    }
+}
+
+fn check_faces(faces: &[FaceSpec]) -> Result<(), RigFileError> {
+    if faces.is_empty() {
+        return Err(field("faces", "a rig needs at least one face"));
+    }
+    if faces.len() > 8 {
+        return Err(field(
+            "faces",
+            format!("an octagon has at most 8 faces, got {}", faces.len()),
+        ));
+    }
+    for (i, f) in faces.iter().enumerate() {
+        if f.face == 0 {
+            return Err(field(format!("faces[{i}].face"), "face numbers start at 1"));
+        }
+        if !f.yaw_deg.is_finite() {
+            return Err(field(
+                format!("faces[{i}].yaw_deg"),
+                format!("must be a finite angle in degrees, got {}", f.yaw_deg),
+            ));
+        }
+        for (j, g) in faces[..i].iter().enumerate() {
+            if g.face == f.face {
+                return Err(field(
+                    format!("faces[{i}].face"),
+                    format!("face {} is already faces[{j}]", f.face),
+                ));
+            }
+            let gap = unicycle::wrap_angle((f.yaw_deg - g.yaw_deg).to_radians()).abs();
+            if gap.to_degrees() < 45.0 - 1e-9 {
+                return Err(field(
+                    format!("faces[{i}].yaw_deg"),
+                    format!(
+                        "{} deg is {:.1} deg from faces[{j}] ({} deg); octagon faces must be at \
+                         least 45 deg apart",
+                        f.yaw_deg,
+                        gap.to_degrees(),
+                        g.yaw_deg
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn check_markers(
+    list: &[MarkerSpec],
+    faces: &[FaceSpec],
+    dictionary: &Dictionary,
+) -> Result<Vec<(u32, u8, usize)>, RigFileError> {
+    let mut out: Vec<(u32, u8, usize)> = Vec::with_capacity(list.len());
+    for (i, m) in list.iter().enumerate() {
+        if m.robot == 0 {
+            return Err(field(
+                format!("markers[{i}].robot"),
+                "robot numbers start at 1",
+            ));
+        }
+        if !faces.iter().any(|f| f.face == m.face) {
+            return Err(field(
+                format!("markers[{i}].face"),
+                format!("the rig has no face {}", m.face),
+            ));
+        }
+        let index = match (m.index, m.code) {
+            (Some(index), None) => {
+                if index >= dictionary.len() {
+                    return Err(field(
+                        format!("markers[{i}].index"),
+                        format!(
+                            "entry {index} is beyond the dictionary's {} entries",
+                            dictionary.len()
+                        ),
+                    ));
+                }
+                index
+            }
+            (None, Some(code)) => dictionary.index_of(code).ok_or_else(|| {
+                field(
+                    format!("markers[{i}].code"),
+                    format!("code {code} is not in the dictionary"),
+                )
+            })?,
+            (Some(_), Some(_)) => {
+                return Err(field(
+                    format!("markers[{i}]"),
+                    "give either `index` or `code`, not both",
+                ));
+            }
+            (None, None) => {
+                return Err(field(
+                    format!("markers[{i}]"),
+                    "needs an `index` (dictionary entry) or a `code`",
+                ));
+            }
+        };
+        if let Some(j) = out
+            .iter()
+            .position(|&(r, f, _)| r == m.robot && f == m.face)
+        {
+            return Err(field(
+                format!("markers[{i}]"),
+                format!(
+                    "robot {} face {} is already given by markers[{j}]",
+                    m.robot, m.face
+                ),
+            ));
+        }
+        if let Some(j) = out.iter().position(|&(_, _, k)| k == index) {
+            return Err(field(
+                format!("markers[{i}]"),
+                format!("dictionary entry {index} is already used by markers[{j}]"),
+            ));
+        }
+        out.push((m.robot, m.face, index));
+    }
+    Ok(out)
+}
+
+/// The geometry of a face whose outward normal is at `yaw` (radians) on the rig's octagon.
+pub fn face_at_yaw(rig: &Rig, face: u8, yaw: f64) -> Result<Face, RigError> {
+    rig.validate()?;
+    let normal = Vector3::new(yaw.cos(), yaw.sin(), 0.0);
+    let up = Vector3::z();
+    let right = up.cross(&normal);
+    let centre = normal * rig.apothem_m() + up * rig.marker_centre_height_m;
+    let [w, h] = rig.marker_size_m()?;
+    let (hw, hh) = (0.5 * w, 0.5 * h);
+    let corner =
+        |sx: f64, sy: f64| -> [f64; 3] { (centre + right * (sx * hw) + up * (sy * hh)).into() };
+    Ok(Face {
+        face,
+        yaw_rad: yaw,
+        normal: normal.into(),
+        centre: centre.into(),
+        corners: [
+            corner(-1.0, 1.0),
+            corner(1.0, 1.0),
+            corner(1.0, -1.0),
+            corner(-1.0, -1.0),
+        ],
+    })
+}
