@@ -1,5 +1,6 @@
-//! Criterion benchmarks of the tracker's per-frame update with one leader, measurement given
-//! (no image work): one chosen pose, and a single face's two planar candidates.
+//! Criterion benchmarks: the tracker's per-frame update with one leader, measurement given
+//! (no image work: one chosen pose, and a single face's two planar candidates), and the
+//! whole per-frame pipeline (detect + pose + track) on a pre-rendered 640x480 frame.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use formation_tracker::mount::CameraMount;
@@ -70,5 +71,61 @@ fn tracker_step(c: &mut Criterion) {
     );
 }
 
-criterion_group!(benches, tracker_step);
+/// Detect + pose + track on one pre-rendered 640x480 frame of the reference scene (leader
+/// 1.5 m ahead, noise and blur on); rendering is outside the measurement.
+fn frame_pipeline(c: &mut Criterion) {
+    use fiducial::{Detector, DetectorConfig, Dictionary};
+    use formation_tracker::pipeline::Pipeline;
+    use formation_tracker::rigfile::RigModel;
+    use formation_tracker::robots::RobotConfig;
+    use formation_tracker::scene::{Pose, RobotSpec, SceneSpec, render_scene};
+
+    let spec = SceneSpec {
+        name: String::new(),
+        camera_robot: Pose::default(),
+        mount: CameraMount::default(),
+        camera: Default::default(),
+        render: Default::default(),
+        robots: vec![RobotSpec {
+            robot: 1,
+            x: 1.5,
+            y: 0.25,
+            theta: 0.0,
+        }],
+    };
+    let rig = RigModel::reference();
+    let image = render_scene(&spec, &rig, Dictionary::paper())
+        .expect("render")
+        .image;
+    let k = pose::Intrinsics::from_hfov(60f64.to_radians(), 640, 480).expect("intrinsics");
+    let mut pipeline = Pipeline::new(
+        Detector::with_dictionary(DetectorConfig::default(), Dictionary::paper().clone()),
+        pose::PoseSolver::new(k),
+        (640, 480),
+        rig,
+        RobotConfig::default(),
+        Tracker::new(TrackerConfig::reference(0.5, DT)).expect("reference config"),
+    );
+    let mut t = 0.0;
+    let mut frame = || {
+        t += DT;
+        pipeline
+            .process(
+                image.as_raw(),
+                640,
+                480,
+                t,
+                Inputs::new(0.0, 0.0),
+                CameraMount::default(),
+            )
+            .expect("frame")
+    };
+    let first = frame();
+    assert_eq!(first.report.leaders.len(), 1, "the leader must be found");
+    c.bench_function("formation-tracker/frame_pipeline_640x480", |b| {
+        b.iter(|| std::hint::black_box(frame()))
+    });
+}
+
+criterion_group!(benches, tracker_step, frame_pipeline);
 criterion_main!(benches);

@@ -34,6 +34,10 @@
 //! - [`frames`]: frame sources (a folder of images, a y4m file, a y4m stream on stdin) read
 //!   into one reused grey buffer.
 //! - [`inputs`]: the follower's own inputs `(v2, w2)` and camera pan per frame, from a CSV.
+//! - [`pipeline`]: one camera frame through detection, robot poses and the tracker, with
+//!   the time of each stage; the `track` command and the demo both use it.
+//! - [`demo`]: the end-to-end demo: the reference scenario with the synthetic camera in the
+//!   loop, an occlusion, open or closed loop, a chain of robots.
 //! - [`plot`]: figures as SVG and PNG with plotters' pure-Rust backends and an embedded font.
 //!
 //! Library modules never print or exit. The `formation-tracker` binary's subcommands live
@@ -42,12 +46,14 @@
 #![deny(missing_docs)]
 
 pub mod annotate;
+pub mod demo;
 pub mod evaluate;
 pub mod filter;
 pub mod frames;
 pub mod inputs;
 pub mod mount;
 pub mod paper;
+pub mod pipeline;
 pub mod plot;
 pub mod rig;
 pub mod rigfile;

@@ -27,13 +27,16 @@ enum Command {
     Info,
     /// Find and read the markers in images (PNG/JPEG); --json for one JSON line per image.
     Detect(cmd::detect::Args),
+    /// Track leader robots through camera frames (a folder of images, a y4m file or stdin).
+    Track(cmd::track::Args),
     /// Write print-ready marker images (PNG + SVG) for every robot's rig, and markers.json.
     Markers(cmd::markers::Args),
     /// Render a synthetic frame of a paper scene (Figs. 7-11) or a scene file, with its truth.
     Render(cmd::render::Args),
     /// Regenerate one of the paper's results (e.g. `reproduce dukf`, Figs. 12-13).
     Reproduce(cmd::reproduce::Args),
-    /// Run the demonstration (for now: the dual-UKF reproduction, seed 1, into out/demo).
+    /// Run the end-to-end demo: the reference scenario rendered on the follower's camera,
+    /// detected, posed and tracked, with an occlusion (out/demo).
     Demo(cmd::demo::Args),
 }
 
@@ -43,6 +46,7 @@ fn main() -> ExitCode {
         Command::Info => cmd::info::run(),
         Command::Markers(args) => cmd::markers::run(&args),
         Command::Detect(args) => cmd::detect::run(&args),
+        Command::Track(args) => cmd::track::run(&args),
         Command::Render(args) => cmd::render::run(&args),
         Command::Reproduce(args) => cmd::reproduce::run(args),
         Command::Demo(args) => cmd::demo::run(args),

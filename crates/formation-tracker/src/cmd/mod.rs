@@ -11,3 +11,4 @@ pub mod markers;
 pub mod render;
 pub mod reproduce;
 pub mod reproduce_scenes;
+pub mod track;
