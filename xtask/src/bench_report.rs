@@ -55,6 +55,16 @@ const TARGETS: &[Target] = &[
         note: "target <= 4 ms; OpenCV ArUco 14.1 ms, AprilTag 3 78 ms",
     },
     Target {
+        id: "formation-tracker/frame_pipeline_640x480",
+        target_ns: Some(2_000_000.0),
+        note: "detect + pose + track on one core, rendering excluded; target >= 500 frames/s",
+    },
+    Target {
+        id: "formation-tracker/tracker_step",
+        target_ns: None,
+        note: "tracker update, one leader, measurement given",
+    },
+    Target {
         id: "synthcam/render_640x480_ss4",
         target_ns: Some(50_000_000.0),
         note: "target <= 50 ms on 2 cores",
