@@ -193,11 +193,17 @@ impl Rig {
 
     /// The geometry of face `face` (1..=5).
     pub fn face(&self, face: u8) -> Result<Face, RigError> {
-        self.validate()?;
         let yaw_deg = *FACE_YAWS_DEG
             .get(usize::from(face).wrapping_sub(1))
             .ok_or(RigError::NoSuchFace { face })?;
-        let yaw = yaw_deg.to_radians();
+        self.face_at_yaw(face, yaw_deg.to_radians())
+    }
+
+    /// The geometry of a face whose outward normal is at `yaw` (radians, in the leader's
+    /// body frame) on this rig's octagon: the reference faces use the spec's yaws, rig files
+    /// may place faces elsewhere.
+    pub fn face_at_yaw(&self, face: u8, yaw: f64) -> Result<Face, RigError> {
+        self.validate()?;
         let normal = Vector3::new(yaw.cos(), yaw.sin(), 0.0);
         let up = Vector3::z();
         // A viewer outside looks along -normal; their right is z x normal.

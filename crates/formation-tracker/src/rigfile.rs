@@ -28,7 +28,6 @@
 use std::path::Path;
 
 use fiducial::Dictionary;
-use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
@@ -229,7 +228,7 @@ impl RigModel {
             .iter()
             .find(|f| f.face == face)
             .ok_or(RigError::NoSuchFace { face })?;
-        face_at_yaw(&self.geometry, face, spec.yaw_deg.to_radians())
+        self.geometry.face_at_yaw(face, spec.yaw_deg.to_radians())
     }
 
     /// Every face's geometry, in the rig's order.
@@ -422,29 +421,4 @@ fn check_markers(
         out.push((m.robot, m.face, index));
     }
     Ok(out)
-}
-
-/// The geometry of a face whose outward normal is at `yaw` (radians) on the rig's octagon.
-pub fn face_at_yaw(rig: &Rig, face: u8, yaw: f64) -> Result<Face, RigError> {
-    rig.validate()?;
-    let normal = Vector3::new(yaw.cos(), yaw.sin(), 0.0);
-    let up = Vector3::z();
-    let right = up.cross(&normal);
-    let centre = normal * rig.apothem_m() + up * rig.marker_centre_height_m;
-    let [w, h] = rig.marker_size_m()?;
-    let (hw, hh) = (0.5 * w, 0.5 * h);
-    let corner =
-        |sx: f64, sy: f64| -> [f64; 3] { (centre + right * (sx * hw) + up * (sy * hh)).into() };
-    Ok(Face {
-        face,
-        yaw_rad: yaw,
-        normal: normal.into(),
-        centre: centre.into(),
-        corners: [
-            corner(-1.0, 1.0),
-            corner(1.0, 1.0),
-            corner(1.0, -1.0),
-            corner(-1.0, -1.0),
-        ],
-    })
 }
