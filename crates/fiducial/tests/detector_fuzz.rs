@@ -4,45 +4,10 @@
 //! inputs shaped to reach deep into the pipeline (large blocks of dark and light).
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
-use fiducial::{DecodeParams, Detector, DetectorConfig, Dictionary, GrayView, Threshold, decode};
-use proptest::prelude::*;
+mod fuzz_body;
 
-/// The fuzz target's body (keep in step with `fuzz/fuzz_targets/detect.rs`).
-fn run(data: &[u8]) {
-    if data.len() < 5 {
-        return;
-    }
-    let w = 1 + (usize::from(data[0]) | usize::from(data[1]) << 8) % 320;
-    let h = 1 + (usize::from(data[2]) | usize::from(data[3]) << 8) % 320;
-    let body = &data[4..];
-    let pixels: Vec<u8> = body.iter().copied().cycle().take(w * h).collect();
-    let img = GrayView::new(&pixels, w, h).expect("shape is valid by construction");
-    for threshold in [Threshold::default(), Threshold::Otsu] {
-        let mut det = Detector::new(DetectorConfig {
-            threshold,
-            ..DetectorConfig::default()
-        });
-        let mut out = Vec::new();
-        det.detect(&img, &mut out);
-        for q in det.quads() {
-            for c in q.corners {
-                assert!(c.x.is_finite() && c.y.is_finite());
-                assert!(
-                    c.x >= -0.5 && c.y >= -0.5 && c.x <= w as f64 - 0.5 && c.y <= h as f64 - 0.5
-                );
-            }
-            let _ = decode(
-                &img,
-                &q.corners,
-                Dictionary::paper(),
-                &DecodeParams::default(),
-            );
-        }
-        for d in &out {
-            assert!(d.index < Dictionary::paper().len());
-        }
-    }
-}
+use fuzz_body::run;
+use proptest::prelude::*;
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(256))]
