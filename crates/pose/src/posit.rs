@@ -28,18 +28,7 @@ pub fn posit(
     model: &[Point3<f64>],
     image: &[Point2<f64>],
 ) -> Result<Pose, PoseError> {
-    if model.len() != image.len() {
-        return Err(PoseError::LengthMismatch {
-            model: model.len(),
-            image: image.len(),
-        });
-    }
-    if model.len() < 4 {
-        return Err(PoseError::TooFewPoints {
-            needed: 4,
-            got: model.len(),
-        });
-    }
+    check_correspondences(model, image)?;
     let m0 = model[0].coords;
     let n0 = k.pixel_to_normalized(&image[0]);
     let mut a = Matrix3::<f64>::zeros();
@@ -117,6 +106,26 @@ pub fn posit(
 }
 
 /// The rotation closest (Frobenius) to `m`: `U diag(1, 1, det(U V^T)) V^T`.
+/// The checks every solver makes first: as many pixels as model points, and at least four.
+pub(crate) fn check_correspondences(
+    model: &[Point3<f64>],
+    image: &[Point2<f64>],
+) -> Result<(), PoseError> {
+    if model.len() != image.len() {
+        return Err(PoseError::LengthMismatch {
+            model: model.len(),
+            image: image.len(),
+        });
+    }
+    if model.len() < 4 {
+        return Err(PoseError::TooFewPoints {
+            needed: 4,
+            got: model.len(),
+        });
+    }
+    Ok(())
+}
+
 pub(crate) fn nearest_rotation(m: &Matrix3<f64>) -> Matrix3<f64> {
     let svd = m.svd(true, true);
     match (svd.u, svd.v_t) {

@@ -441,18 +441,7 @@ fn validate(
     opts: &SolverOptions,
 ) -> Result<Geometry, PoseError> {
     check_options(opts)?;
-    if model.len() != image.len() {
-        return Err(PoseError::LengthMismatch {
-            model: model.len(),
-            image: image.len(),
-        });
-    }
-    if model.len() < 4 {
-        return Err(PoseError::TooFewPoints {
-            needed: 4,
-            got: model.len(),
-        });
-    }
+    posit::check_correspondences(model, image)?;
     if let Some(index) = model
         .iter()
         .position(|p| !p.coords.iter().all(|v| v.is_finite()))
