@@ -13,6 +13,7 @@ use nalgebra::{Matrix3, Point2, Point3, Rotation3, Vector3};
 use thiserror::Error;
 
 use crate::rigfile::RigModel;
+use crate::robots::RobotMeasurement;
 
 static FONT_BYTES: &[u8] = include_bytes!("../../../fixtures/fonts/DejaVuSans.ttf");
 
@@ -47,6 +48,17 @@ pub struct RigOverlay {
     pub rotation: [f64; 3],
     /// Translation, metres, camera frame.
     pub translation: [f64; 3],
+}
+
+impl From<&RobotMeasurement> for RigOverlay {
+    /// The rig of a measured robot, drawn at its estimated pose.
+    fn from(m: &RobotMeasurement) -> Self {
+        Self {
+            robot: m.robot,
+            rotation: m.rotation,
+            translation: m.translation,
+        }
+    }
 }
 
 /// A colour per robot (cycled).

@@ -364,15 +364,7 @@ pub fn run_demo_with_progress(
                         })
                     })
                     .collect();
-                let rigs: Vec<RigOverlay> = done
-                    .robots
-                    .iter()
-                    .map(|m| RigOverlay {
-                        robot: m.robot,
-                        rotation: m.rotation,
-                        translation: m.translation,
-                    })
-                    .collect();
+                let rigs: Vec<RigOverlay> = done.robots.iter().map(RigOverlay::from).collect();
                 strip.push((step, annotate(&frame, &k.matrix(), &rig, &markers, &rigs)?));
             }
             // Controller inputs for the next interval.

@@ -39,16 +39,7 @@ pub fn annotated(eval: &Evaluation, rig: &RigModel) -> Result<image::RgbImage, C
             })
         })
         .collect();
-    let rigs: Vec<RigOverlay> = eval
-        .robots
-        .robots
-        .iter()
-        .map(|m| RigOverlay {
-            robot: m.robot,
-            rotation: m.rotation,
-            translation: m.translation,
-        })
-        .collect();
+    let rigs: Vec<RigOverlay> = eval.robots.robots.iter().map(RigOverlay::from).collect();
     Ok(annotate(
         &eval.rendered.image,
         &truth_k(&eval.rendered.truth),
