@@ -254,8 +254,11 @@ impl Canvas {
                 let mut sum = 0.0f32;
                 for j in 0..S {
                     for i in 0..S {
-                        let sx = fx - 0.5 + (i as f64 + 0.5) / S as f64;
-                        let sy = fy - 0.5 + (j as f64 + 0.5) / S as f64;
+                        // One sample per cell of an S x S grid, each in its own column
+                        // and row of an S^2 x S^2 grid, so that an edge along a pixel axis
+                        // is seen at S^2 offsets rather than S.
+                        let sx = fx - 0.5 + (i as f64 + (j as f64 + 0.5) / S as f64) / S as f64;
+                        let sy = fy - 0.5 + (j as f64 + (i as f64 + 0.5) / S as f64) / S as f64;
                         sum += value(sx, sy).unwrap_or(*pix);
                     }
                 }
