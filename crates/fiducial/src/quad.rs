@@ -131,6 +131,10 @@ pub fn fit_quad(contour: &[[i32; 2]], limits: &QuadLimits) -> Option<[[f64; 2]; 
     // views): a line is fitted to the middle two thirds of each arc, those points must lie
     // within the tolerance of it, and the corners are the intersections of adjacent lines.
     let mut lines = [[0.0f64; 3]; 4];
+    let inside = v.iter().fold([0.0, 0.0], |m, &i| {
+        let [x, y] = p(i);
+        [m[0] + x / 4.0, m[1] + y / 4.0]
+    });
     for s in 0..4 {
         let (a, b) = (v[s], v[(s + 1) % 4]);
         let [ax, ay] = p(a);
@@ -141,11 +145,25 @@ pub fn fit_quad(contour: &[[i32; 2]], limits: &QuadLimits) -> Option<[[f64; 2]; 
         }
         let span = (b + n - a) % n;
         let trim = span / 6;
-        let line = fit_line(contour, a + trim, span + 1 - 2 * trim)?;
+        let (from, count) = (a + trim, span + 1 - 2 * trim);
         let tol = limits.line_tolerance + limits.line_tolerance_rel * len;
-        for k in trim..=span - trim {
-            let [qx, qy] = p(a + k);
-            if (line[0] * qx + line[1] * qy - line[2]).abs() > tol {
+        let mut line = fit_line(contour, from, count, None)?;
+        if !deviations(contour, from, count, &line, tol, inside).straight() {
+            // A notched side: on a small or oblique marker whose border is one or two pixels
+            // wide, blur lets a white data cell break through the border in the binary image,
+            // and the contour dives into the marker there. Such dents only go inwards and
+            // leave most of the side on its line: starting from the chord of the two
+            // vertices (which blunted or bulging corners may put a pixel off the side), the
+            // line is refitted three times to the points not more than the tolerance, then
+            // less, then `DENT_BAND` inside it, and the side is accepted if no point sticks
+            // out beyond the tolerance and at most half of them are in dents (the grey-level
+            // refinement never sees the binary image).
+            line = chord_line(p(a), p(b))?;
+            for band in [tol, 0.5 * (tol + DENT_BAND), DENT_BAND] {
+                line = fit_line(contour, from, count, Some((&line, inside, tol, band)))?;
+            }
+            let d = deviations(contour, from, count, &line, tol, inside);
+            if d.outward > 0 || 2 * d.inward > count {
                 return None;
             }
         }
@@ -174,24 +192,105 @@ pub fn fit_quad(contour: &[[i32; 2]], limits: &QuadLimits) -> Option<[[f64; 2]; 
     Some(corners)
 }
 
-/// Total-least-squares line `[nx, ny, c]` (`nx x + ny y = c`, unit normal) through `count`
-/// contour points from index `from` (circular).
-fn fit_line(contour: &[[i32; 2]], from: usize, count: usize) -> Option<[f64; 3]> {
-    let n = contour.len();
-    if count < 2 {
-        return None;
+/// How far inside a notched side's line its points may lie and still be fitted in the end,
+/// pixels: a digital straight edge stays within half a pixel of its line, the walls of a
+/// dent do not.
+const DENT_BAND: f64 = 0.75;
+
+/// Points of a side off its line by more than the tolerance: `outward` (away from the
+/// quad's inside) and `inward`.
+#[derive(Debug, Clone, Copy)]
+struct Deviations {
+    outward: usize,
+    inward: usize,
+}
+
+impl Deviations {
+    fn straight(&self) -> bool {
+        self.outward == 0 && self.inward == 0
     }
-    let (mut mx, mut my) = (0.0, 0.0);
+}
+
+/// Counts the `count` contour points from `from` (circular) farther than `tol` from `line`,
+/// on either side of it; `inside` is a point inside the quadrilateral.
+fn deviations(
+    contour: &[[i32; 2]],
+    from: usize,
+    count: usize,
+    line: &[f64; 3],
+    tol: f64,
+    inside: [f64; 2],
+) -> Deviations {
+    let n = contour.len();
+    let inner = (line[0] * inside[0] + line[1] * inside[1] - line[2]).signum();
+    let mut d = Deviations {
+        outward: 0,
+        inward: 0,
+    };
     for k in 0..count {
         let q = contour[(from + k) % n];
-        mx += f64::from(q[0]);
-        my += f64::from(q[1]);
+        let e = line[0] * f64::from(q[0]) + line[1] * f64::from(q[1]) - line[2];
+        if e.abs() > tol || e.is_nan() {
+            if e * inner > 0.0 {
+                d.inward += 1;
+            } else {
+                d.outward += 1;
+            }
+        }
     }
-    mx /= count as f64;
-    my /= count as f64;
+    d
+}
+
+/// The line `[nx, ny, c]` through two points, or `None` if they coincide.
+fn chord_line(a: [f64; 2], b: [f64; 2]) -> Option<[f64; 3]> {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let len = dx.hypot(dy);
+    if len.is_nan() || len < 1e-9 {
+        return None;
+    }
+    let (nx, ny) = (-dy / len, dx / len);
+    Some([nx, ny, nx * a[0] + ny * a[1]])
+}
+
+/// Total-least-squares line `[nx, ny, c]` (`nx x + ny y = c`, unit normal) through `count`
+/// contour points from index `from` (circular). With `outer = Some((line, inside, tol,
+/// band))`, only through those of them not more than `band` px from `line` towards `inside`
+/// nor more than `tol` px away from it: the outermost points of a side whose dents all go
+/// inwards, without the points that stick out (which then reject the side).
+fn fit_line(
+    contour: &[[i32; 2]],
+    from: usize,
+    count: usize,
+    outer: Option<(&[f64; 3], [f64; 2], f64, f64)>,
+) -> Option<[f64; 3]> {
+    let n = contour.len();
+    let keep = |q: [i32; 2]| {
+        outer.is_none_or(|(l, inside, tol, band)| {
+            let inner = (l[0] * inside[0] + l[1] * inside[1] - l[2]).signum();
+            let e = (l[0] * f64::from(q[0]) + l[1] * f64::from(q[1]) - l[2]) * inner;
+            (-tol..=band).contains(&e)
+        })
+    };
+    let (mut mx, mut my, mut m) = (0.0, 0.0, 0usize);
+    for k in 0..count {
+        let q = contour[(from + k) % n];
+        if keep(q) {
+            mx += f64::from(q[0]);
+            my += f64::from(q[1]);
+            m += 1;
+        }
+    }
+    if m < 2 {
+        return None;
+    }
+    mx /= m as f64;
+    my /= m as f64;
     let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
     for k in 0..count {
         let q = contour[(from + k) % n];
+        if !keep(q) {
+            continue;
+        }
         let (dx, dy) = (f64::from(q[0]) - mx, f64::from(q[1]) - my);
         sxx += dx * dx;
         sxy += dx * dy;
@@ -268,6 +367,98 @@ mod tests {
             vec![[3.0, 4.0], [3.0, 15.0], [22.0, 4.0], [22.0, 15.0]]
         );
         assert!(convex_clockwise(&q, 30.0));
+    }
+
+    /// The traced outer contour of the dark pixels of `mask` (rows of `#` and `.`, with a
+    /// light margin of at least one pixel).
+    fn traced(mask: &[&str]) -> Vec<[i32; 2]> {
+        let w = mask[0].len();
+        let bin: Vec<u8> = mask
+            .iter()
+            .flat_map(|r| r.bytes().map(|b| u8::from(b == b'#')))
+            .collect();
+        let first = bin.iter().position(|&b| b == 1).unwrap();
+        let mut c = Vec::new();
+        assert!(crate::contour::trace_outer(
+            &bin,
+            w,
+            (first % w) as u32,
+            (first / w) as u32,
+            10_000,
+            &mut c
+        ));
+        c
+    }
+
+    /// A 16 x 30 dark rectangle at (6, 2) in a 28 x 34 mask, with `edit` applied to its rows.
+    fn mask_with(edit: impl Fn(usize, &mut Vec<u8>)) -> Vec<String> {
+        (0..34)
+            .map(|y| {
+                let mut row: Vec<u8> = (0..28)
+                    .map(|x| {
+                        if (6..22).contains(&x) && (2..32).contains(&y) {
+                            b'#'
+                        } else {
+                            b'.'
+                        }
+                    })
+                    .collect();
+                edit(y, &mut row);
+                String::from_utf8(row).unwrap()
+            })
+            .collect()
+    }
+
+    const MARKER_LIMITS: QuadLimits = QuadLimits {
+        min_side: 10.0,
+        min_angle_deg: 30.0,
+        line_tolerance: 1.5,
+        line_tolerance_rel: 0.05,
+    };
+
+    #[test]
+    fn a_border_notched_by_the_threshold_still_gives_a_quad() {
+        // Regression (random scene 85): a marker 14 px wide at 68 degrees off-axis has a
+        // border two pixels wide, and blur let white data cells break through it in the
+        // binary image, so the contour dived up to 7 px into the marker on two rows. The
+        // dents go inwards only; the corners must still be the rectangle's.
+        let rows = mask_with(|y, row| {
+            if y == 10 {
+                row[6..10].fill(b'.');
+            }
+            if y == 22 || y == 23 {
+                row[6..13].fill(b'.');
+            }
+        });
+        let mask: Vec<&str> = rows.iter().map(String::as_str).collect();
+        let q = fit_quad(&traced(&mask), &MARKER_LIMITS).expect("notched rectangle rejected");
+        let mut got: Vec<[f64; 2]> = q.iter().map(|c| [c[0].round(), c[1].round()]).collect();
+        got.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        assert_eq!(
+            got,
+            vec![[6.0, 2.0], [6.0, 31.0], [21.0, 2.0], [21.0, 31.0]]
+        );
+    }
+
+    #[test]
+    fn bumps_and_wide_bites_are_still_rejected() {
+        // Something stuck to a side (an outward bump beyond the tolerance) is not a quad
+        // side...
+        let bump = mask_with(|y, row| {
+            if (14..18).contains(&y) {
+                row[1..6].fill(b'#');
+            }
+        });
+        let mask: Vec<&str> = bump.iter().map(String::as_str).collect();
+        assert!(fit_quad(&traced(&mask), &MARKER_LIMITS).is_none());
+        // ...and a side more than half missing (a U shape) is not a notched one.
+        let u = mask_with(|y, row| {
+            if (7..28).contains(&y) {
+                row[6..16].fill(b'.');
+            }
+        });
+        let mask: Vec<&str> = u.iter().map(String::as_str).collect();
+        assert!(fit_quad(&traced(&mask), &MARKER_LIMITS).is_none());
     }
 
     #[test]
