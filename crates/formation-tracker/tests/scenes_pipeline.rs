@@ -74,3 +74,20 @@ fn random_scenes_meet_the_criteria() {
         check(&score(&random_scene(2026, i), None));
     }
 }
+
+#[test]
+fn scenes_that_once_failed_meet_the_criteria() {
+    // Regressions, each with what was wrong:
+    // - random-44: robot 2 through one near-frontal face at 2 m read a heading 1.18 deg off.
+    //   Not noise (1.02 deg mean over 30 noise seeds, sd 0.19): the renderer sampled each
+    //   pixel on an 8 x 8 grid of cell centres, which places the level camera's vertical
+    //   marker edges up to 1/16 px off; now every sample has its own column (synthcam).
+    // - random-85 (and random-89 under another noise seed): a face 14-15 px wide at 68 deg
+    //   off-axis, whose two-pixel border the threshold broke where a white data cell touches
+    //   it, gave no quad; notched sides are now accepted (fiducial::quad).
+    let mut renoised = random_scene(2026, 89);
+    renoised.render.seed = 101_089;
+    for spec in [random_scene(2026, 44), random_scene(2026, 85), renoised] {
+        check(&score(&spec, None));
+    }
+}
