@@ -6,12 +6,14 @@
 //! added twice, on whichever arc deviates most. Each vertex is then re-chosen as the point
 //! farthest from the chord of its two neighbours (twice round): when a side is parallel to
 //! the first chord (a trapezoid seen obliquely) all its points tie and the greedy choice
-//! may lie far from the corner. The result is accepted only if every contour
-//! point lies close to its side (a straightness tolerance that grows slowly with the side, to
-//! allow for blur and digitisation), the quadrilateral is convex and clockwise in the image,
-//! its sides are long enough and its corner angles are not too sharp (perspective makes them
-//! deviate from 90 degrees, so the tolerance is generous). Every step is linear in the
-//! contour length and allocates nothing.
+//! may lie far from the corner. The result is accepted only if every contour point lies
+//! close to its side (a straightness tolerance that grows slowly with the side, to allow for
+//! blur and digitisation) or, on a side the threshold notched (a thin border broken by a
+//! white data cell, on small oblique markers), if no point sticks out and at most half of
+//! them lie in inward dents; and only if the quadrilateral is convex and clockwise in the
+//! image, its sides are long enough and its corner angles are not too sharp (perspective
+//! makes them deviate from 90 degrees, so the tolerance is generous). Every step is linear
+//! in the contour length and allocates nothing.
 
 /// Limits on an acceptable quadrilateral.
 #[derive(Debug, Clone, Copy, PartialEq)]

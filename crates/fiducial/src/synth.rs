@@ -5,9 +5,10 @@
 //! reflectance (markers warped by a homography onto a background) times a lighting ramp, then
 //! an optical Gaussian blur, then Gaussian sensor noise. Warping samples the texture
 //! analytically: each pixel is probed at its corners, edge midpoints and centre, and a pixel
-//! whose probes disagree (it straddles an edge) is resampled on a 12x12 grid, so edges are placed to about 1/100 px and
-//! the ground-truth corners (the homography applied to the marker's corners) are exact in the
-//! pixel-centre convention of spec 2.1. All randomness comes from the caller's seeded RNG.
+//! whose probes disagree (it straddles an edge) is resampled with 12x12 samples, one per cell
+//! of a 12x12 grid and each in its own column and row of a 144x144 grid (so even an edge
+//! along a pixel axis is placed to 1/288 px), and the ground-truth corners (the homography
+//! applied to the marker's corners) are exact in the pixel-centre convention of spec 2.1. All randomness comes from the caller's seeded RNG.
 
 use nalgebra::{Matrix3, Point2, Vector3};
 use rand::{Rng, RngExt};
