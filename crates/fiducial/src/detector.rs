@@ -54,7 +54,7 @@ impl Default for DetectorConfig {
     /// random content lies within two bits of one of the paper dictionary's 100 codes (in
     /// either orientation) with probability about 4 %, within one bit about 0.4 %, so in
     /// cluttered scenes hard correction invents markers (`docs/detector-accuracy.md` counts
-    /// them: 1-bit correction read 8 codes in 1000 clutter frames, 2-bit 77).
+    /// them: 1-bit correction read 8 codes in 1000 clutter frames, 2-bit 79).
     ///
     /// Soft-decision correction is on (`decode.soft_errors = 2`, `decode.soft_margin =
     /// 0.3`): a reading may have its one or two *least confident* cells flipped, each only if
