@@ -34,17 +34,21 @@ pub struct RefineConfig {
     pub max_half_profile: f64,
     /// Largest half-length of an edge profile (second pass) as a fraction of the estimated
     /// border-cell width across the side (the quadrilateral's depth across the side divided
-    /// by the marker's cells across), so that a profile never reaches through the one-cell
-    /// border into a white data cell behind it. The floor of 1.5 px still applies.
+    /// by the marker's cells across), so that a profile stays inside the one-cell border and,
+    /// on a marker with a quiet zone of one cell, inside that zone: blur from whatever lies
+    /// beyond them shifts the levels the edge is measured against. The floor of 1.5 px
+    /// still applies.
     pub max_half_profile_cells: f64,
 }
 
 impl Default for RefineConfig {
     /// Stations at least 8 % of the side (and 2 px) from the corners, one per pixel up to
     /// 64 per side, edges of at least 10 grey levels, profiles of at most +-2.5 px and at
-    /// most +-0.4 border cell (a longer profile on a small blurred marker sees the white
-    /// data cell behind the border, which lifts its dark level and pulls the edge inwards
-    /// by about 0.15 px at 24 px wide and blur sigma 1 px). 64
+    /// most +-0.4 border cell (a longer profile on a small blurred marker reaches the blur of
+    /// what lies beyond the border cell or the quiet zone: with a one-cell quiet zone against
+    /// a black surround, markers 24 px wide under blur sigma 1 px read 0.136 px small per side
+    /// with 2.5 px profiles and 0.094 px with the bound; against a surround as light as the
+    /// quiet zone both are within 0.011 px). 64
     /// stations and the 8 % margin (rather than 32 and 12 %) keep every single corner
     /// within 0.1 px of the truth for markers of 40-160 px under noise sigma 3 and blur up to
     /// 1 (no case over 0.1 px in 6000 seeded views; 32 stations left about 1 in 3000 over).

@@ -1,8 +1,10 @@
 //! The scenes use the detector's defaults, so those defaults must be accurate on small far
-//! markers. Robot 2 of Fig. 11 is seen through one 24 px face at 3.5 m: with edge profiles of
-//! 2.5 px (the detector's default before profiles were bounded by 0.4 border cell) its
-//! profiles reached past the one-cell border into the white data cells and it read about
-//! 1.07 % too far on average over four noise seeds; bounded, 0.75 % (0.8 % at worst).
+//! markers. Robot 2 of Fig. 11 is seen through one 24 px face at 3.5 m, whose border cell and
+//! quiet zone are 3.4 px wide: with edge profiles of 2.5 px (the detector's default before
+//! profiles were bounded by 0.4 border cell) the profiles reach the blur of what lies beyond
+//! them and it reads 0.44 % too far on average over four noise seeds; bounded, 0.28 % (0.31 %
+//! at worst). (Before the renderer gave every sample its own column, which removed a bias of
+//! its own, these were 1.07 % and 0.75 %.)
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
 use fiducial::{Detector, DetectorConfig, Dictionary};
@@ -34,14 +36,19 @@ fn default_detector_reads_the_far_face_within_one_percent() {
 }
 
 #[test]
-fn unbounded_profiles_would_read_it_too_far() {
-    // The bias the bound removes (if this fails, the test above no longer tests it).
+fn unbounded_profiles_would_read_it_farther() {
+    // The bias the bound removes (if this fails, the test above no longer tests it): the
+    // bound takes about 0.16 % off the mean; half of that is asserted.
     let mut cfg = DetectorConfig::default();
     cfg.refine.max_half_profile_cells = f64::INFINITY;
-    let errors = far_face_errors(&mut Detector::with_dictionary(
+    let unbounded = far_face_errors(&mut Detector::with_dictionary(
         cfg,
         Dictionary::paper().clone(),
     ));
-    let mean = errors.iter().sum::<f64>() / errors.len() as f64;
-    assert!(mean > 1.0, "{errors:?}");
+    let bounded = far_face_errors(&mut default_detector(Dictionary::paper()));
+    let mean = |e: &[f64]| e.iter().sum::<f64>() / e.len() as f64;
+    assert!(
+        mean(&unbounded) > mean(&bounded) + 0.08,
+        "unbounded {unbounded:?} vs bounded {bounded:?}"
+    );
 }
