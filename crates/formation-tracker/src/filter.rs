@@ -389,17 +389,8 @@ pub fn summarize(records: &[StepRecord], seed: u64, bias: bool) -> Summary {
         rms_w1_after_2s: (w2 / late).sqrt(),
         steps: records.len(),
         mse_from_t: records.first().map_or(0.0, |r| r.t),
-        seed: 0,
-        bias: false,
-    }
-    .with_run(seed, bias)
-}
-
-impl Summary {
-    fn with_run(mut self, seed: u64, bias: bool) -> Self {
-        self.seed = seed;
-        self.bias = bias;
-        self
+        seed,
+        bias,
     }
 }
 
