@@ -68,19 +68,10 @@ impl CellPattern {
     /// A marker-like pattern: a one-cell black border around `data_rows x data_cols` random
     /// cells, with a one-cell quiet zone.
     pub fn random_marker<R: Rng + ?Sized>(data_rows: usize, data_cols: usize, rng: &mut R) -> Self {
-        let (rows, cols) = (data_rows + 2, data_cols + 2);
-        let cells = (0..rows * cols)
-            .map(|i| {
-                let (r, c) = (i / cols, i % cols);
-                r == 0 || c == 0 || r == rows - 1 || c == cols - 1 || rng.random_bool(0.5)
-            })
+        let bits: Vec<bool> = (0..data_rows * data_cols)
+            .map(|_| rng.random_bool(0.5))
             .collect();
-        Self {
-            cols,
-            rows,
-            cells,
-            quiet_cells: 1.0,
-        }
+        Self::from_bits(data_rows, data_cols, &bits)
     }
 
     /// A marker with the given data bits (`bits[k]`, `k = row * data_cols + col`, true =
