@@ -60,4 +60,5 @@ pub mod rigfile;
 pub mod robots;
 pub mod scenario;
 pub mod scene;
+mod textfile;
 pub mod tracker;

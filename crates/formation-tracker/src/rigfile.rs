@@ -32,6 +32,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::rig::{FACE_YAWS_DEG, Face, Rig, RigError};
+use crate::textfile;
 
 /// What is wrong with a rig file.
 #[derive(Debug, Error)]
@@ -154,17 +155,12 @@ impl RigModel {
         path: &str,
         dictionary: &Dictionary,
     ) -> Result<Self, RigFileError> {
-        let file: RigFile = if json {
-            serde_json::from_str(text).map_err(|e| RigFileError::Parse {
-                path: path.to_string(),
-                message: e.to_string(),
-            })?
-        } else if text.trim().is_empty() {
+        let file: RigFile = if !json && text.trim().is_empty() {
             RigFile::default()
         } else {
-            serde_saphyr::from_str(text).map_err(|e| RigFileError::Parse {
+            textfile::parse(text, json).map_err(|message| RigFileError::Parse {
                 path: path.to_string(),
-                message: e.to_string(),
+                message,
             })?
         };
         Self::from_file(&file, dictionary)
@@ -172,13 +168,10 @@ impl RigModel {
 
     /// Reads a rig file (`.json` is parsed as JSON, anything else as YAML).
     pub fn load(path: &Path, dictionary: &Dictionary) -> Result<Self, RigFileError> {
-        let text = std::fs::read_to_string(path).map_err(|source| RigFileError::Io {
+        let (text, json) = textfile::read(path).map_err(|source| RigFileError::Io {
             path: path.display().to_string(),
             source,
         })?;
-        let json = path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("json"));
         Self::from_text(&text, json, &path.display().to_string(), dictionary)
     }
 

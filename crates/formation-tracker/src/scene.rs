@@ -26,6 +26,7 @@ use thiserror::Error;
 use crate::mount::{self, CameraMount, MeasurementError};
 use crate::rig::RigError;
 use crate::rigfile::RigModel;
+use crate::textfile;
 
 /// Faces seen more obliquely than this (degrees) are not required to be read.
 pub const MAX_OFF_AXIS_DEG: f64 = 75.0;
@@ -196,30 +197,20 @@ pub struct SceneSpec {
 impl SceneSpec {
     /// Parses a scene file's text (JSON when `json`, else YAML). `path` labels errors.
     pub fn from_text(text: &str, json: bool, path: &str) -> Result<Self, SceneError> {
-        let spec: Self = if json {
-            serde_json::from_str(text).map_err(|e| SceneError::Parse {
-                path: path.to_string(),
-                message: e.to_string(),
-            })?
-        } else {
-            serde_saphyr::from_str(text).map_err(|e| SceneError::Parse {
-                path: path.to_string(),
-                message: e.to_string(),
-            })?
-        };
+        let spec: Self = textfile::parse(text, json).map_err(|message| SceneError::Parse {
+            path: path.to_string(),
+            message,
+        })?;
         spec.validate()?;
         Ok(spec)
     }
 
     /// Reads a scene file (`.json` as JSON, anything else as YAML).
     pub fn load(path: &Path) -> Result<Self, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        let (text, json) = textfile::read(path).map_err(|source| SceneError::Io {
             path: path.display().to_string(),
             source,
         })?;
-        let json = path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("json"));
         Self::from_text(&text, json, &path.display().to_string())
     }
 
