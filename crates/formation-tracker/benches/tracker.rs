@@ -7,7 +7,7 @@ use formation_tracker::mount::CameraMount;
 use formation_tracker::tracker::{
     FrameInput, Observation, PoseMeasurement, Tracker, TrackerConfig,
 };
-use nalgebra::{Matrix6, Rotation3, Vector3, Vector6};
+use nalgebra::{Matrix6, Vector6};
 use unicycle::Inputs;
 
 const DT: f64 = 1.0 / 30.0;
@@ -15,13 +15,10 @@ const DT: f64 = 1.0 / 30.0;
 /// A leader 1.5 m ahead and 0.25 m to the left, facing the same way, seen by the reference
 /// mount; covariance of a typical single-face solve.
 fn estimate(yaw: f64) -> pose::Estimate {
-    let mount = CameraMount::default();
-    let r_cb = mount.camera_to_body_rotation().inverse();
-    let leader = Rotation3::from_axis_angle(&Vector3::z_axis(), yaw);
-    let t = r_cb * (Vector3::new(1.5, 0.25, 0.0) - mount.camera_position());
+    let (r, t) = CameraMount::default().leader_to_camera(1.5, 0.25, yaw);
     let sig = Vector6::new(0.01, 0.01, 0.01, 0.003, 0.003, 0.01);
     pose::Estimate {
-        pose: pose::Pose::from_matrix((r_cb * leader).matrix(), t),
+        pose: pose::Pose::from_matrix(r.matrix(), t),
         rms: 0.3,
         covariance: Matrix6::from_diagonal(&sig.component_mul(&sig)),
         iterations: 4,

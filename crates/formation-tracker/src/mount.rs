@@ -69,6 +69,16 @@ impl CameraMount {
         Vector3::new(self.offset, 0.0, self.height)
     }
 
+    /// The rotation and translation taking the body frame of a leader standing on the floor
+    /// at `(x, y)` with heading `theta` (metres, radians, in the follower's body frame) into
+    /// this camera's frame: the pose a solver would report for the leader's rig.
+    pub fn leader_to_camera(&self, x: f64, y: f64, theta: f64) -> (Rotation3<f64>, Vector3<f64>) {
+        let body_to_cam = self.camera_to_body_rotation().inverse();
+        let yaw = Rotation3::from_axis_angle(&Vector3::z_axis(), theta);
+        let t_body = Vector3::new(x, y, 0.0) - self.camera_position();
+        (body_to_cam * yaw, body_to_cam * t_body)
+    }
+
     /// Whether every field is a finite number.
     pub fn is_finite(&self) -> bool {
         self.offset.is_finite()
@@ -212,6 +222,19 @@ mod tests {
     }
 
     proptest! {
+        /// `leader_to_camera` is the camera pose of a leader seen by a follower at the origin.
+        #[test]
+        fn leader_to_camera_is_the_pose_from_the_origin(
+            x in -5.0..5.0f64, y in -5.0..5.0f64, th in -3.1..3.1f64,
+            d in 0.0..0.8f64, h in 0.0..1.0f64, pan in -1.0..1.0f64, tilt in -0.5..0.5f64,
+        ) {
+            let mount = CameraMount { offset: d, height: h, pan, tilt };
+            let (r, t) = mount.leader_to_camera(x, y, th);
+            let (rw, tw) = camera_pose_of_leader((x, y, th), (0.0, 0.0, 0.0), &mount);
+            prop_assert!((r.matrix() - rw.matrix()).norm() < 1e-12);
+            prop_assert!((t - tw).norm() < 1e-12);
+        }
+
         /// Spec 2.5: for random poses and mounts, the path camera pose -> mount -> 2.3 gives
         /// the same formation variables as 2.3 applied to the world poses.
         #[test]

@@ -104,15 +104,6 @@ struct Planar {
     cov: Matrix3<f64>,
 }
 
-/// Rig -> camera transform of a leader at `(x, y, theta)` in the follower's body frame.
-fn planar_to_camera(q: &Vector3<f64>, mount: &CameraMount) -> (Rotation3<f64>, Vector3<f64>) {
-    let cam_to_body = mount.camera_to_body_rotation();
-    let body_to_cam = cam_to_body.inverse();
-    let yaw = Rotation3::from_axis_angle(&Vector3::z_axis(), q.z);
-    let t_body = Vector3::new(q.x, q.y, 0.0) - mount.camera_position();
-    (body_to_cam * yaw, body_to_cam * t_body)
-}
-
 /// Reprojection residuals (2 per corner) of the planar pose `q`; `None` if a corner falls
 /// behind the camera.
 fn planar_residuals(
@@ -122,7 +113,7 @@ fn planar_residuals(
     mount: &CameraMount,
     out: &mut Vec<f64>,
 ) -> Option<()> {
-    let (r, t) = planar_to_camera(q, mount);
+    let (r, t) = mount.leader_to_camera(q.x, q.y, q.z);
     out.clear();
     for f in faces {
         for (m, i) in f.model.iter().zip(&f.image) {
@@ -463,7 +454,7 @@ fn measure_robot(
                 .reduce(f64::min);
         }
         rms = best.rms;
-        let (r, t) = planar_to_camera(&best.q, mount);
+        let (r, t) = mount.leader_to_camera(best.q.x, best.q.y, best.q.z);
         let mut cov6 = SMatrix::<f64, 6, 6>::zeros();
         cov6.fixed_view_mut::<3, 3>(0, 0).copy_from(&best.cov);
         let params = SVector::<f64, 6>::new(best.q.x, best.q.y, best.q.z, 0.0, 0.0, 0.0);
@@ -480,7 +471,7 @@ fn measure_robot(
         .map_err(|source| RobotError::Measurement { robot, source })?;
     let cov = if config.ground_plane {
         mount::propagate_covariance(&params, &cov6, |q| {
-            let (r, t) = planar_to_camera(&Vector3::new(q[0], q[1], q[2]), mount);
+            let (r, t) = mount.leader_to_camera(q[0], q[1], q[2]);
             mount::formation_from_camera_pose(&r, &t, mount)
         })
     } else {

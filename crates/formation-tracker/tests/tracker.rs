@@ -16,25 +16,12 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use unicycle::{Inputs, PolarModel, wrap_angle};
 
+mod common;
+use common::camera_pose;
+
 const ROBOT: u32 = 4;
 /// Standard deviations of the simulated pose noise: rotation vector (rad), translation (m).
 const POSE_STD: [f64; 6] = [0.01, 0.01, 0.01, 0.005, 0.005, 0.01];
-
-/// The leader's pose (rig frame -> camera frame) for world poses of both robots.
-fn camera_pose(
-    leader: &unicycle::Pose,
-    follower: &unicycle::Pose,
-    mount: &CameraMount,
-) -> pose::Pose {
-    let r1 = Rotation3::from_axis_angle(&Vector3::z_axis(), leader.theta);
-    let t1 = Vector3::new(leader.x, leader.y, 0.0);
-    let r2 = Rotation3::from_axis_angle(&Vector3::z_axis(), follower.theta);
-    let t2 = Vector3::new(follower.x, follower.y, 0.0);
-    let r_wc = r2 * mount.camera_to_body_rotation();
-    let t_wc = t2 + r2 * mount.camera_position();
-    let r_cw = r_wc.inverse();
-    pose::Pose::from_matrix((r_cw * r1).matrix(), r_cw * (t1 - t_wc))
-}
 
 fn pose_covariance() -> Matrix6<f64> {
     Matrix6::from_diagonal(&Vector6::from_iterator(POSE_STD.iter().map(|s| s * s)))

@@ -10,27 +10,15 @@ use formation_tracker::scenario::{ScenarioConfig, simulate};
 use formation_tracker::tracker::{
     FrameInput, Observation, PoseMeasurement, Tracker, TrackerConfig,
 };
-use nalgebra::{Point2, Rotation3, Vector3};
+use nalgebra::{Point2, Rotation3};
 use pose::{Intrinsics, PoseSolver};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use unicycle::{PolarModel, wrap_angle};
 
-fn camera_pose(
-    leader: &unicycle::Pose,
-    follower: &unicycle::Pose,
-    mount: &CameraMount,
-) -> pose::Pose {
-    let r1 = Rotation3::from_axis_angle(&Vector3::z_axis(), leader.theta);
-    let t1 = Vector3::new(leader.x, leader.y, 0.0);
-    let r2 = Rotation3::from_axis_angle(&Vector3::z_axis(), follower.theta);
-    let t2 = Vector3::new(follower.x, follower.y, 0.0);
-    let r_wc = r2 * mount.camera_to_body_rotation();
-    let t_wc = t2 + r2 * mount.camera_position();
-    let r_cw = r_wc.inverse();
-    pose::Pose::from_matrix((r_cw * r1).matrix(), r_cw * (t1 - t_wc))
-}
+mod common;
+use common::camera_pose;
 
 fn alpha_of(p: &pose::Pose, mount: &CameraMount) -> f64 {
     let rot = Rotation3::from_matrix_unchecked(p.rotation_matrix());
