@@ -123,10 +123,9 @@ fn worst_corner_error(scene: &Scene, camera: &Camera, n: usize) -> f64 {
         .fold(0.0, f64::max)
 }
 
-#[test]
-fn rendered_corners_match_exact_projection_to_five_hundredths_of_a_pixel() {
-    // An oblique view: the rectangle appears as a general quadrilateral with no axis-aligned
-    // edges, so sampling phases vary along every edge.
+/// The rectangle seen obliquely from above and to the side: a general quadrilateral with no
+/// axis-aligned edge.
+fn oblique_view() -> (Scene, Camera) {
     let scene = black_rectangle_scene(Pose2::new(3.0, 0.2, 0.35));
     let intr = Intrinsics::from_hfov(320, 240, 50.0).unwrap();
     let cam = Camera::look_at(
@@ -136,6 +135,14 @@ fn rendered_corners_match_exact_projection_to_five_hundredths_of_a_pixel() {
         Vector3::new(0.25, 0.0, 1.0),
     )
     .unwrap();
+    (scene, cam)
+}
+
+#[test]
+fn rendered_corners_match_exact_projection_to_five_hundredths_of_a_pixel() {
+    // An oblique view: the rectangle appears as a general quadrilateral with no axis-aligned
+    // edges, so sampling phases vary along every edge.
+    let (scene, cam) = oblique_view();
     let err = worst_corner_error(&scene, &cam, 16);
     eprintln!("worst corner error {err}");
     assert!(err < 0.05, "worst corner error {err} px");
@@ -162,15 +169,7 @@ fn rendered_corners_match_with_skewed_off_centre_intrinsics() {
 fn a_single_sample_per_pixel_is_measurably_worse() {
     // The measurement is sensitive enough to see the anti-aliasing: with one sample per pixel,
     // edges are staircases and the corners come out worse than with 16 x 16.
-    let scene = black_rectangle_scene(Pose2::new(3.0, 0.2, 0.35));
-    let intr = Intrinsics::from_hfov(320, 240, 50.0).unwrap();
-    let cam = Camera::look_at(
-        intr,
-        Point3::new(0.0, -0.3, 1.1),
-        Point3::new(3.0, 0.25, 0.6),
-        Vector3::new(0.25, 0.0, 1.0),
-    )
-    .unwrap();
+    let (scene, cam) = oblique_view();
     let fine = worst_corner_error(&scene, &cam, 16);
     let coarse = worst_corner_error(&scene, &cam, 1);
     eprintln!("fine {fine} coarse {coarse}");
