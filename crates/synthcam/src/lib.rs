@@ -109,7 +109,7 @@ pub use render::{
 pub use scene::{
     Body, Face, FaceFrame, FacePlacement, Ground, OCTAGON_FACE_YAWS_DEG, Pose2,
     REFERENCE_FACE_CENTRE_HEIGHT, REFERENCE_FACE_WIDTH, Robot, Scene, octagon_apothem,
-    octagon_faces, reference_octagon_faces, reference_octagon_rig, wrap_angle,
+    octagon_faces, reference_octagon_faces, reference_octagon_rig,
 };
 pub use texture::{CellGrid, Filter, ImageTexture, SoftChecker, Texture, Uniform};
 pub use truth::{CORNER_INSET, FaceTruth, FrameTruth, RobotTruth, ground_truth};

@@ -11,13 +11,6 @@ use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use crate::error::{SynthError, finite, finite_vec, in_range, positive};
 use crate::texture::Texture;
 
-/// Wrap an angle to `(-pi, pi]`.
-pub fn wrap_angle(a: f64) -> f64 {
-    use std::f64::consts::{PI, TAU};
-    let w = a - TAU * ((a + PI) / TAU).floor(); // [-pi, pi)
-    if w <= -PI { w + TAU } else { w }
-}
-
 /// A planar robot pose on the ground: position `(x, y)` in metres and heading `theta` in
 /// radians (counter-clockwise from the world x axis).
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
@@ -346,15 +339,6 @@ pub fn reference_octagon_rig(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn wrap_angle_lands_in_half_open_interval() {
-        use std::f64::consts::PI;
-        assert_eq!(wrap_angle(PI), PI);
-        assert!((wrap_angle(-PI) - PI).abs() < 1e-15);
-        assert!((wrap_angle(3.0 * PI / 2.0) + PI / 2.0).abs() < 1e-12);
-        assert!((wrap_angle(0.3) - 0.3).abs() < 1e-15);
-    }
 
     #[test]
     fn octagon_faces_meet_edge_to_edge() {

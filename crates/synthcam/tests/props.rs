@@ -155,12 +155,4 @@ proptest! {
             }
         }
     }
-
-    #[test]
-    fn wrap_angle_is_in_half_open_range_and_equivalent(a in -1e3..1e3f64) {
-        let w = wrap_angle(a);
-        prop_assert!(w > -PI && w <= PI);
-        let k = (a - w) / (2.0 * PI);
-        prop_assert!((k - k.round()).abs() < 1e-9);
-    }
 }
