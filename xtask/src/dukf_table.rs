@@ -7,8 +7,8 @@
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use formation_tracker::filter::{FilterConfig, Summary, reproduce};
-use formation_tracker::scenario::ScenarioConfig;
+use formation_sim::reproduce::{Summary, paper_filter_config, reproduce};
+use formation_sim::scenario::ScenarioConfig;
 
 use crate::Result;
 
@@ -121,7 +121,7 @@ pub fn run(args: &[String]) -> Result {
     let c = medians(&clean);
     let b = medians(&biased);
     let scenario = ScenarioConfig::reference(1);
-    let filter = FilterConfig::reference(scenario.d, scenario.dt);
+    let filter = paper_filter_config(scenario.d, scenario.dt);
 
     let mut md = String::new();
     let _ = writeln!(md, "# Dual-UKF reproduction (paper Figs. 12-13)\n");
@@ -139,12 +139,12 @@ pub fn run(args: &[String]) -> Result {
         md,
         "Filter: Q = diag({}), Rr = diag({}), parameter uncertainty propagated into the \
          state prediction: {}, UT alpha = {}, beta = {}, kappa = {}.\n",
-        join(filter.q.diagonal().as_slice()),
-        join(filter.rr.diagonal().as_slice()),
-        filter.propagate_parameter_uncertainty,
-        filter.ut.alpha,
-        filter.ut.beta,
-        filter.ut.kappa
+        join(filter.tuning.q.diagonal().as_slice()),
+        join(filter.tuning.rr.diagonal().as_slice()),
+        filter.tuning.propagate_parameter_uncertainty,
+        filter.tuning.ut.alpha,
+        filter.tuning.ut.beta,
+        filter.tuning.ut.kappa
     );
     let _ = writeln!(
         md,

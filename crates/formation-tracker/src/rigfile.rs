@@ -25,6 +25,7 @@
 //! be at least 45 degrees apart so they cannot overlap. When `markers` is given it is the
 //! complete table: a `(robot, face)` not listed carries no marker.
 
+#[cfg(feature = "files")]
 use std::path::Path;
 
 use fiducial::Dictionary;
@@ -32,6 +33,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::rig::{FACE_YAWS_DEG, Face, Rig, RigError};
+#[cfg(feature = "files")]
 use crate::textfile;
 
 /// What is wrong with a rig file.
@@ -148,7 +150,8 @@ impl RigModel {
     }
 
     /// Parses and checks a rig file's text; `json` selects the JSON parser (otherwise YAML,
-    /// which also reads JSON). `path` only labels error messages.
+    /// which also reads JSON). `path` only labels error messages. Needs the feature `files`.
+    #[cfg(feature = "files")]
     pub fn from_text(
         text: &str,
         json: bool,
@@ -166,7 +169,9 @@ impl RigModel {
         Self::from_file(&file, dictionary)
     }
 
-    /// Reads a rig file (`.json` is parsed as JSON, anything else as YAML).
+    /// Reads a rig file (`.json` is parsed as JSON, anything else as YAML). Needs the
+    /// feature `files`.
+    #[cfg(feature = "files")]
     pub fn load(path: &Path, dictionary: &Dictionary) -> Result<Self, RigFileError> {
         let (text, json) = textfile::read(path).map_err(|source| RigFileError::Io {
             path: path.display().to_string(),

@@ -373,7 +373,7 @@ impl Tracker {
         p0.fixed_view_mut::<3, 3>(0, 0)
             .copy_from(&Matrix3::from_diagonal_element(s * s));
         p0.fixed_view_mut::<3, 3>(3, 3).copy_from(&m.r);
-        cfg.p0 = p0;
+        cfg.tuning.p0 = p0;
         FormationFilter::new(&cfg).ok()
     }
 

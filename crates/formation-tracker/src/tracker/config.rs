@@ -1,5 +1,7 @@
 //! Tracker settings and errors.
 
+use unicycle::PolarState;
+
 use crate::filter::{FilterConfig, FilterError, FormationFilter};
 
 /// The 99.9 % point of a chi-square distribution with 3 degrees of freedom.
@@ -53,8 +55,9 @@ pub enum TrackerError {
 /// Tracker settings. [`TrackerConfig::reference`] gives the documented defaults.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackerConfig {
-    /// Template of every track's filter: `d`, `dt`, `Q`, `Rr`, `w0`, `Pw0`, unscented
-    /// parameters. Its `x0` and `p0` are replaced at each track's initialisation.
+    /// Template of every track's filter: `d`, `dt` and the tuning (`Q`, `Rr`, `w0`, `Pw0`,
+    /// unscented parameters). Its `x0` and `tuning.p0` are replaced at each track's
+    /// initialisation.
     pub filter: FilterConfig,
     /// Seconds without an accepted measurement after which a track is `lost`. Default 2 s.
     pub lost_after: f64,
@@ -83,13 +86,13 @@ pub struct TrackerConfig {
 }
 
 impl TrackerConfig {
-    /// The defaults: the filter of the reference scenario (`FilterConfig::reference(d, dt)`:
-    /// its `Q`, `Rr`, velocity prior `w0 = [0, 0]`, `Pw0 = I`), `lost_after = 2 s`, gate
+    /// The defaults: the [reference tuning](crate::filter::FilterTuning::reference) (its
+    /// `Q`, `Rr`, velocity prior `w0 = [0, 0]`, `Pw0 = I`), `lost_after = 2 s`, gate
     /// 16.27, measurement floor 5 mm / 5 mrad, world-pose prior 0.1, confirmation 1 s,
     /// corner noise 0.5 px.
     pub fn reference(d: f64, dt: f64) -> Self {
         Self {
-            filter: FilterConfig::reference(d, dt),
+            filter: FilterConfig::new(d, dt, PolarState::new(0.0, 0.0, 0.0, 1.0, 0.0, 0.0)),
             lost_after: 2.0,
             gate: CHI2_3_999,
             measurement_floor_std: [0.005, 0.005, 0.005],

@@ -1,0 +1,235 @@
+//! `formation-tracker track`: camera frames in, formation variables and leader velocities
+//! out, one line per frame.
+
+use std::io::{IsTerminal, Write};
+use std::path::PathBuf;
+
+use clap::Args as ClapArgs;
+use fiducial::{Detector, DetectorConfig, Dictionary};
+use formation_tracker::mount::CameraMount;
+use formation_tracker::pipeline::Pipeline;
+use formation_tracker::rigfile::RigModel;
+use formation_tracker::robots::RobotConfig;
+use formation_tracker::tracker::{LeaderReport, Tracker, TrackerConfig};
+use formation_tracker_cli::frames::FrameSource;
+use formation_tracker_cli::inputs::FollowerInputs;
+use pose::PoseSolver;
+use pose::calib::Calibration;
+use serde::Serialize;
+use unicycle::Inputs;
+
+use super::CliError;
+
+/// Track leader robots through a stream of camera frames.
+///
+/// INPUT is a folder of PNG/JPEG images (sorted by name), a y4m file, or `-` for a y4m stream
+/// on stdin, e.g. `ffmpeg -i video.mp4 -f yuv4mpegpipe -pix_fmt yuv420p - | formation-tracker
+/// track - --camera cam.yaml`. Prints one line per frame on stdout (JSON with --json).
+#[derive(Debug, ClapArgs)]
+pub struct Args {
+    /// A folder of images, a y4m file, or `-` for y4m on stdin.
+    #[arg(value_name = "INPUT")]
+    input: PathBuf,
+    /// Camera calibration (OpenCV YAML or ROS camera_info).
+    #[arg(long, value_name = "FILE")]
+    camera: PathBuf,
+    /// Rig file (YAML/JSON); default: the reference rig.
+    #[arg(long, value_name = "FILE")]
+    rig: Option<PathBuf>,
+    /// Follower inputs per frame: CSV with `frame` or `t`, `v2`, `w2`, optional `pan`.
+    #[arg(long, value_name = "CSV")]
+    inputs: Option<PathBuf>,
+    /// Frame rate; default: the y4m header's, else 30.
+    #[arg(long, value_name = "F")]
+    fps: Option<f64>,
+    /// One JSON object per frame instead of a text line.
+    #[arg(long)]
+    json: bool,
+    /// Camera offset ahead of the follower's axle, metres (the paper's d).
+    #[arg(long, value_name = "M", default_value_t = CameraMount::default().offset)]
+    mount_offset: f64,
+    /// Camera height above the ground, metres.
+    #[arg(long, value_name = "M", default_value_t = CameraMount::default().height)]
+    mount_height: f64,
+    /// Camera tilt below the horizontal, radians.
+    #[arg(long, value_name = "RAD", default_value_t = 0.0)]
+    mount_tilt: f64,
+    /// Camera pan (left positive), radians, when the inputs CSV has no `pan` column.
+    #[arg(long, value_name = "RAD", default_value_t = 0.0)]
+    pan: f64,
+    /// Seconds without a measurement before a track is dropped.
+    #[arg(long, value_name = "S", default_value_t = 2.0)]
+    lost_after: f64,
+}
+
+#[derive(Serialize)]
+struct Line<'a> {
+    frame: u64,
+    t: f64,
+    leaders: &'a [LeaderReport],
+    markers: usize,
+    failures: &'a [String],
+    timing: TimingOut,
+}
+
+#[derive(Serialize)]
+struct TimingOut {
+    detect_ms: f64,
+    pose_ms: f64,
+    track_ms: f64,
+    total_ms: f64,
+}
+
+/// Runs `track`.
+pub fn run(args: &Args) -> Result<(), CliError> {
+    let calibration = Calibration::from_file(&args.camera)?;
+    let dict = Dictionary::paper();
+    let rig = match &args.rig {
+        Some(path) => RigModel::load(path, dict)?,
+        None => RigModel::reference(),
+    };
+    let mut frames = FrameSource::open(&args.input)?;
+    let fps = match (args.fps, frames.frame_rate()) {
+        (Some(f), _) => f,
+        (None, Some(f)) => f,
+        (None, None) => {
+            eprintln!("track: no --fps and no frame rate in the input: assuming 30 frames/s");
+            30.0
+        }
+    };
+    if !(fps.is_finite() && fps > 0.0) {
+        return Err(format!("--fps {fps} must be finite and positive").into());
+    }
+    let inputs = match &args.inputs {
+        Some(path) => Some(FollowerInputs::from_path(path)?),
+        None => {
+            eprintln!(
+                "track: no --inputs: assuming the follower stands still (v2 = w2 = 0, pan {})",
+                args.pan
+            );
+            None
+        }
+    };
+    let mount = CameraMount {
+        offset: args.mount_offset,
+        height: args.mount_height,
+        pan: args.pan,
+        tilt: args.mount_tilt,
+    };
+    let mut config = TrackerConfig::reference(mount.offset, 1.0 / fps);
+    config.lost_after = args.lost_after;
+    let tracker = Tracker::new(config)?;
+    let solver = PoseSolver::new(calibration.intrinsics).with_distortion(calibration.distortion);
+    let mut pipeline = Pipeline::new(
+        Detector::with_dictionary(DetectorConfig::default(), dict.clone()),
+        solver,
+        (calibration.width, calibration.height),
+        rig,
+        RobotConfig::default(),
+        tracker,
+    );
+
+    let progress = std::io::stderr().is_terminal().then(|| {
+        let bar = match frames.len_hint() {
+            Some(n) => indicatif::ProgressBar::new(n),
+            None => indicatif::ProgressBar::new_spinner(),
+        };
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{spinner} {pos}/{len} frames {per_sec}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        bar
+    });
+    let stdout = std::io::stdout();
+    let mut out = std::io::BufWriter::new(stdout.lock());
+    let (mut broken, mut processed) = (0u64, 0u64);
+    loop {
+        let frame = match frames.next_frame() {
+            Ok(Some(frame)) => frame,
+            Ok(None) => break,
+            Err(e) => {
+                broken += 1;
+                report_error(progress.as_ref(), &format!("track: {e}"));
+                continue;
+            }
+        };
+        if let Some(bar) = &progress {
+            bar.inc(1);
+        }
+        let index = frame.index;
+        let t = index as f64 / fps;
+        let (follower, pan) = match inputs.as_ref().and_then(|i| i.at(index, t)) {
+            Some(s) => (s.inputs, s.pan.unwrap_or(args.pan)),
+            None => (Inputs::new(0.0, 0.0), args.pan),
+        };
+        let image = frame.image;
+        let result = pipeline.process(
+            &image.data,
+            image.width,
+            image.height,
+            t,
+            follower,
+            CameraMount { pan, ..mount },
+        );
+        let done = match result {
+            Ok(done) => done,
+            Err(e) => {
+                broken += 1;
+                report_error(progress.as_ref(), &format!("track: frame {index}: {e}"));
+                continue;
+            }
+        };
+        processed += 1;
+        let timing = TimingOut {
+            detect_ms: done.timing.detect_ms,
+            pose_ms: done.timing.pose_ms,
+            track_ms: done.timing.track_ms,
+            total_ms: done.timing.total_ms(),
+        };
+        if args.json {
+            let line = Line {
+                frame: index,
+                t,
+                leaders: &done.report.leaders,
+                markers: done.markers,
+                failures: &done.failures,
+                timing,
+            };
+            writeln!(out, "{}", serde_json::to_string(&line)?)?;
+        } else {
+            write!(out, "frame {index} t {t:.3}:")?;
+            if done.report.leaders.is_empty() {
+                write!(out, " no leader")?;
+            }
+            for l in &done.report.leaders {
+                write!(
+                    out,
+                    " robot {} {:?} l12 {:.3} alpha12 {:.3} beta12 {:.3} v1 {:.2} w1 {:.2};",
+                    l.robot, l.status, l.l12, l.alpha12, l.beta12, l.v1, l.w1
+                )?;
+            }
+            writeln!(out, " ({:.1} ms)", timing.total_ms)?;
+        }
+    }
+    out.flush()?;
+    if let Some(bar) = progress {
+        bar.finish_and_clear();
+    }
+    eprintln!(
+        "track: {processed} frames tracked, {broken} broken{}",
+        if frames.truncated() {
+            "; the stream ended inside a frame (truncated), which was dropped"
+        } else {
+            ""
+        }
+    );
+    Ok(())
+}
+
+/// One error line on stderr, above the progress bar if there is one.
+fn report_error(progress: Option<&indicatif::ProgressBar>, message: &str) {
+    match progress {
+        Some(bar) => bar.println(message),
+        None => eprintln!("{message}"),
+    }
+}

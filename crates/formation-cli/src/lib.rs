@@ -1,0 +1,14 @@
+//! The input side of the `formation-tracker` command-line tool, as a library so that it can
+//! be tested and reused: frame sources and the follower's inputs file.
+//!
+//! - [`frames`]: frame sources (a folder of images, a y4m file, a y4m stream on stdin) read
+//!   into one reused grey buffer.
+//! - [`inputs`]: the follower's own inputs `(v2, w2)` and camera pan per frame, from a CSV.
+//!
+//! The subcommands themselves live beside `main.rs` in `cmd/`, one module per subcommand:
+//! each parses its arguments, calls the libraries (`formation-tracker`, `formation-sim`)
+//! and writes files; `main.rs` reports an error as one line with a non-zero exit code.
+#![deny(missing_docs)]
+
+pub mod frames;
+pub mod inputs;

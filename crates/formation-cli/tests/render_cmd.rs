@@ -1,0 +1,40 @@
+//! `formation-tracker render`: a paper figure with its truth, and a bad figure number as
+//! one error line.
+
+#![allow(clippy::unwrap_used)] // Tests may unwrap (house rules).
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use formation_sim::scene::SceneTruth;
+
+#[test]
+fn render_command_writes_png_and_truth() {
+    let dir =
+        PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("render-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let png = dir.join("fig10.png");
+    let json = dir.join("fig10.json");
+    let status = Command::new(env!("CARGO_BIN_EXE_formation-tracker"))
+        .args(["render", "--paper-fig", "10", "--out"])
+        .arg(&png)
+        .arg("--truth")
+        .arg(&json)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let img = image::open(&png).unwrap().into_luma8();
+    assert_eq!(img.dimensions(), (640, 480));
+    let truth: SceneTruth = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(truth.robots.len(), 2);
+    assert!((truth.robots[1].translation[2] - 3.0).abs() < 0.01);
+    let out = Command::new(env!("CARGO_BIN_EXE_formation-tracker"))
+        .args(["render", "--paper-fig", "12", "--out"])
+        .arg(dir.join("x.png"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("7 to 11"), "{err}");
+}

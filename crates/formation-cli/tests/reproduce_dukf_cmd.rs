@@ -1,0 +1,71 @@
+//! `formation-tracker reproduce dukf`: every output is written, and a bad output folder is
+//! one error line with a non-zero exit.
+
+#![allow(clippy::unwrap_used)] // Tests may unwrap (house rules).
+
+#[test]
+fn cli_reproduce_dukf_writes_every_output_and_fails_in_one_line() {
+    let exe = env!("CARGO_BIN_EXE_formation-tracker");
+    let dir = std::env::temp_dir().join(format!("ft-reproduce-{}", std::process::id()));
+    let out = std::process::Command::new(exe)
+        .args(["reproduce", "dukf", "--seed", "3", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let table = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        table.contains("alpha12") && table.contains("seed 3"),
+        "{table}"
+    );
+    for f in [
+        "series.csv",
+        "fig12.svg",
+        "fig12.png",
+        "fig13.svg",
+        "fig13.png",
+        "summary.json",
+    ] {
+        assert!(dir.join(f).is_file(), "{f} missing");
+    }
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    for key in [
+        "mse_l12",
+        "mse_alpha12",
+        "mse_beta12",
+        "mse_v1",
+        "mse_w1",
+        "mse_meas_l12",
+        "mse_meas_alpha12",
+        "rms_v1_after_2s",
+        "rms_w1_after_2s",
+        "steps",
+        "seed",
+        "bias",
+    ] {
+        assert!(json.get(key).is_some(), "summary.json lacks {key}");
+    }
+    assert_eq!(json["seed"], 3);
+    assert_eq!(json["steps"], 240);
+    let csv = std::fs::read_to_string(dir.join("series.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 241);
+    assert!(csv.starts_with("t,l12_true,l12_measured,l12_estimated"));
+
+    // An output "directory" below a regular file cannot be created: one line, non-zero exit.
+    let bad = std::process::Command::new(exe)
+        .args(["reproduce", "dukf", "--out"])
+        .arg(dir.join("summary.json").join("sub"))
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    let err = String::from_utf8(bad.stderr).unwrap();
+    let errors: Vec<&str> = err.lines().filter(|l| l.contains("error")).collect();
+    assert_eq!(errors.len(), 1, "{err}");
+    assert!(errors[0].starts_with("formation-tracker: error:"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

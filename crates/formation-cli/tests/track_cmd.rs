@@ -1,0 +1,217 @@
+//! The `track` command end to end on frames rendered by the synthetic camera: a folder of
+//! PNGs (one of them broken) and a y4m stream on stdin (truncated), with and without the
+//! follower-inputs CSV.
+#![allow(clippy::unwrap_used)] // Tests may unwrap (house rules); helpers here are test code too.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+use fiducial::Dictionary;
+use formation_sim::scenario::{ScenarioConfig, simulate};
+use formation_sim::scene::{CameraSpec, Pose, RenderSpec, RobotSpec, SceneSpec, render_scene};
+use formation_tracker::mount::CameraMount;
+use formation_tracker::rigfile::RigModel;
+use unicycle::{PolarModel, wrap_angle};
+
+const FRAMES: usize = 12;
+
+/// 640x480, 60 degrees, no distortion: the synthetic camera's calibration.
+const CAMERA: &str = "%YAML:1.0
+---
+image_width: 640
+image_height: 480
+camera_matrix: !!opencv-matrix
+   rows: 3
+   cols: 3
+   dt: d
+   data: [ 554.2562584220408, 0., 319.5, 0., 554.2562584220408, 239.5, 0., 0., 1. ]
+distortion_coefficients: !!opencv-matrix
+   rows: 5
+   cols: 1
+   dt: d
+   data: [ 0., 0., 0., 0., 0. ]
+";
+
+struct Clip {
+    dir: PathBuf,
+    images: Vec<image::GrayImage>,
+    truth: Vec<[f64; 3]>,
+}
+
+/// The first frames of the reference scenario, rendered (2 x 2 samples per pixel to keep
+/// the test fast), with the follower inputs CSV and the calibration.
+fn clip(name: &str) -> Clip {
+    let dir = std::env::temp_dir().join(format!("ft-track-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("frames")).unwrap();
+    let scenario = simulate(&ScenarioConfig::reference(1)).unwrap();
+    let rig = RigModel::reference();
+    let mut csv = String::from("frame,v2,w2\n");
+    let (mut images, mut truth) = (Vec::new(), Vec::new());
+    for (k, s) in scenario.samples.iter().take(FRAMES).enumerate() {
+        let prev = &scenario.samples[k.saturating_sub(1)];
+        let leader = PolarModel::leader_pose(&s.truth);
+        let spec = SceneSpec {
+            name: String::new(),
+            camera_robot: Pose {
+                x: s.follower.x,
+                y: s.follower.y,
+                theta: s.follower.theta,
+            },
+            mount: CameraMount::default(),
+            camera: CameraSpec::default(),
+            render: RenderSpec {
+                supersampling: 2,
+                seed: k as u64,
+                ..RenderSpec::default()
+            },
+            robots: vec![RobotSpec {
+                robot: 1,
+                x: leader.x,
+                y: leader.y,
+                theta: leader.theta,
+            }],
+        };
+        let image = render_scene(&spec, &rig, Dictionary::paper())
+            .unwrap()
+            .image;
+        image
+            .save(dir.join("frames").join(format!("f{k:03}.png")))
+            .unwrap();
+        images.push(image);
+        let h = PolarModel::h(&s.truth);
+        truth.push([h[0], h[1], h[2]]);
+        csv += &format!(
+            "{k},{},{}\n",
+            prev.follower_inputs.v, prev.follower_inputs.w
+        );
+    }
+    std::fs::write(dir.join("inputs.csv"), csv).unwrap();
+    std::fs::write(dir.join("camera.yaml"), CAMERA).unwrap();
+    Clip { dir, images, truth }
+}
+
+fn track(args: &[&str], dir: &Path, stdin: Option<Vec<u8>>) -> (String, String, bool) {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_formation-tracker"));
+    cmd.arg("track")
+        .args(args)
+        .current_dir(dir)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    let mut child = cmd.spawn().unwrap();
+    let mut pipe = child.stdin.take().unwrap();
+    if let Some(bytes) = stdin {
+        pipe.write_all(&bytes).unwrap();
+    }
+    drop(pipe);
+    let out = child.wait_with_output().unwrap();
+    (
+        String::from_utf8(out.stdout).unwrap(),
+        String::from_utf8(out.stderr).unwrap(),
+        out.status.success(),
+    )
+}
+
+fn lines(stdout: &str) -> Vec<serde_json::Value> {
+    stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+#[test]
+fn folder_with_a_broken_frame() {
+    let clip = clip("folder");
+    std::fs::write(clip.dir.join("frames").join("f005.png"), b"broken").unwrap();
+    let (stdout, stderr, ok) = track(
+        &[
+            "frames",
+            "--camera",
+            "camera.yaml",
+            "--inputs",
+            "inputs.csv",
+            "--fps",
+            "30",
+            "--json",
+        ],
+        &clip.dir,
+        None,
+    );
+    assert!(ok, "{stderr}");
+    assert!(
+        stderr.contains("frame 5") && stderr.contains("f005.png"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("stands still"), "{stderr}");
+    let frames = lines(&stdout);
+    assert_eq!(frames.len(), FRAMES - 1);
+    for f in &frames {
+        let k = f["frame"].as_u64().unwrap() as usize;
+        assert_ne!(k, 5);
+        assert!((f["t"].as_f64().unwrap() - k as f64 / 30.0).abs() < 1e-12);
+        assert!(f["timing"]["detect_ms"].as_f64().unwrap() >= 0.0);
+        let leaders = f["leaders"].as_array().unwrap();
+        assert_eq!(leaders.len(), 1);
+        let l = &leaders[0];
+        assert_eq!(l["robot"], 1);
+        assert_eq!(l["status"], "tracking");
+        for key in ["l12_std", "alpha12_std", "beta12_std", "v1_std", "w1_std"] {
+            assert!(l[key].as_f64().unwrap() >= 0.0);
+        }
+        let truth = clip.truth[k];
+        assert!((l["l12"].as_f64().unwrap() - truth[0]).abs() < 0.02, "{l}");
+        assert!(
+            wrap_angle(l["alpha12"].as_f64().unwrap() - truth[1]).abs() < 0.03,
+            "{l}"
+        );
+        assert!(
+            wrap_angle(l["beta12"].as_f64().unwrap() - truth[2]).abs() < 0.02,
+            "{l}"
+        );
+    }
+    // The frame after the broken one bridges the gap with two steps, still tracking.
+    assert_eq!(frames[5]["frame"], 6);
+    std::fs::remove_dir_all(&clip.dir).unwrap();
+}
+
+/// A y4m stream (mono) of the clip on stdin, cut inside its last frame.
+#[test]
+fn truncated_y4m_on_stdin_without_inputs() {
+    let clip = clip("stdin");
+    let mut y4m = b"YUV4MPEG2 W640 H480 F30:1 Ip A1:1 Cmono\n".to_vec();
+    for image in &clip.images {
+        y4m.extend_from_slice(b"FRAME\n");
+        y4m.extend_from_slice(image.as_raw());
+    }
+    y4m.truncate(y4m.len() - 1000);
+    let (stdout, stderr, ok) = track(&["-", "--camera", "camera.yaml"], &clip.dir, Some(y4m));
+    assert!(ok, "{stderr}");
+    assert!(stderr.contains("stands still"), "{stderr}");
+    assert!(stderr.contains("truncated"), "{stderr}");
+    assert!(
+        stderr.contains(&format!("{} frames tracked", FRAMES - 1)),
+        "{stderr}"
+    );
+    let text: Vec<&str> = stdout.lines().collect();
+    assert_eq!(text.len(), FRAMES - 1);
+    assert!(
+        text[0].starts_with("frame 0 t 0.000: robot 1 Tracking"),
+        "{}",
+        text[0]
+    );
+    std::fs::remove_dir_all(&clip.dir).unwrap();
+}
+
+#[test]
+fn bad_arguments_are_one_line_errors() {
+    let dir = std::env::temp_dir();
+    let (_, stderr, ok) = track(
+        &["/nonexistent/frames", "--camera", "/nonexistent/cam.yaml"],
+        &dir,
+        None,
+    );
+    assert!(!ok);
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+}

@@ -1,0 +1,84 @@
+//! The follower-inputs CSV: columns in any order, hold between rows, typed errors.
+#![allow(clippy::unwrap_used)] // Tests may unwrap (house rules); helpers here are test code too.
+
+use formation_tracker_cli::inputs::{FollowerInputs, InputsError, Key};
+use proptest::prelude::*;
+
+#[test]
+fn frame_keyed_rows_hold_until_the_next() {
+    let csv = "# follower\npan, w2, frame, v2, note\n0.1, 0.0, 0, 0.0, a\n0.2, 0.05, 3, 0.4, b\n";
+    let f = FollowerInputs::parse(csv).unwrap();
+    assert_eq!(f.key(), Key::Frame);
+    assert_eq!(f.len(), 2);
+    let s = f.at(2, 99.0).unwrap();
+    assert_eq!((s.inputs.v, s.inputs.w, s.pan), (0.0, 0.0, Some(0.1)));
+    let s = f.at(3, 0.0).unwrap();
+    assert_eq!((s.inputs.v, s.inputs.w, s.pan), (0.4, 0.05, Some(0.2)));
+    assert_eq!(f.at(1000, 0.0).unwrap().inputs.v, 0.4);
+}
+
+#[test]
+fn time_keyed_rows_without_pan() {
+    let f = FollowerInputs::parse("t,v2,w2\n0.5,1,2\n1.0,3,4\n").unwrap();
+    assert_eq!(f.key(), Key::Time);
+    assert!(f.at(0, 0.4).is_none(), "before the first row");
+    let s = f.at(0, 0.5).unwrap();
+    assert_eq!((s.inputs.v, s.pan), (1.0, None));
+    // A frame time computed as k / fps lands within rounding of the row.
+    assert_eq!(f.at(0, 1.0 - 1e-12).unwrap().inputs.v, 3.0);
+    assert_eq!(f.at(0, 0.99).unwrap().inputs.v, 1.0);
+}
+
+#[test]
+fn bad_files_are_typed_errors() {
+    let e = |s: &str| FollowerInputs::parse(s).unwrap_err();
+    assert!(matches!(e(""), InputsError::Empty));
+    assert!(matches!(e("frame,v2,w2\n"), InputsError::Empty));
+    assert!(matches!(e("v2,w2\n1,2\n"), InputsError::Header { .. }));
+    assert!(matches!(e("t,frame,v2,w2\n"), InputsError::Header { .. }));
+    assert!(matches!(e("frame,w2\n1,2\n"), InputsError::Header { .. }));
+    assert!(matches!(
+        e("frame,v2,w2\n0,1,nan\n"),
+        InputsError::BadValue { line: 2, .. }
+    ));
+    assert!(matches!(
+        e("frame,v2,w2\n0.5,1,1\n"),
+        InputsError::BadValue { .. }
+    ));
+    assert!(matches!(
+        e("frame,v2,w2\n0,1\n"),
+        InputsError::ShortRow { line: 2, .. }
+    ));
+    assert!(matches!(
+        e("t,v2,w2\n1,0,0\n# c\n1,0,0\n"),
+        InputsError::NotIncreasing { line: 4, .. }
+    ));
+    assert!(matches!(
+        FollowerInputs::from_path(std::path::Path::new("/nonexistent/inputs.csv")),
+        Err(InputsError::Io { .. })
+    ));
+}
+
+proptest! {
+    /// The sample for a frame is the row with the largest key at or before it.
+    #[test]
+    fn lookup_is_the_last_row_at_or_before(
+        gaps in proptest::collection::vec(1u64..5, 1..20),
+        probe in 0u64..120,
+    ) {
+        let mut keys = Vec::new();
+        let mut k = 0;
+        for g in &gaps {
+            k += g;
+            keys.push(k);
+        }
+        let mut csv = String::from("frame,v2,w2\n");
+        for (i, k) in keys.iter().enumerate() {
+            csv += &format!("{k},{i},0\n");
+        }
+        let f = FollowerInputs::parse(&csv).unwrap();
+        let want = keys.iter().rposition(|k| *k <= probe);
+        let got = f.at(probe, 0.0).map(|s| s.inputs.v as usize);
+        prop_assert_eq!(got, want);
+    }
+}

@@ -1,0 +1,92 @@
+//! The end-to-end demo, shortened: rendered frames, detection, pose and tracking through an
+//! occlusion, open and closed loop, and a chain of three robots.
+#![allow(clippy::unwrap_used)] // Tests may unwrap (house rules); helpers here are test code too.
+
+use formation_sim::demo::{DemoConfig, DemoError, run_demo};
+use formation_tracker::tracker::{MeasurementUse, Status};
+
+/// 4 s with a 0.5 s occlusion from 1.5 s, 2 x 2 samples per pixel (fast in tests).
+fn short(closed_loop: bool, robots: usize) -> DemoConfig {
+    let mut c = DemoConfig {
+        robots,
+        closed_loop,
+        duration: 4.0,
+        occlusion: Some((1.5, 2.0)),
+        strip_every: 60,
+        ..DemoConfig::default()
+    };
+    c.render.supersampling = 2;
+    c
+}
+
+#[test]
+fn open_loop_tracks_through_the_occlusion() {
+    let run = run_demo(&short(false, 2)).unwrap();
+    let s = &run.summary;
+    assert_eq!(s.frames, 121);
+    assert_eq!(s.frames_occluded, 15);
+    // Seen in every frame outside the occlusion, coasting exactly through it.
+    assert_eq!(s.frames_detected, 120 - 15);
+    assert_eq!(s.frames_coasting, 15);
+    assert!(s.reacquired_same_id);
+    assert_eq!(s.reacquired_after_s, Some(0.0));
+    assert!(
+        s.max_coasting_error_l12 < 0.05,
+        "{}",
+        s.max_coasting_error_l12
+    );
+    // Below the paper's figures.
+    assert!(s.mse_l12 < 1.88e-4, "{}", s.mse_l12);
+    assert!(s.mse_alpha12 < 7.22e-5, "{}", s.mse_alpha12);
+    let records = &run.traces[0].records;
+    for r in records {
+        if r.occluded {
+            assert_eq!(r.status, Some(Status::Coasting));
+            assert_eq!(r.measurement, Some(MeasurementUse::Missing));
+            assert!(r.step.measured[0].is_nan());
+        } else {
+            assert_eq!(r.status, Some(Status::Tracking), "t = {}", r.step.t);
+        }
+    }
+    // Coasting: the standard deviation of l12 grows through the occlusion.
+    let hidden: Vec<f64> = records
+        .iter()
+        .filter(|r| r.occluded)
+        .map(|r| r.step.estimated_std[0])
+        .collect();
+    assert!(hidden.last().unwrap() > &(1.5 * hidden[0]));
+    assert_eq!(run.strip.len(), 3);
+    assert_eq!(run.strip[0].1.dimensions(), (640, 480));
+}
+
+#[test]
+fn closed_loop_chain_keeps_the_formation() {
+    let run = run_demo(&short(true, 3)).unwrap();
+    assert_eq!(run.traces.len(), 2);
+    assert_eq!((run.traces[1].follower, run.traces[1].leader), (3, 2));
+    let s = &run.summary;
+    assert!(s.closed_loop);
+    assert!(
+        s.max_formation_error_after_3s < 0.1,
+        "{}",
+        s.max_formation_error_after_3s
+    );
+    // Robot 3 sees robot 2 all along (robot 1 is hidden only from robot 2).
+    let third = &run.traces[1].records;
+    assert!(third.iter().all(|r| r.status == Some(Status::Tracking)));
+}
+
+#[test]
+fn bad_settings_are_errors() {
+    let mut c = short(false, 1);
+    assert!(matches!(
+        run_demo(&c),
+        Err(DemoError::Config { what: "robots", .. })
+    ));
+    c.robots = 2;
+    c.dt = 0.0;
+    assert!(matches!(
+        run_demo(&c),
+        Err(DemoError::Config { what: "dt", .. })
+    ));
+}
