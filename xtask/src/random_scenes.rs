@@ -14,7 +14,7 @@ use formation_sim::evaluate::{
     SceneReport, default_detector, evaluate_scene, markdown_summary, markdown_table, summarize,
 };
 use formation_sim::paper::random_scene;
-use formation_tracker::rigfile::RigModel;
+use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotConfig;
 use rayon::prelude::*;
 

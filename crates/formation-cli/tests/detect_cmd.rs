@@ -8,7 +8,7 @@ use std::process::Command;
 
 use fiducial::Dictionary;
 use fiducial::synth::{SceneConfig, marker_scene};
-use formation_tracker::rig;
+use formation_tracker::rig::RigModel;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -76,7 +76,7 @@ fn reads_scenes_and_reports_bad_files() {
         assert_eq!(markers.len(), scene.markers.len(), "{line}");
         for truth in &scene.markers {
             let index = truth.index.unwrap();
-            let (robot, face) = rig::robot_face(index);
+            let (robot, face) = RigModel::reference().robot_face(index).unwrap();
             let m = markers
                 .iter()
                 .find(|m| m["index"] == index)
@@ -117,7 +117,7 @@ fn human_listing_names_robots_and_faces() {
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(text.contains("2 marker(s)"), "{text}");
     for m in &scene.markers {
-        let (robot, face) = rig::robot_face(m.index.unwrap());
+        let (robot, face) = RigModel::reference().robot_face(m.index.unwrap()).unwrap();
         assert!(
             text.contains(&format!("robot {robot} face {face} ")),
             "{text}"

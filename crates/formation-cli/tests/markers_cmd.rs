@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::process::Command;
 
 use fiducial::{DecodeParams, Dictionary, GrayView, decode};
-use formation_tracker::rig;
+use formation_tracker::rig::RigModel;
 use nalgebra::Point2;
 
 fn out_dir(name: &str) -> PathBuf {
@@ -38,7 +38,10 @@ fn json_matches_the_pngs() {
         let robot = e["robot"].as_u64().unwrap() as u32;
         let face = e["face"].as_u64().unwrap() as u8;
         let code = e["code"].as_u64().unwrap();
-        assert_eq!(code, dict.codes()[rig::marker_index(robot, face).unwrap()]);
+        assert_eq!(
+            code,
+            dict.codes()[RigModel::reference().index_of(robot, face).unwrap()]
+        );
         let size: Vec<f64> = e["size_m"]
             .as_array()
             .unwrap()
@@ -74,7 +77,7 @@ fn json_matches_the_pngs() {
 #[test]
 fn too_many_robots_is_a_clear_error() {
     let dir = out_dir("too-many");
-    let too_many = rig::max_robots(Dictionary::paper()) + 1;
+    let too_many = RigModel::reference().max_robots(Dictionary::paper()) + 1;
     let out = bin()
         .args(["markers", "--out"])
         .arg(&dir)
@@ -85,4 +88,66 @@ fn too_many_robots_is_a_clear_error() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("robots the dictionary supports"), "{err}");
     assert!(!dir.join("markers.json").exists());
+}
+
+#[test]
+fn rig_file_chooses_the_faces_and_the_codes() {
+    let dir = out_dir("rig");
+    let rig = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures/rigs/three-faces-custom-codes.yaml");
+    let out = bin()
+        .args(["markers", "--out"])
+        .arg(&dir)
+        .args(["--robots", "3", "--rig"])
+        .arg(&rig)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("markers.json")).unwrap()).unwrap();
+    let dict = Dictionary::paper();
+    let model = RigModel::load(&rig, dict).unwrap();
+    let entries = json.as_array().unwrap();
+    // Only the (robot, face) pairs of the rig's table, each with its own code.
+    let expected: Vec<(u32, u8)> = (1..=3)
+        .flat_map(|r| model.faces.iter().map(move |f| (r, f.face)))
+        .filter(|&(r, f)| model.index_of(r, f).is_some())
+        .collect();
+    assert_eq!(entries.len(), expected.len());
+    assert!(
+        expected.len() < 9,
+        "the fixture leaves some faces without a marker"
+    );
+    for (e, (robot, face)) in entries.iter().zip(&expected) {
+        assert_eq!(e["robot"].as_u64().unwrap() as u32, *robot);
+        assert_eq!(e["face"].as_u64().unwrap() as u8, *face);
+        let index = model.index_of(*robot, *face).unwrap();
+        assert_eq!(e["index"].as_u64().unwrap() as usize, index);
+        assert_eq!(e["code"].as_u64().unwrap(), dict.codes()[index]);
+        assert!(dir.join(e["png"].as_str().unwrap()).is_file());
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_bad_rig_file_is_one_error_line() {
+    let dir = out_dir("bad-rig");
+    let rig = dir.with_extension("yaml");
+    std::fs::write(&rig, "cell_size_mm: 20\n").unwrap();
+    let out = bin()
+        .args(["markers", "--out"])
+        .arg(&dir)
+        .arg("--rig")
+        .arg(&rig)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("cell_size_mm"), "{err}");
+    let _ = std::fs::remove_file(&rig);
 }

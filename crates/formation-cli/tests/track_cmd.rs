@@ -11,7 +11,7 @@ use fiducial::Dictionary;
 use formation_sim::scenario::{ScenarioConfig, simulate};
 use formation_sim::scene::{CameraSpec, Pose, RenderSpec, RobotSpec, SceneSpec, render_scene};
 use formation_tracker::mount::CameraMount;
-use formation_tracker::rigfile::RigModel;
+use formation_tracker::rig::RigModel;
 use unicycle::{PolarModel, wrap_angle};
 
 const FRAMES: usize = 12;

@@ -11,7 +11,7 @@ use fiducial::{Dictionary, GrayView};
 use formation_sim::evaluate::{default_detector, truth_k};
 use formation_sim::paper::paper_scene;
 use formation_sim::scene::render_scene;
-use formation_tracker::rigfile::RigModel;
+use formation_tracker::rig::RigModel;
 use formation_tracker::robots::{MarkerObservation, RobotConfig, measure_robots};
 
 fn bench(c: &mut Criterion) {

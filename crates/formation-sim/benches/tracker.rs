@@ -74,7 +74,7 @@ fn frame_pipeline(c: &mut Criterion) {
     use fiducial::{Detector, DetectorConfig, Dictionary};
     use formation_sim::scene::{Pose, RobotSpec, SceneSpec, render_scene};
     use formation_tracker::pipeline::Pipeline;
-    use formation_tracker::rigfile::RigModel;
+    use formation_tracker::rig::RigModel;
     use formation_tracker::robots::RobotConfig;
 
     let spec = SceneSpec {

@@ -12,7 +12,7 @@ use imageproc::drawing::{draw_line_segment_mut, draw_text_mut};
 use nalgebra::{Matrix3, Point2, Point3, Rotation3, Vector3};
 use thiserror::Error;
 
-use formation_tracker::rigfile::RigModel;
+use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotMeasurement;
 
 static FONT_BYTES: &[u8] = include_bytes!("../../../fixtures/fonts/DejaVuSans.ttf");

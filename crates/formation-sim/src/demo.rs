@@ -37,7 +37,7 @@ use crate::scenario::reference_leader_inputs;
 use crate::scene::{self, CameraSpec, RenderSpec, RobotSpec, SceneError, SceneSpec};
 use formation_tracker::mount::CameraMount;
 use formation_tracker::pipeline::{Pipeline, PipelineError, Timing};
-use formation_tracker::rigfile::RigModel;
+use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotConfig;
 use formation_tracker::tracker::{MeasurementUse, Status, Tracker, TrackerConfig, TrackerError};
 

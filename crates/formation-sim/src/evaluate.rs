@@ -15,7 +15,7 @@ use nalgebra::{Matrix3, Point2};
 use serde::{Deserialize, Serialize};
 
 use crate::scene::{RenderedScene, SceneError, SceneSpec, SceneTruth, render_scene};
-use formation_tracker::rigfile::RigModel;
+use formation_tracker::rig::RigModel;
 use formation_tracker::robots::{FrameRobots, MarkerObservation, RobotConfig, measure_robots};
 use unicycle::wrap_angle;
 

@@ -25,7 +25,7 @@ use thiserror::Error;
 
 use formation_tracker::mount::{self, CameraMount, MeasurementError};
 use formation_tracker::rig::RigError;
-use formation_tracker::rigfile::RigModel;
+use formation_tracker::rig::RigModel;
 use formation_tracker::textfile;
 
 /// Faces seen more obliquely than this (degrees) are not required to be read.

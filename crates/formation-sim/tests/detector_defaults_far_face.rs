@@ -10,7 +10,7 @@
 use fiducial::{Detector, DetectorConfig, Dictionary};
 use formation_sim::evaluate::{default_detector, evaluate_scene};
 use formation_sim::paper::paper_scene;
-use formation_tracker::rigfile::RigModel;
+use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotConfig;
 
 /// Distance errors (%) of Fig. 11's robot 2 over four noise seeds.

@@ -7,7 +7,7 @@
 use fiducial::Dictionary;
 use formation_sim::paper::{paper_scene, random_scene};
 use formation_sim::scene::{SceneSpec, SceneTruth, build_scene, scene_truth};
-use formation_tracker::rigfile::RigModel;
+use formation_tracker::rig::RigModel;
 use formation_tracker::robots::{MarkerObservation, RobotConfig, measure_robots};
 use nalgebra::{Matrix3, Point2};
 use proptest::prelude::*;

@@ -5,7 +5,7 @@ use fiducial::Dictionary;
 use formation_sim::annotate::{MarkerLabel, RigOverlay, annotate};
 use formation_sim::paper::paper_scene;
 use formation_sim::scene::render_scene;
-use formation_tracker::rigfile::RigModel;
+use formation_tracker::rig::RigModel;
 use nalgebra::{Matrix3, Point2};
 
 #[test]

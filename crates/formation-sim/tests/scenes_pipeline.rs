@@ -10,7 +10,7 @@ use formation_sim::evaluate::{
 };
 use formation_sim::paper::{PAPER_FIGURES, paper_scene, random_scene};
 use formation_sim::scene::SceneSpec;
-use formation_tracker::rigfile::RigModel;
+use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotConfig;
 
 fn score(spec: &SceneSpec, paper: Option<(&[u8], &[u8])>) -> SceneReport {

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use fiducial::{DecodeParams, Dictionary, GrayView, decode};
 use formation_sim::paper::{PAPER_FIGURES, paper_scene, random_scene};
 use formation_sim::scene::{SceneError, SceneSpec, SceneTruth, render_scene};
-use formation_tracker::rigfile::RigModel;
+use formation_tracker::rig::RigModel;
 use nalgebra::Point2;
 use unicycle::wrap_angle;
 

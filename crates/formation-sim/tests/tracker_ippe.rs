@@ -6,7 +6,7 @@
 
 use formation_sim::scenario::{ScenarioConfig, simulate};
 use formation_tracker::mount::{CameraMount, formation_from_camera_pose};
-use formation_tracker::rig::Rig;
+use formation_tracker::rig::RigModel;
 use formation_tracker::tracker::{
     FrameInput, Observation, PoseMeasurement, Tracker, TrackerConfig,
 };
@@ -43,7 +43,7 @@ fn run(seed: u64, confirm_time: f64) -> Run {
     let mount = CameraMount::default();
     let k = Intrinsics::from_hfov(60f64.to_radians(), 640, 480).unwrap();
     let solver = PoseSolver::new(k);
-    let face = Rig::reference().face(3).unwrap().corner_points();
+    let face = RigModel::reference().face(3).unwrap().corner_points();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let noise = Normal::new(0.0, 0.5).unwrap();
     let mut tc = TrackerConfig::reference(0.5, 1.0 / 30.0);

@@ -26,7 +26,7 @@ use serde::Serialize;
 use unicycle::Inputs;
 
 use crate::mount::CameraMount;
-use crate::rigfile::RigModel;
+use crate::rig::RigModel;
 use crate::robots::{MarkerObservation, RobotConfig, RobotMeasurement, measure_robots};
 use crate::tracker::{
     FormationMeasurement, FrameInput, FrameReport, Observation, PoseMeasurement, Tracker,

@@ -12,18 +12,17 @@
 //! frame in the marker's own order NW, NE, SE, SW *as seen from outside, facing the
 //! marker*: clockwise to that viewer, so `(NE - NW) x (SW - NW)` points into the face.
 //!
-//! The types are plain data with serde derives, so a rig file (YAML/JSON) can override
-//! the reference values.
+//! [`RigModel`] is the single source of all of this: its [`RigGeometry`] (lengths and
+//! marker family), its faces (number and yaw; the reference rig has the five above) and its
+//! `(robot, face)` <-> dictionary-entry table. A rig file (`rigfile`, YAML/JSON) overrides
+//! any of it.
 
 use fiducial::{Dictionary, MarkerFamily};
 use nalgebra::{Point3, Vector3};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-/// Faces per leader.
-pub const FACES_PER_ROBOT: u8 = 5;
-
-/// Outward-normal yaw of faces 1..5 in the leader's body frame, degrees.
+/// Outward-normal yaw of the reference rig's faces 1..5 in the leader's body frame, degrees.
 pub const FACE_YAWS_DEG: [f64; 5] = [90.0, 135.0, 180.0, -135.0, -90.0];
 
 /// What is wrong with a rig or a `(robot, face)` request.
@@ -87,9 +86,11 @@ pub enum RigError {
     Family(#[from] fiducial::FiducialError),
 }
 
-/// A rig description: the octagon and the markers on it.
+/// The rig's physical dimensions: the octagon's face width, the marker height, the cell size
+/// and the marker family. Where the faces are and which marker each carries is
+/// [`RigModel`]'s.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Rig {
+pub struct RigGeometry {
     /// Width of each octagon face, metres.
     pub face_width_m: f64,
     /// Height of the marker centres above the ground (the body frame's z = 0), metres.
@@ -102,7 +103,7 @@ pub struct Rig {
     pub data_cols: u32,
 }
 
-impl Default for Rig {
+impl Default for RigGeometry {
     fn default() -> Self {
         Self::reference()
     }
@@ -135,8 +136,8 @@ impl Face {
     }
 }
 
-impl Rig {
-    /// The reference rig of spec 3.3: faces 0.18 m wide, marker centres at 0.30 m, 4 x 5
+impl RigGeometry {
+    /// The reference dimensions of spec 3.3: faces 0.18 m wide, marker centres at 0.30 m, 4 x 5
     /// data cells of 20 mm with a one-cell border (marker 140 mm x 120 mm).
     pub fn reference() -> Self {
         Self {
@@ -191,14 +192,6 @@ impl Rig {
         self.face_width_m / (2.0 * (std::f64::consts::PI / 8.0).tan())
     }
 
-    /// The geometry of face `face` (1..=5).
-    pub fn face(&self, face: u8) -> Result<Face, RigError> {
-        let yaw_deg = *FACE_YAWS_DEG
-            .get(usize::from(face).wrapping_sub(1))
-            .ok_or(RigError::NoSuchFace { face })?;
-        self.face_at_yaw(face, yaw_deg.to_radians())
-    }
-
     /// The geometry of a face whose outward normal is at `yaw` (radians, in the leader's
     /// body frame) on this rig's octagon: the reference faces use the spec's yaws, rig files
     /// may place faces elsewhere.
@@ -226,64 +219,138 @@ impl Rig {
             ],
         })
     }
+}
 
-    /// All five faces, in face order.
-    pub fn faces(&self) -> Result<[Face; 5], RigError> {
-        Ok([
-            self.face(1)?,
-            self.face(2)?,
-            self.face(3)?,
-            self.face(4)?,
-            self.face(5)?,
-        ])
+/// One face of a rig: its number and the yaw of its outward normal.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FaceSpec {
+    /// Face number (1..=255), as printed on the robot.
+    pub face: u8,
+    /// Yaw of the outward normal in the robot's body frame, degrees (left positive).
+    pub yaw_deg: f64,
+}
+
+/// A checked rig: geometry, faces and the `(robot, face)` <-> dictionary-entry table.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RigModel {
+    /// Face and marker geometry.
+    pub geometry: RigGeometry,
+    /// Faces in the order given.
+    pub faces: Vec<FaceSpec>,
+    /// Explicit marker table (`None`: the default formula).
+    pub markers: Option<Vec<(u32, u8, usize)>>,
+}
+
+impl Default for RigModel {
+    fn default() -> Self {
+        Self::reference()
     }
 }
 
-/// The dictionary index shown on face `face` of robot `robot`:
-/// `(robot - 1) * 5 + (face - 1)`.
-pub fn marker_index(robot: u32, face: u8) -> Result<usize, RigError> {
-    if robot == 0 {
-        return Err(RigError::RobotZero);
+impl RigModel {
+    /// The reference rig of spec 3.3 with the default marker table.
+    pub fn reference() -> Self {
+        Self {
+            geometry: RigGeometry::reference(),
+            faces: reference_faces(),
+            markers: None,
+        }
     }
-    if !(1..=FACES_PER_ROBOT).contains(&face) {
-        return Err(RigError::NoSuchFace { face });
+
+    /// The geometry of face number `face`.
+    pub fn face(&self, face: u8) -> Result<Face, RigError> {
+        let spec = self
+            .faces
+            .iter()
+            .find(|f| f.face == face)
+            .ok_or(RigError::NoSuchFace { face })?;
+        self.geometry.face_at_yaw(face, spec.yaw_deg.to_radians())
     }
-    Ok((robot as usize - 1) * usize::from(FACES_PER_ROBOT) + usize::from(face - 1))
+
+    /// Every face's geometry, in the rig's order.
+    pub fn face_geometries(&self) -> Result<Vec<Face>, RigError> {
+        self.faces.iter().map(|f| self.face(f.face)).collect()
+    }
+
+    /// The dictionary entry on `(robot, face)`, if that face carries one.
+    pub fn index_of(&self, robot: u32, face: u8) -> Option<usize> {
+        match &self.markers {
+            Some(list) => list
+                .iter()
+                .find(|&&(r, f, _)| r == robot && f == face)
+                .map(|&(_, _, i)| i),
+            None => {
+                let pos = self.faces.iter().position(|f| f.face == face)?;
+                let robot = usize::try_from(robot.checked_sub(1)?).ok()?;
+                robot.checked_mul(self.faces.len())?.checked_add(pos)
+            }
+        }
+    }
+
+    /// The `(robot, face)` carrying dictionary entry `index`, if any.
+    pub fn robot_face(&self, index: usize) -> Option<(u32, u8)> {
+        match &self.markers {
+            Some(list) => list
+                .iter()
+                .find(|&&(_, _, i)| i == index)
+                .map(|&(r, f, _)| (r, f)),
+            None => {
+                let n = self.faces.len();
+                let robot = u32::try_from(index / n).ok()?.checked_add(1)?;
+                Some((robot, self.faces.get(index % n)?.face))
+            }
+        }
+    }
+
+    /// The code on `(robot, face)`, or why there is none.
+    pub fn code(&self, dictionary: &Dictionary, robot: u32, face: u8) -> Result<u64, RigError> {
+        if robot == 0 {
+            return Err(RigError::RobotZero);
+        }
+        if !self.faces.iter().any(|f| f.face == face) {
+            return Err(RigError::NoSuchFace { face });
+        }
+        let needed = self
+            .index_of(robot, face)
+            .ok_or(RigError::NoMarker { robot, face })?;
+        dictionary.code(needed).ok_or(RigError::TooManyRobots {
+            robot,
+            needed,
+            len: dictionary.len(),
+            max_robots: self.max_robots(dictionary),
+        })
+    }
+
+    /// How many robots `dictionary` supports with this rig's default marker table (one
+    /// entry per face and robot).
+    pub fn max_robots(&self, dictionary: &Dictionary) -> u32 {
+        u32::try_from(dictionary.len() / self.faces.len().max(1)).unwrap_or(u32::MAX)
+    }
 }
 
-/// The `(robot, face)` showing dictionary entry `index`; the inverse of [`marker_index`].
-pub fn robot_face(index: usize) -> (u32, u8) {
-    let per = usize::from(FACES_PER_ROBOT);
-    ((index / per) as u32 + 1, (index % per) as u8 + 1)
-}
-
-/// How many robots a dictionary supports (five entries each).
-pub fn max_robots(dictionary: &Dictionary) -> u32 {
-    (dictionary.len() / usize::from(FACES_PER_ROBOT)) as u32
-}
-
-/// The code on face `face` of robot `robot`, or why there is none.
-pub fn marker_code(dictionary: &Dictionary, robot: u32, face: u8) -> Result<u64, RigError> {
-    let index = marker_index(robot, face)?;
-    dictionary.code(index).ok_or(RigError::TooManyRobots {
-        robot,
-        needed: index,
-        len: dictionary.len(),
-        max_robots: max_robots(dictionary),
-    })
+fn reference_faces() -> Vec<FaceSpec> {
+    FACE_YAWS_DEG
+        .iter()
+        .enumerate()
+        .map(|(i, &yaw_deg)| FaceSpec {
+            face: i as u8 + 1,
+            yaw_deg,
+        })
+        .collect()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn rig_faces() -> [Face; 5] {
-        Rig::reference().faces().unwrap()
+    fn rig_faces() -> Vec<Face> {
+        RigModel::reference().face_geometries().unwrap()
     }
 
     #[test]
     fn reference_marker_is_140_by_120_mm() {
-        let [w, h] = Rig::reference().marker_size_m().unwrap();
+        let [w, h] = RigGeometry::reference().marker_size_m().unwrap();
         assert!((w - 0.14).abs() < 1e-12 && (h - 0.12).abs() < 1e-12);
     }
 
@@ -313,7 +380,7 @@ mod tests {
 
     #[test]
     fn corners_lie_on_the_octagon_at_the_right_height() {
-        let rig = Rig::reference();
+        let rig = RigGeometry::reference();
         for face in rig_faces() {
             let n = face.normal();
             let c = face.corner_points();
@@ -352,7 +419,7 @@ mod tests {
     #[test]
     fn octagon_edge_is_the_face_width() {
         // Adjacent face planes meet at the octagon's vertices, half a face from each centre.
-        let rig = Rig::reference();
+        let rig = RigGeometry::reference();
         let f = rig_faces();
         let a = rig.apothem_m();
         let r = a / (std::f64::consts::PI / 8.0).cos();
@@ -366,47 +433,47 @@ mod tests {
 
     #[test]
     fn index_mapping_round_trips_and_rejects_bad_input() {
+        let rig = RigModel::reference();
         for robot in 1..=20 {
             for face in 1..=5 {
-                let i = marker_index(robot, face).unwrap();
-                assert_eq!(robot_face(i), (robot, face));
+                let i = rig.index_of(robot, face).unwrap();
+                assert_eq!(rig.robot_face(i), Some((robot, face)));
             }
         }
-        assert_eq!(marker_index(2, 3).unwrap(), 7);
-        assert_eq!(marker_index(0, 1), Err(RigError::RobotZero));
-        assert_eq!(marker_index(1, 6), Err(RigError::NoSuchFace { face: 6 }));
-        assert!(matches!(
-            Rig::reference().face(0),
-            Err(RigError::NoSuchFace { face: 0 })
-        ));
+        assert_eq!(rig.index_of(2, 3), Some(7));
+        assert_eq!(rig.index_of(0, 1), None);
+        assert_eq!(rig.index_of(1, 6), None);
         let d = Dictionary::paper();
-        let too_many = max_robots(d) + 1;
+        assert_eq!(rig.code(d, 0, 1), Err(RigError::RobotZero));
+        assert_eq!(rig.code(d, 1, 6), Err(RigError::NoSuchFace { face: 6 }));
+        assert!(matches!(rig.face(0), Err(RigError::NoSuchFace { face: 0 })));
+        let too_many = rig.max_robots(d) + 1;
         assert!(matches!(
-            marker_code(d, too_many, 1),
+            rig.code(d, too_many, 1),
             Err(RigError::TooManyRobots { .. })
         ));
-        assert_eq!(marker_code(d, 1, 1).unwrap(), d.codes()[0]);
+        assert_eq!(rig.code(d, 1, 1).unwrap(), d.codes()[0]);
     }
 
     #[test]
     fn bad_rigs_are_rejected() {
-        let mut r = Rig::reference();
+        let mut r = RigGeometry::reference();
         r.face_width_m = 0.15;
         assert!(matches!(r.validate(), Err(RigError::MarkerTooWide { .. })));
-        let mut r = Rig::reference();
+        let mut r = RigGeometry::reference();
         r.cell_size_m = f64::NAN;
         assert!(matches!(r.validate(), Err(RigError::BadLength { .. })));
-        let mut r = Rig::reference();
+        let mut r = RigGeometry::reference();
         r.data_rows = 0;
         assert!(matches!(r.validate(), Err(RigError::Family(_))));
     }
 
     #[test]
     fn rig_round_trips_through_json() {
-        let r = Rig::reference();
+        let r = RigGeometry::reference();
         let s = serde_json::to_string(&r).unwrap();
-        assert_eq!(serde_json::from_str::<Rig>(&s).unwrap(), r);
-        let f = r.face(2).unwrap();
+        assert_eq!(serde_json::from_str::<RigGeometry>(&s).unwrap(), r);
+        let f = RigModel::reference().face(2).unwrap();
         let s = serde_json::to_string(&f).unwrap();
         let back: Face = serde_json::from_str(&s).unwrap();
         assert_eq!(back.face, 2);

@@ -32,7 +32,7 @@ use fiducial::Dictionary;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::rig::{FACE_YAWS_DEG, Face, Rig, RigError};
+use crate::rig::{FaceSpec, RigError, RigGeometry, RigModel};
 #[cfg(feature = "files")]
 use crate::textfile;
 
@@ -66,16 +66,6 @@ pub enum RigFileError {
     /// The geometry is invalid (lengths, marker family, marker too wide).
     #[error(transparent)]
     Rig(#[from] RigError),
-}
-
-/// One face of a rig file: its number and the yaw of its outward normal.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct FaceSpec {
-    /// Face number (1..=255), as printed on the robot.
-    pub face: u8,
-    /// Yaw of the outward normal in the robot's body frame, degrees (left positive).
-    pub yaw_deg: f64,
 }
 
 /// One `(robot, face)` -> marker assignment of a rig file: either a dictionary `index` or
@@ -122,33 +112,7 @@ pub struct RigFile {
     pub markers: Option<Vec<MarkerSpec>>,
 }
 
-/// A checked rig: geometry, faces and the `(robot, face)` <-> dictionary-entry table.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct RigModel {
-    /// Face and marker geometry.
-    pub geometry: Rig,
-    /// Faces in the order given.
-    pub faces: Vec<FaceSpec>,
-    /// Explicit marker table (`None`: the default formula).
-    pub markers: Option<Vec<(u32, u8, usize)>>,
-}
-
-impl Default for RigModel {
-    fn default() -> Self {
-        Self::reference()
-    }
-}
-
 impl RigModel {
-    /// The reference rig of spec 3.3 with the default marker table.
-    pub fn reference() -> Self {
-        Self {
-            geometry: Rig::reference(),
-            faces: reference_faces(),
-            markers: None,
-        }
-    }
-
     /// Parses and checks a rig file's text; `json` selects the JSON parser (otherwise YAML,
     /// which also reads JSON). `path` only labels error messages. Needs the feature `files`.
     #[cfg(feature = "files")]
@@ -182,8 +146,8 @@ impl RigModel {
 
     /// Checks a parsed rig file and fills in the reference values.
     pub fn from_file(file: &RigFile, dictionary: &Dictionary) -> Result<Self, RigFileError> {
-        let r = Rig::reference();
-        let geometry = Rig {
+        let r = RigGeometry::reference();
+        let geometry = RigGeometry {
             face_width_m: file.face_width_m.unwrap_or(r.face_width_m),
             marker_centre_height_m: file
                 .marker_centre_height_m
@@ -206,7 +170,10 @@ impl RigModel {
                 ),
             ));
         }
-        let faces = file.faces.clone().unwrap_or_else(reference_faces);
+        let faces = file
+            .faces
+            .clone()
+            .unwrap_or_else(|| RigModel::reference().faces);
         check_faces(&faces)?;
         let markers = match &file.markers {
             None => None,
@@ -218,81 +185,6 @@ impl RigModel {
             markers,
         })
     }
-
-    /// The geometry of face number `face`.
-    pub fn face(&self, face: u8) -> Result<Face, RigError> {
-        let spec = self
-            .faces
-            .iter()
-            .find(|f| f.face == face)
-            .ok_or(RigError::NoSuchFace { face })?;
-        self.geometry.face_at_yaw(face, spec.yaw_deg.to_radians())
-    }
-
-    /// Every face's geometry, in the rig's order.
-    pub fn face_geometries(&self) -> Result<Vec<Face>, RigError> {
-        self.faces.iter().map(|f| self.face(f.face)).collect()
-    }
-
-    /// The dictionary entry on `(robot, face)`, if that face carries one.
-    pub fn index_of(&self, robot: u32, face: u8) -> Option<usize> {
-        match &self.markers {
-            Some(list) => list
-                .iter()
-                .find(|&&(r, f, _)| r == robot && f == face)
-                .map(|&(_, _, i)| i),
-            None => {
-                let pos = self.faces.iter().position(|f| f.face == face)?;
-                let robot = usize::try_from(robot.checked_sub(1)?).ok()?;
-                robot.checked_mul(self.faces.len())?.checked_add(pos)
-            }
-        }
-    }
-
-    /// The `(robot, face)` carrying dictionary entry `index`, if any.
-    pub fn robot_face(&self, index: usize) -> Option<(u32, u8)> {
-        match &self.markers {
-            Some(list) => list
-                .iter()
-                .find(|&&(_, _, i)| i == index)
-                .map(|&(r, f, _)| (r, f)),
-            None => {
-                let n = self.faces.len();
-                let robot = u32::try_from(index / n).ok()?.checked_add(1)?;
-                Some((robot, self.faces.get(index % n)?.face))
-            }
-        }
-    }
-
-    /// The code on `(robot, face)`, or why there is none.
-    pub fn code(&self, dictionary: &Dictionary, robot: u32, face: u8) -> Result<u64, RigError> {
-        if robot == 0 {
-            return Err(RigError::RobotZero);
-        }
-        if !self.faces.iter().any(|f| f.face == face) {
-            return Err(RigError::NoSuchFace { face });
-        }
-        let needed = self
-            .index_of(robot, face)
-            .ok_or(RigError::NoMarker { robot, face })?;
-        dictionary.code(needed).ok_or(RigError::TooManyRobots {
-            robot,
-            needed,
-            len: dictionary.len(),
-            max_robots: (dictionary.len() / self.faces.len().max(1)) as u32,
-        })
-    }
-}
-
-fn reference_faces() -> Vec<FaceSpec> {
-    FACE_YAWS_DEG
-        .iter()
-        .enumerate()
-        .map(|(i, &yaw_deg)| FaceSpec {
-            face: i as u8 + 1,
-            yaw_deg,
-        })
-        .collect()
 }
 
 fn field(name: impl Into<String>, reason: impl Into<String>) -> RigFileError {

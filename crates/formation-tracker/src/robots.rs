@@ -31,7 +31,7 @@ use thiserror::Error;
 
 use crate::mount::{self, CameraMount, MeasurementError};
 use crate::rig::RigError;
-use crate::rigfile::RigModel;
+use crate::rig::RigModel;
 
 /// A marker read in an image: its dictionary entry and the outer corners of its black
 /// border in the marker's own order NW, NE, SE, SW (pixel centres at integers).

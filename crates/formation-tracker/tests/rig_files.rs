@@ -4,8 +4,8 @@
 use std::path::PathBuf;
 
 use fiducial::Dictionary;
-use formation_tracker::rig::{self, Rig, RigError};
-use formation_tracker::rigfile::{RigFileError, RigModel};
+use formation_tracker::rig::{FACE_YAWS_DEG, RigError, RigGeometry, RigModel};
+use formation_tracker::rigfile::RigFileError;
 use proptest::prelude::*;
 
 fn fixture(name: &str) -> PathBuf {
@@ -36,26 +36,22 @@ fn fixtures_and_empty_file_are_the_reference_rig() {
     }
     assert_eq!(yaml("").unwrap(), reference);
     assert_eq!(yaml("{}").unwrap(), reference);
-    // Face geometry agrees with the reference rig's own computation.
-    let r = Rig::reference();
-    for f in 1..=5 {
+    // Face geometry is the spec's: face f at yaw FACE_YAWS_DEG[f - 1] on the reference octagon.
+    let r = RigGeometry::reference();
+    for f in 1..=5u8 {
         let a = reference.face(f).unwrap();
-        let b = r.face(f).unwrap();
+        let yaw = FACE_YAWS_DEG[usize::from(f) - 1].to_radians();
+        let b = r.face_at_yaw(f, yaw).unwrap();
         for (p, q) in a.corners.iter().flatten().zip(b.corners.iter().flatten()) {
             assert!((p - q).abs() < 1e-12, "face {f}");
         }
     }
-    // And the default table is the reference mapping.
-    for robot in 1..=20 {
-        for face in 1..=5 {
-            assert_eq!(
-                reference.index_of(robot, face),
-                Some(rig::marker_index(robot, face).unwrap())
-            );
-            assert_eq!(
-                reference.code(d, robot, face).unwrap(),
-                rig::marker_code(d, robot, face).unwrap()
-            );
+    // And the default table is the spec's mapping: entry (robot - 1) * 5 + (face - 1).
+    for robot in 1..=20u32 {
+        for face in 1..=5u8 {
+            let index = (robot as usize - 1) * 5 + usize::from(face) - 1;
+            assert_eq!(reference.index_of(robot, face), Some(index));
+            assert_eq!(reference.code(d, robot, face).unwrap(), d.codes()[index]);
         }
     }
 }

@@ -15,7 +15,7 @@ use std::time::Instant;
 
 use clap::Args as ClapArgs;
 use fiducial::{Decoded, Detector, DetectorConfig, GrayView};
-use formation_tracker::rigfile::RigModel;
+use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotMeasurement;
 use serde::Serialize;
 

@@ -10,7 +10,7 @@ use std::path::PathBuf;
 use clap::Args as ClapArgs;
 use fiducial::{Decoded, Dictionary};
 use formation_tracker::mount::CameraMount;
-use formation_tracker::rigfile::RigModel;
+use formation_tracker::rig::RigModel;
 use formation_tracker::robots::{MarkerObservation, RobotConfig, RobotMeasurement, measure_robots};
 use pose::calib::Calibration;
 use pose::{Distortion, Intrinsics, PoseSolver};

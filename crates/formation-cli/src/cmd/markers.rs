@@ -1,15 +1,17 @@
 //! `formation-tracker markers`: print-ready marker images for every robot's rig.
 //!
-//! For each robot 1..N and face 1..5 writes `robotR-faceF.png` (exact raster, for tests
-//! and screens) and `robotR-faceF.svg` (vector, sized in millimetres for printing at the
-//! rig's cell size), plus `markers.json` listing every marker with its code and the exact
-//! pixel corners of its black border in the PNG.
+//! For each robot 1..N and each face of the rig (the reference rig's faces 1..5, or those of
+//! `--rig FILE`) writes `robotR-faceF.png` (exact raster, for tests and screens) and
+//! `robotR-faceF.svg` (vector, sized in millimetres for printing at the rig's cell size),
+//! plus `markers.json` listing every marker with its code and the exact pixel corners of its
+//! black border in the PNG. A `(robot, face)` to which the rig's marker table gives no marker
+//! is skipped.
 
 use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
 use fiducial::{Dictionary, RenderOptions, render_marker, render_svg};
-use formation_tracker::rig::{self, Rig};
+use formation_tracker::rig::{RigError, RigModel};
 use serde::Serialize;
 
 use super::CliError;
@@ -20,9 +22,13 @@ pub struct Args {
     /// Directory to write into (created if missing).
     #[arg(long)]
     pub out: PathBuf,
-    /// Number of robots (each gets faces 1..5).
+    /// Number of robots (each gets every face of the rig).
     #[arg(long, default_value_t = 4)]
     pub robots: u32,
+    /// A rig file (YAML/JSON: faces, geometry, the marker of each robot and face); default:
+    /// the reference rig of spec 3.3.
+    #[arg(long, value_name = "FILE")]
+    pub rig: Option<PathBuf>,
     /// Pixels per marker cell in the PNGs.
     #[arg(long = "px-per-cell", default_value_t = 20)]
     pub px_per_cell: u32,
@@ -33,7 +39,7 @@ pub struct Args {
 struct Entry {
     robot: u32,
     face: u8,
-    /// Dictionary index, `(robot - 1) * 5 + (face - 1)`.
+    /// Dictionary index (the reference rig: `(robot - 1) * 5 + (face - 1)`).
     index: usize,
     code: u64,
     png: String,
@@ -48,18 +54,21 @@ struct Entry {
 /// Writes the markers and `markers.json`.
 pub fn run(args: &Args) -> Result<(), CliError> {
     let dict = Dictionary::paper();
-    let rig = Rig::reference();
-    rig.validate()?;
+    let rig = match &args.rig {
+        Some(path) => RigModel::load(path, dict)?,
+        None => RigModel::reference(),
+    };
     if args.robots == 0 {
         return Err("--robots must be at least 1".into());
     }
-    let max = rig::max_robots(dict);
-    if args.robots > max {
+    let max = rig.max_robots(dict);
+    if rig.markers.is_none() && args.robots > max {
         return Err(format!(
-            "--robots {} is more than the {max} robots the dictionary supports ({} codes, 5 \
+            "--robots {} is more than the {max} robots the dictionary supports ({} codes, {} \
              faces each)",
             args.robots,
-            dict.len()
+            dict.len(),
+            rig.faces.len()
         )
         .into());
     }
@@ -69,13 +78,19 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     };
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
-    let family = rig.family()?;
-    let size_m = rig.marker_size_m()?;
+    let family = rig.geometry.family()?;
+    let size_m = rig.geometry.marker_size_m()?;
     let mut entries = Vec::new();
     for robot in 1..=args.robots {
-        for face in 1..=rig::FACES_PER_ROBOT {
-            let index = rig::marker_index(robot, face)?;
-            let code = rig::marker_code(dict, robot, face)?;
+        for face in rig.faces.iter().map(|f| f.face) {
+            let code = match rig.code(dict, robot, face) {
+                Ok(code) => code,
+                Err(RigError::NoMarker { .. }) => continue,
+                Err(e) => return Err(e.into()),
+            };
+            let index = rig
+                .index_of(robot, face)
+                .ok_or(RigError::NoMarker { robot, face })?;
             let stem = format!("robot{robot}-face{face}");
             let marker = render_marker(family, code, &options)?;
             let corners_px = marker.corners().map(|p| [p.x, p.y]);
@@ -89,7 +104,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             let path = args.out.join(&svg);
             std::fs::write(
                 &path,
-                render_svg(family, code, rig.cell_size_m * 1000.0, 1)?,
+                render_svg(family, code, rig.geometry.cell_size_m * 1000.0, 1)?,
             )
             .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
             entries.push(Entry {
@@ -108,9 +123,10 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     std::fs::write(&path, serde_json::to_string_pretty(&entries)? + "\n")
         .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
     eprintln!(
-        "markers: wrote {} markers ({} robots x 5 faces) to {}",
+        "markers: wrote {} markers ({} robots x {} faces) to {}",
         entries.len(),
         args.robots,
+        rig.faces.len(),
         args.out.display()
     );
     Ok(())

@@ -7,7 +7,7 @@ use clap::Args as ClapArgs;
 use fiducial::Dictionary;
 use formation_sim::paper::paper_scene;
 use formation_sim::scene::{SceneSpec, render_scene};
-use formation_tracker::rigfile::RigModel;
+use formation_tracker::rig::RigModel;
 
 use super::CliError;
 

@@ -11,7 +11,7 @@ use formation_sim::evaluate::{
     summarize, truth_k,
 };
 use formation_sim::paper::{PAPER_FIGURES, paper_scene};
-use formation_tracker::rigfile::RigModel;
+use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotConfig;
 
 use super::CliError;

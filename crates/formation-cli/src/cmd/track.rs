@@ -8,7 +8,7 @@ use clap::Args as ClapArgs;
 use fiducial::{Detector, DetectorConfig, Dictionary};
 use formation_tracker::mount::CameraMount;
 use formation_tracker::pipeline::Pipeline;
-use formation_tracker::rigfile::RigModel;
+use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotConfig;
 use formation_tracker::tracker::{LeaderReport, Tracker, TrackerConfig};
 use formation_tracker_cli::frames::FrameSource;
