@@ -54,8 +54,18 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("formation-tracker: error: {err}");
+            eprintln!("formation-tracker: error: {}", one_line(&err.to_string()));
             ExitCode::FAILURE
         }
     }
+}
+
+/// An error message on one line: a library message that spans several lines (a parser's
+/// drawing of the offending line) keeps its first non-empty line.
+fn one_line(message: &str) -> &str {
+    message
+        .lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty())
+        .unwrap_or("unknown error")
 }

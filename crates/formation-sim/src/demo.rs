@@ -32,7 +32,7 @@ use unicycle::{
 };
 
 use crate::annotate::{AnnotateError, MarkerLabel, RigOverlay, annotate};
-use crate::reproduce::StepRecord;
+use crate::reproduce::{MeanSquareErrors, StepRecord};
 use crate::scenario::reference_leader_inputs;
 use crate::scene::{self, CameraSpec, RenderSpec, RobotSpec, SceneError, SceneSpec};
 use formation_tracker::mount::CameraMount;
@@ -220,6 +220,26 @@ fn nan3() -> Vector3<f64> {
     Vector3::repeat(f64::NAN)
 }
 
+/// Everything the followers share: the world they are rendered in.
+struct World<'a> {
+    config: &'a DemoConfig,
+    mount: CameraMount,
+    camera: CameraSpec,
+    k: pose::Intrinsics,
+    rig: RigModel,
+    dict: &'a Dictionary,
+}
+
+/// One step's state of the chain as seen by a follower.
+struct StepContext<'a> {
+    step: usize,
+    t: f64,
+    occluded: bool,
+    poses: &'a [Pose],
+    /// Inputs over `(t_{k-1}, t_k]` of every robot (index 0 the leader's).
+    applied: &'a [Inputs],
+}
+
 /// Runs the demo.
 ///
 /// # Errors
@@ -236,187 +256,46 @@ pub fn run_demo_with_progress(
     config: &DemoConfig,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<DemoRun, DemoError> {
-    if !(2..=6).contains(&config.robots) {
-        return Err(DemoError::Config {
-            what: "robots",
-            value: config.robots as f64,
-            expected: "2 to 6",
-        });
-    }
-    for (what, value) in [("duration", config.duration), ("dt", config.dt)] {
-        if !(value.is_finite() && value > 0.0) {
-            return Err(DemoError::Config {
-                what,
-                value,
-                expected: "finite and positive",
-            });
-        }
-    }
-    let mount = CameraMount::default();
-    let d = mount.offset;
-    let rig = RigModel::reference();
-    let dict = Dictionary::paper();
+    validate(config)?;
     let camera = CameraSpec::default();
-    let k = pose::Intrinsics::from_hfov(
-        camera.hfov_deg.to_radians(),
-        camera.width as u32,
-        camera.height as u32,
-    )?;
-    let n = config.robots;
-    let mut poses: Vec<Pose> = (1..=n)
-        .map(|i| {
-            let back = (n - i) as f64;
-            Pose::new(1.5 * back, 0.25 * back, 0.0)
-        })
-        .collect();
-    let mut followers = Vec::new();
-    for j in 1..n {
-        let start = Formation::from_poses(&poses[j - 1], &poses[j], d)?;
-        followers.push(Follower {
-            pipeline: Pipeline::new(
-                Detector::with_dictionary(DetectorConfig::default(), dict.clone()),
-                pose::PoseSolver::new(k),
-                (camera.width as u32, camera.height as u32),
-                rig.clone(),
-                RobotConfig::default(),
-                Tracker::new(TrackerConfig::reference(d, config.dt))?,
-            ),
-            controller: SeparationBearingController::new(d, ControllerConfig::hold(&start))?,
-            inputs: Inputs::new(0.0, 0.0),
-            trace: FollowerTrace {
-                follower: (j + 1) as u32,
-                leader: j as u32,
-                records: Vec::new(),
-            },
-        });
-    }
+    let world = World {
+        config,
+        mount: CameraMount::default(),
+        camera,
+        k: pose::Intrinsics::from_hfov(
+            camera.hfov_deg.to_radians(),
+            camera.width as u32,
+            camera.height as u32,
+        )?,
+        rig: RigModel::reference(),
+        dict: Dictionary::paper(),
+    };
+    let mut poses = starting_line(config.robots);
+    let mut followers = start_followers(&world, &poses)?;
     let steps = (config.duration / config.dt).round() as usize;
     let mut leader_inputs_prev = Inputs::new(0.0, 0.0);
     let mut strip = Vec::new();
     let mut render_s = 0.0;
     for step in 0..=steps {
         let t = step as f64 * config.dt;
-        let occluded = config
-            .occlusion
-            .is_some_and(|(a, b)| t >= a - 1e-9 && t < b - 1e-9);
-        // Inputs over (t_{k-1}, t_k] of every robot: index 0 the leader's.
         let mut applied = vec![leader_inputs_prev];
         applied.extend(followers.iter().map(|f| f.inputs));
+        let ctx = StepContext {
+            step,
+            t,
+            occluded: config
+                .occlusion
+                .is_some_and(|(a, b)| t >= a - 1e-9 && t < b - 1e-9),
+            poses: &poses,
+            applied: &applied,
+        };
         let mut new_inputs = vec![reference_leader_inputs(t)];
         for (idx, f) in followers.iter_mut().enumerate() {
-            let (me, ahead) = (idx + 1, idx);
-            let robots: Vec<RobotSpec> = poses
-                .iter()
-                .enumerate()
-                .filter(|&(i, _)| i != me && !(occluded && me == 1 && i == 0))
-                .map(|(i, p)| RobotSpec {
-                    robot: (i + 1) as u32,
-                    x: p.x,
-                    y: p.y,
-                    theta: p.theta,
-                })
-                .collect();
-            let spec = SceneSpec {
-                name: String::new(),
-                camera_robot: scene::Pose {
-                    x: poses[me].x,
-                    y: poses[me].y,
-                    theta: poses[me].theta,
-                },
-                mount,
-                camera,
-                render: RenderSpec {
-                    seed: config.render.seed.wrapping_add((step * n + me) as u64),
-                    ..config.render
-                },
-                robots,
-            };
-            let started = Instant::now();
-            let frame = scene::render_scene(&spec, &rig, dict)?.image;
-            render_s += started.elapsed().as_secs_f64();
-            let done = f.pipeline.process(
-                frame.as_raw(),
-                camera.width,
-                camera.height,
-                t,
-                applied[me],
-                mount,
-            )?;
-            let truth = Formation::from_poses(&poses[ahead], &poses[me], d)?;
-            let leader_id = (ahead + 1) as u32;
-            let measured = done
-                .robots
-                .iter()
-                .find(|m| m.robot == leader_id)
-                .map_or_else(nan3, |m| Vector3::new(m.l12, m.alpha12, m.beta12));
-            let track = done.report.leaders.iter().find(|l| l.robot == leader_id);
-            if me == 1 && config.strip_every > 0 && step % config.strip_every == 0 {
-                let markers: Vec<MarkerLabel> = f
-                    .pipeline
-                    .markers()
-                    .iter()
-                    .filter_map(|m| {
-                        let (robot, face) = rig.robot_face(m.index)?;
-                        Some(MarkerLabel {
-                            robot,
-                            face,
-                            corners: m.corners,
-                        })
-                    })
-                    .collect();
-                let rigs: Vec<RigOverlay> = done.robots.iter().map(RigOverlay::from).collect();
-                strip.push((step, annotate(&frame, &k.matrix(), &rig, &markers, &rigs)?));
-            }
-            // Controller inputs for the next interval.
-            let leader_now = new_inputs[ahead];
-            let estimate = track.map(|l| {
-                (
-                    Formation {
-                        l12: l.l12,
-                        alpha12: l.alpha12,
-                        beta12: l.beta12,
-                    },
-                    Inputs::new(l.v1, l.w1),
-                )
-            });
-            f.inputs = if config.closed_loop {
-                estimate
-                    .and_then(|(form, v)| f.controller.inputs(&form, v).ok())
-                    .unwrap_or(f.inputs)
-            } else {
-                f.controller.inputs(&truth, leader_now)?
-            };
+            let me = idx + 1;
+            let (render, annotated) = f.frame(&world, &ctx, me, new_inputs[me - 1])?;
+            render_s += render;
+            strip.extend(annotated.map(|image| (step, image)));
             new_inputs.push(f.inputs);
-            if step == 0 {
-                continue;
-            }
-            let est = track.map_or_else(nan3, |l| Vector3::new(l.l12, l.alpha12, l.beta12));
-            let est_std = track.map_or_else(nan3, |l| {
-                Vector3::new(l.l12_std, l.alpha12_std, l.beta12_std)
-            });
-            let nan = f64::NAN;
-            f.trace.records.push(DemoRecord {
-                step: StepRecord {
-                    t,
-                    truth: truth.to_vector(),
-                    measured,
-                    estimated: est,
-                    estimated_std: est_std,
-                    v1_true: applied[ahead].v,
-                    w1_true: applied[ahead].w,
-                    v1_estimated: track.map_or(nan, |l| l.v1),
-                    w1_estimated: track.map_or(nan, |l| l.w1),
-                    v1_std: track.map_or(nan, |l| l.v1_std),
-                    w1_std: track.map_or(nan, |l| l.w1_std),
-                },
-                status: track.map(|l| l.status),
-                measurement: track.map(|l| l.measurement),
-                markers: done.markers,
-                leaders: done.report.leaders.len(),
-                occluded: occluded && me == 1,
-                timing: done.timing,
-                l12_desired: f.controller.config().l12_desired,
-            });
         }
         progress(step, steps);
         leader_inputs_prev = new_inputs[0];
@@ -435,6 +314,218 @@ pub fn run_demo_with_progress(
     })
 }
 
+fn validate(config: &DemoConfig) -> Result<(), DemoError> {
+    if !(2..=6).contains(&config.robots) {
+        return Err(DemoError::Config {
+            what: "robots",
+            value: config.robots as f64,
+            expected: "2 to 6",
+        });
+    }
+    for (what, value) in [("duration", config.duration), ("dt", config.dt)] {
+        if !(value.is_finite() && value > 0.0) {
+            return Err(DemoError::Config {
+                what,
+                value,
+                expected: "finite and positive",
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Robot `i` of `n` at `((n - i) 1.5, (n - i) 0.25, 0)`.
+fn starting_line(n: usize) -> Vec<Pose> {
+    (1..=n)
+        .map(|i| {
+            let back = (n - i) as f64;
+            Pose::new(1.5 * back, 0.25 * back, 0.0)
+        })
+        .collect()
+}
+
+/// One follower per robot behind the leader, each holding its starting formation.
+fn start_followers(world: &World<'_>, poses: &[Pose]) -> Result<Vec<Follower>, DemoError> {
+    let d = world.mount.offset;
+    let (w, h) = (world.camera.width as u32, world.camera.height as u32);
+    (1..poses.len())
+        .map(|j| {
+            let start = Formation::from_poses(&poses[j - 1], &poses[j], d)?;
+            Ok(Follower {
+                pipeline: Pipeline::new(
+                    Detector::with_dictionary(DetectorConfig::default(), world.dict.clone()),
+                    pose::PoseSolver::new(world.k),
+                    (w, h),
+                    world.rig.clone(),
+                    RobotConfig::default(),
+                    Tracker::new(TrackerConfig::reference(d, world.config.dt))?,
+                ),
+                controller: SeparationBearingController::new(d, ControllerConfig::hold(&start))?,
+                inputs: Inputs::new(0.0, 0.0),
+                trace: FollowerTrace {
+                    follower: (j + 1) as u32,
+                    leader: j as u32,
+                    records: Vec::new(),
+                },
+            })
+        })
+        .collect()
+}
+
+/// The scene follower `me` sees: every other robot, less robot 1 from robot 2 during the
+/// occlusion; frame `k` of follower `me` uses noise seed `seed + k n + me`.
+fn follower_scene(world: &World<'_>, ctx: &StepContext<'_>, me: usize) -> SceneSpec {
+    let n = ctx.poses.len();
+    let robots: Vec<RobotSpec> = ctx
+        .poses
+        .iter()
+        .enumerate()
+        .filter(|&(i, _)| i != me && !(ctx.occluded && me == 1 && i == 0))
+        .map(|(i, p)| RobotSpec {
+            robot: (i + 1) as u32,
+            x: p.x,
+            y: p.y,
+            theta: p.theta,
+        })
+        .collect();
+    SceneSpec {
+        name: String::new(),
+        camera_robot: scene::Pose {
+            x: ctx.poses[me].x,
+            y: ctx.poses[me].y,
+            theta: ctx.poses[me].theta,
+        },
+        mount: world.mount,
+        camera: world.camera,
+        render: RenderSpec {
+            seed: world
+                .config
+                .render
+                .seed
+                .wrapping_add((ctx.step * n + me) as u64),
+            ..world.config.render
+        },
+        robots,
+    }
+}
+
+impl Follower {
+    /// Renders and processes follower `me`'s frame, records it (after `t = 0`) and sets the
+    /// inputs for the next interval. `leader_now` is the leader's input for that interval.
+    /// Returns the seconds spent rendering and, on robot 2's strip steps, the annotated
+    /// frame.
+    fn frame(
+        &mut self,
+        world: &World<'_>,
+        ctx: &StepContext<'_>,
+        me: usize,
+        leader_now: Inputs,
+    ) -> Result<(f64, Option<image::RgbImage>), DemoError> {
+        let ahead = me - 1;
+        let d = world.mount.offset;
+        let (width, height) = (world.camera.width, world.camera.height);
+        let spec = follower_scene(world, ctx, me);
+        let started = Instant::now();
+        let frame = scene::render_scene(&spec, &world.rig, world.dict)?.image;
+        let render_s = started.elapsed().as_secs_f64();
+        let done = self.pipeline.process(
+            frame.as_raw(),
+            width,
+            height,
+            ctx.t,
+            ctx.applied[me],
+            world.mount,
+        )?;
+        let truth = Formation::from_poses(&ctx.poses[ahead], &ctx.poses[me], d)?;
+        let leader_id = (ahead + 1) as u32;
+        let measured = done
+            .robots
+            .iter()
+            .find(|m| m.robot == leader_id)
+            .map_or_else(nan3, |m| Vector3::new(m.l12, m.alpha12, m.beta12));
+        let track = done.report.leaders.iter().find(|l| l.robot == leader_id);
+        let strip_step = world.config.strip_every > 0 && ctx.step % world.config.strip_every == 0;
+        let annotated = if me == 1 && strip_step {
+            Some(self.annotate(world, &frame, &done.robots)?)
+        } else {
+            None
+        };
+        self.inputs = if world.config.closed_loop {
+            track
+                .and_then(|l| {
+                    let form = Formation {
+                        l12: l.l12,
+                        alpha12: l.alpha12,
+                        beta12: l.beta12,
+                    };
+                    self.controller.inputs(&form, Inputs::new(l.v1, l.w1)).ok()
+                })
+                .unwrap_or(self.inputs)
+        } else {
+            self.controller.inputs(&truth, leader_now)?
+        };
+        if ctx.step > 0 {
+            let nan = f64::NAN;
+            self.trace.records.push(DemoRecord {
+                step: StepRecord {
+                    t: ctx.t,
+                    truth: truth.to_vector(),
+                    measured,
+                    estimated: track
+                        .map_or_else(nan3, |l| Vector3::new(l.l12, l.alpha12, l.beta12)),
+                    estimated_std: track.map_or_else(nan3, |l| {
+                        Vector3::new(l.l12_std, l.alpha12_std, l.beta12_std)
+                    }),
+                    v1_true: ctx.applied[ahead].v,
+                    w1_true: ctx.applied[ahead].w,
+                    v1_estimated: track.map_or(nan, |l| l.v1),
+                    w1_estimated: track.map_or(nan, |l| l.w1),
+                    v1_std: track.map_or(nan, |l| l.v1_std),
+                    w1_std: track.map_or(nan, |l| l.w1_std),
+                },
+                status: track.map(|l| l.status),
+                measurement: track.map(|l| l.measurement),
+                markers: done.markers,
+                leaders: done.report.leaders.len(),
+                occluded: ctx.occluded && me == 1,
+                timing: done.timing,
+                l12_desired: self.controller.config().l12_desired,
+            });
+        }
+        Ok((render_s, annotated))
+    }
+
+    /// The frame with the markers read and each measured robot's rig drawn over it.
+    fn annotate(
+        &self,
+        world: &World<'_>,
+        frame: &image::GrayImage,
+        robots: &[formation_tracker::robots::RobotMeasurement],
+    ) -> Result<image::RgbImage, DemoError> {
+        let markers: Vec<MarkerLabel> = self
+            .pipeline
+            .markers()
+            .iter()
+            .filter_map(|m| {
+                let (robot, face) = world.rig.robot_face(m.index)?;
+                Some(MarkerLabel {
+                    robot,
+                    face,
+                    corners: m.corners,
+                })
+            })
+            .collect();
+        let rigs: Vec<RigOverlay> = robots.iter().map(RigOverlay::from).collect();
+        Ok(annotate(
+            frame,
+            &world.k.matrix(),
+            &world.rig,
+            &markers,
+            &rigs,
+        )?)
+    }
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     if v.is_empty() {
         return f64::NAN;
@@ -445,33 +536,11 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 fn summarize(traces: &[FollowerTrace], config: &DemoConfig, render_s: f64) -> DemoSummary {
     let records = &traces[0].records;
-    let (mut sq, mut n) = ([0.0; 5], 0usize);
-    let (mut meas, mut n_meas) = ([0.0; 2], 0usize);
+    let mse = MeanSquareErrors::of(records.iter().map(|r| &r.step));
     let mut max_coast: f64 = 0.0;
-    let (mut coasting, mut detected, mut occluded) = (0, 0, 0);
+    let (mut coasting, mut occluded) = (0, 0);
     for r in records {
-        let s = &r.step;
-        let e = s.estimation_error();
-        if e.iter().all(|v| v.is_finite()) {
-            let ev = [
-                e[0],
-                e[1],
-                e[2],
-                s.v1_estimated - s.v1_true,
-                s.w1_estimated - s.w1_true,
-            ];
-            for (acc, x) in sq.iter_mut().zip(ev) {
-                *acc += x * x;
-            }
-            n += 1;
-        }
-        let m = s.measurement_error();
-        if m.iter().all(|v| v.is_finite()) {
-            meas[0] += m[0] * m[0];
-            meas[1] += m[1] * m[1];
-            n_meas += 1;
-            detected += 1;
-        }
+        let e = r.step.estimation_error();
         if r.status == Some(Status::Coasting) {
             coasting += 1;
             if e[0].is_finite() {
@@ -510,18 +579,16 @@ fn summarize(traces: &[FollowerTrace], config: &DemoConfig, render_s: f64) -> De
     let pipeline_ms: Vec<f64> = records.iter().map(|r| r.timing.total_ms()).collect();
     let total_s: f64 = pipeline_ms.iter().sum::<f64>() / 1e3;
     let frames = records.len() + 1;
-    let nf = n.max(1) as f64;
-    let nm = n_meas.max(1) as f64;
     DemoSummary {
-        mse_l12: sq[0] / nf,
-        mse_alpha12: sq[1] / nf,
-        mse_beta12: sq[2] / nf,
-        mse_v1: sq[3] / nf,
-        mse_w1: sq[4] / nf,
-        mse_meas_l12: meas[0] / nm,
-        mse_meas_alpha12: meas[1] / nm,
+        mse_l12: mse.estimate[0],
+        mse_alpha12: mse.estimate[1],
+        mse_beta12: mse.estimate[2],
+        mse_v1: mse.estimate[3],
+        mse_w1: mse.estimate[4],
+        mse_meas_l12: mse.measurement[0],
+        mse_meas_alpha12: mse.measurement[1],
         frames,
-        frames_detected: detected,
+        frames_detected: mse.measured,
         frames_occluded: occluded,
         frames_coasting: coasting,
         max_coasting_error_l12: max_coast,

@@ -105,37 +105,88 @@ pub struct Summary {
     pub bias: bool,
 }
 
-/// Computes the [`Summary`] of a run's records.
-pub fn summarize(records: &[StepRecord], seed: u64, bias: bool) -> Summary {
-    let n = records.len().max(1) as f64;
-    let mut est = Vector3::zeros();
-    let mut meas = Vector3::zeros();
-    let (mut v, mut w) = (0.0, 0.0);
-    let (mut v2, mut w2, mut late) = (0.0, 0.0, 0usize);
-    for r in records {
-        est += r.estimation_error().component_mul(&r.estimation_error());
-        meas += r.measurement_error().component_mul(&r.measurement_error());
-        let (ev, ew) = (r.v1_estimated - r.v1_true, r.w1_estimated - r.w1_true);
-        v += ev * ev;
-        w += ew * ew;
-        if r.t > 2.0 {
-            v2 += ev * ev;
-            w2 += ew * ew;
-            late += 1;
+/// Mean square errors of a run's records, the estimate and the raw measurement each over
+/// the records where it is finite (a frame without an estimate or without a measurement,
+/// NaN in its [`StepRecord`], is left out of that mean, not counted as zero).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeanSquareErrors {
+    /// `[l12, alpha12, beta12, v1, w1]` estimate minus truth, squared and averaged (m^2,
+    /// rad^2, rad^2, (m/s)^2, (rad/s)^2).
+    pub estimate: [f64; 5],
+    /// `[l12, alpha12, beta12]` measurement minus truth, squared and averaged.
+    pub measurement: [f64; 3],
+    /// Records with a finite estimate.
+    pub estimated: usize,
+    /// Records with a finite measurement.
+    pub measured: usize,
+    /// RMS of the `v1` and `w1` errors over the records with an estimate and `t > 2 s`.
+    pub rms_velocity_after_2s: [f64; 2],
+}
+
+impl MeanSquareErrors {
+    /// Accumulates `records` (angles wrapped, see [`StepRecord::estimation_error`]).
+    pub fn of<'a>(records: impl IntoIterator<Item = &'a StepRecord>) -> Self {
+        let mut est = [0.0; 5];
+        let mut meas = [0.0; 3];
+        let (mut late, mut n_late) = ([0.0; 2], 0usize);
+        let (mut estimated, mut measured) = (0usize, 0usize);
+        for r in records {
+            let e = r.estimation_error();
+            let errors = [
+                e[0],
+                e[1],
+                e[2],
+                r.v1_estimated - r.v1_true,
+                r.w1_estimated - r.w1_true,
+            ];
+            if errors.iter().all(|v| v.is_finite()) {
+                for (acc, x) in est.iter_mut().zip(errors) {
+                    *acc += x * x;
+                }
+                estimated += 1;
+                if r.t > 2.0 {
+                    late[0] += errors[3] * errors[3];
+                    late[1] += errors[4] * errors[4];
+                    n_late += 1;
+                }
+            }
+            let m = r.measurement_error();
+            if m.iter().all(|v| v.is_finite()) {
+                for (acc, x) in meas.iter_mut().zip(m.iter()) {
+                    *acc += x * x;
+                }
+                measured += 1;
+            }
+        }
+        let (ne, nm, nl) = (
+            estimated.max(1) as f64,
+            measured.max(1) as f64,
+            n_late.max(1) as f64,
+        );
+        Self {
+            estimate: est.map(|v| v / ne),
+            measurement: meas.map(|v| v / nm),
+            estimated,
+            measured,
+            rms_velocity_after_2s: late.map(|v| (v / nl).sqrt()),
         }
     }
-    let late = late.max(1) as f64;
+}
+
+/// Computes the [`Summary`] of a run's records.
+pub fn summarize(records: &[StepRecord], seed: u64, bias: bool) -> Summary {
+    let m = MeanSquareErrors::of(records);
     Summary {
-        mse_l12: est[0] / n,
-        mse_alpha12: est[1] / n,
-        mse_beta12: est[2] / n,
-        mse_v1: v / n,
-        mse_w1: w / n,
-        mse_meas_l12: meas[0] / n,
-        mse_meas_alpha12: meas[1] / n,
-        mse_meas_beta12: meas[2] / n,
-        rms_v1_after_2s: (v2 / late).sqrt(),
-        rms_w1_after_2s: (w2 / late).sqrt(),
+        mse_l12: m.estimate[0],
+        mse_alpha12: m.estimate[1],
+        mse_beta12: m.estimate[2],
+        mse_v1: m.estimate[3],
+        mse_w1: m.estimate[4],
+        mse_meas_l12: m.measurement[0],
+        mse_meas_alpha12: m.measurement[1],
+        mse_meas_beta12: m.measurement[2],
+        rms_v1_after_2s: m.rms_velocity_after_2s[0],
+        rms_w1_after_2s: m.rms_velocity_after_2s[1],
         steps: records.len(),
         mse_from_t: records.first().map_or(0.0, |r| r.t),
         seed,

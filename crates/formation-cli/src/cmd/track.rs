@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use clap::Args as ClapArgs;
 use fiducial::{Detector, DetectorConfig, Dictionary};
 use formation_tracker::mount::CameraMount;
-use formation_tracker::pipeline::Pipeline;
+use formation_tracker::pipeline::{Pipeline, PipelineFrame};
 use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotConfig;
 use formation_tracker::tracker::{LeaderReport, Tracker, TrackerConfig};
@@ -89,17 +89,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         None => RigModel::reference(),
     };
     let mut frames = FrameSource::open(&args.input)?;
-    let fps = match (args.fps, frames.frame_rate()) {
-        (Some(f), _) => f,
-        (None, Some(f)) => f,
-        (None, None) => {
-            eprintln!("track: no --fps and no frame rate in the input: assuming 30 frames/s");
-            30.0
-        }
-    };
-    if !(fps.is_finite() && fps > 0.0) {
-        return Err(format!("--fps {fps} must be finite and positive").into());
-    }
+    let fps = frame_rate(args, &frames)?;
     let inputs = match &args.inputs {
         Some(path) => Some(FollowerInputs::from_path(path)?),
         None => {
@@ -116,30 +106,10 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         pan: args.pan,
         tilt: args.mount_tilt,
     };
-    let mut config = TrackerConfig::reference(mount.offset, 1.0 / fps);
-    config.lost_after = args.lost_after;
-    let tracker = Tracker::new(config)?;
-    let solver = PoseSolver::new(calibration.intrinsics).with_distortion(calibration.distortion);
-    let mut pipeline = Pipeline::new(
-        Detector::with_dictionary(DetectorConfig::default(), dict.clone()),
-        solver,
-        (calibration.width, calibration.height),
-        rig,
-        RobotConfig::default(),
-        tracker,
-    );
-
-    let progress = std::io::stderr().is_terminal().then(|| {
-        let bar = match frames.len_hint() {
-            Some(n) => indicatif::ProgressBar::new(n),
-            None => indicatif::ProgressBar::new_spinner(),
-        };
-        bar.set_style(
-            indicatif::ProgressStyle::with_template("{spinner} {pos}/{len} frames {per_sec}")
-                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-        );
-        bar
-    });
+    let mut pipeline = build_pipeline(args, calibration, rig, mount, fps)?;
+    let progress = std::io::stderr()
+        .is_terminal()
+        .then(|| progress_bar(frames.len_hint()));
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
     let (mut broken, mut processed) = (0u64, 0u64);
@@ -171,44 +141,15 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             follower,
             CameraMount { pan, ..mount },
         );
-        let done = match result {
-            Ok(done) => done,
+        match result {
+            Ok(done) => {
+                processed += 1;
+                write_frame(&mut out, args.json, index, t, &done)?;
+            }
             Err(e) => {
                 broken += 1;
                 report_error(progress.as_ref(), &format!("track: frame {index}: {e}"));
-                continue;
             }
-        };
-        processed += 1;
-        let timing = TimingOut {
-            detect_ms: done.timing.detect_ms,
-            pose_ms: done.timing.pose_ms,
-            track_ms: done.timing.track_ms,
-            total_ms: done.timing.total_ms(),
-        };
-        if args.json {
-            let line = Line {
-                frame: index,
-                t,
-                leaders: &done.report.leaders,
-                markers: done.markers,
-                failures: &done.failures,
-                timing,
-            };
-            writeln!(out, "{}", serde_json::to_string(&line)?)?;
-        } else {
-            write!(out, "frame {index} t {t:.3}:")?;
-            if done.report.leaders.is_empty() {
-                write!(out, " no leader")?;
-            }
-            for l in &done.report.leaders {
-                write!(
-                    out,
-                    " robot {} {:?} l12 {:.3} alpha12 {:.3} beta12 {:.3} v1 {:.2} w1 {:.2};",
-                    l.robot, l.status, l.l12, l.alpha12, l.beta12, l.v1, l.w1
-                )?;
-            }
-            writeln!(out, " ({:.1} ms)", timing.total_ms)?;
         }
     }
     out.flush()?;
@@ -223,6 +164,97 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             ""
         }
     );
+    Ok(())
+}
+
+/// `--fps`, else the stream's own rate, else 30 (said on stderr).
+fn frame_rate(args: &Args, frames: &FrameSource) -> Result<f64, CliError> {
+    let fps = match (args.fps, frames.frame_rate()) {
+        (Some(f), _) => f,
+        (None, Some(f)) => f,
+        (None, None) => {
+            eprintln!("track: no --fps and no frame rate in the input: assuming 30 frames/s");
+            30.0
+        }
+    };
+    if !(fps.is_finite() && fps > 0.0) {
+        return Err(format!("--fps {fps} must be finite and positive").into());
+    }
+    Ok(fps)
+}
+
+/// The detector, the calibrated solver, the rig and the tracker, in one pipeline.
+fn build_pipeline(
+    args: &Args,
+    calibration: Calibration,
+    rig: RigModel,
+    mount: CameraMount,
+    fps: f64,
+) -> Result<Pipeline, CliError> {
+    let mut config = TrackerConfig::reference(mount.offset, 1.0 / fps);
+    config.lost_after = args.lost_after;
+    let tracker = Tracker::new(config)?;
+    let solver = PoseSolver::new(calibration.intrinsics).with_distortion(calibration.distortion);
+    Ok(Pipeline::new(
+        Detector::with_dictionary(DetectorConfig::default(), Dictionary::paper().clone()),
+        solver,
+        (calibration.width, calibration.height),
+        rig,
+        RobotConfig::default(),
+        tracker,
+    ))
+}
+
+fn progress_bar(len: Option<u64>) -> indicatif::ProgressBar {
+    let bar = match len {
+        Some(n) => indicatif::ProgressBar::new(n),
+        None => indicatif::ProgressBar::new_spinner(),
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} {pos}/{len} frames {per_sec}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    bar
+}
+
+/// One frame's line: JSON with `--json`, else text.
+fn write_frame(
+    out: &mut impl Write,
+    json: bool,
+    index: u64,
+    t: f64,
+    done: &PipelineFrame,
+) -> Result<(), CliError> {
+    let timing = TimingOut {
+        detect_ms: done.timing.detect_ms,
+        pose_ms: done.timing.pose_ms,
+        track_ms: done.timing.track_ms,
+        total_ms: done.timing.total_ms(),
+    };
+    if json {
+        let line = Line {
+            frame: index,
+            t,
+            leaders: &done.report.leaders,
+            markers: done.markers,
+            failures: &done.failures,
+            timing,
+        };
+        writeln!(out, "{}", serde_json::to_string(&line)?)?;
+        return Ok(());
+    }
+    write!(out, "frame {index} t {t:.3}:")?;
+    if done.report.leaders.is_empty() {
+        write!(out, " no leader")?;
+    }
+    for l in &done.report.leaders {
+        write!(
+            out,
+            " robot {} {:?} l12 {:.3} alpha12 {:.3} beta12 {:.3} v1 {:.2} w1 {:.2};",
+            l.robot, l.status, l.l12, l.alpha12, l.beta12, l.v1, l.w1
+        )?;
+    }
+    writeln!(out, " ({:.1} ms)", timing.total_ms)?;
     Ok(())
 }
 
