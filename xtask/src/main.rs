@@ -11,6 +11,7 @@ mod detector_accuracy;
 mod dictionary;
 mod dukf_table;
 mod random_scenes;
+mod unused_deps;
 
 type Result<T = ()> = std::result::Result<T, Box<dyn std::error::Error>>;
 
@@ -27,6 +28,7 @@ commands:
                    (--count N, --seed S; --check: only compare)
   dukf-table       run the dual-UKF reproduction over seeds 1..20 (with and without
                    the paper's bias) and write docs/dukf-reproduction.md
+  unused-deps      fail if a workspace crate declares a dependency its code never names
 ";
 
 fn main() -> ExitCode {
@@ -38,6 +40,7 @@ fn main() -> ExitCode {
         Some("random-scenes") => random_scenes::run(&args[1..]),
         Some("detector-accuracy") => detector_accuracy::run(&args[1..]),
         Some("dukf-table") => dukf_table::run(&args[1..]),
+        Some("unused-deps") => unused_deps::run(&args[1..]),
         _ => {
             eprint!("{USAGE}");
             return ExitCode::from(2);

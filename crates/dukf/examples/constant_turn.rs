@@ -7,7 +7,7 @@
 //! `[v, w]`; a plain UKF with the same noise settings but the parameters frozen at the
 //! initial guess shows what the parameter filter buys.
 //!
-//! Run with `cargo run -p dukf --example constant_turn`.
+//! Run with `cargo run -p formation-dukf --example constant_turn`.
 
 use core::f64::consts::PI;
 

@@ -3,7 +3,7 @@
 //! marker drawn the code and index read, the bits corrected and the corner error against
 //! the exact ground truth, then the detection time.
 //!
-//! Run with `cargo run --release -p fiducial --example detect_scene [SEED]` (seed 17 is a
+//! Run with `cargo run --release -p formation-fiducial --example detect_scene [SEED]` (seed 17 is a
 //! scene whose smallest marker needs the soft-decision correction).
 
 use std::time::Instant;

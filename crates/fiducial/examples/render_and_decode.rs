@@ -1,7 +1,7 @@
 //! Render a marker of the paper's dictionary upside down with one cell flipped, decode it,
 //! and print the entry, the bits corrected, the rotation and the marker's own corners.
 //!
-//! Run with `cargo run -p fiducial --example render_and_decode [INDEX]`.
+//! Run with `cargo run -p formation-fiducial --example render_and_decode [INDEX]`.
 
 use fiducial::{DecodeParams, Dictionary, RenderOptions, decode, render_marker};
 

@@ -95,7 +95,7 @@
 //!
 //! # Examples
 //!
-//! `cargo run --release -p fiducial --example detect_scene [SEED]` detects a synthetic
+//! `cargo run --release -p formation-fiducial --example detect_scene [SEED]` detects a synthetic
 //! scene and prints each marker's code, bits corrected and corner error.
 //!
 //! Decoding a marker from known corners:

@@ -3,7 +3,7 @@
 //! reprojected over the image.
 //!
 //! Drawing uses `imageproc` (lines, text with the DejaVu Sans font checked in under
-//! `fixtures/fonts`, compiled into the binary). Projection is the plain pinhole
+//! `assets/fonts`, compiled into the binary). Projection is the plain pinhole
 //! `K (R p + t)`, so a wrong pose shows as a rig drawn off its markers.
 
 use ab_glyph::FontRef;
@@ -15,7 +15,7 @@ use thiserror::Error;
 use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotMeasurement;
 
-static FONT_BYTES: &[u8] = include_bytes!("../../../fixtures/fonts/DejaVuSans.ttf");
+static FONT_BYTES: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
 
 /// Why a frame could not be annotated.
 #[derive(Debug, Error)]

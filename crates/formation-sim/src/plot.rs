@@ -19,7 +19,7 @@ use plotters::style::{FontStyle, register_font};
 use crate::reproduce::StepRecord;
 
 /// The font embedded in the binary for bitmap text.
-static DEJAVU_SANS: &[u8] = include_bytes!("../../../fixtures/fonts/DejaVuSans.ttf");
+static DEJAVU_SANS: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
 
 /// Errors while drawing or writing a figure.
 #[derive(Debug, thiserror::Error)]

@@ -1,5 +1,5 @@
 //! The dual-UKF reproduction of the paper's Figs. 12-13: the formation filter run over a
-//! simulated [`Scenario`](crate::scenario::Scenario), step records, and the figures of merit.
+//! simulated [`Scenario`], step records, and the figures of merit.
 
 use formation_tracker::filter::{FilterConfig, FilterError, FormationFilter};
 use nalgebra::Vector3;

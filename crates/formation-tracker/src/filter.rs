@@ -10,7 +10,7 @@
 //! In the plain dual filter the state filter treats `w^` as exact, so while `w^` is still
 //! wrong (at the start `w0 = [0, 0]` against a leader at 0.8 m/s) the state filter's
 //! covariance is far too small and its estimate drifts with the wrong velocity. With
-//! [`FilterConfig::propagate_parameter_uncertainty`] (on in the reference configuration) the
+//! [`FilterTuning::propagate_parameter_uncertainty`] (on in the reference configuration) the
 //! state filter's process noise at each step is `Q + J Pw- J^T`, with `J = df/dw` at the
 //! current estimate (central differences) and `Pw- = Pw + Rr` the parameter filter's
 //! predicted covariance: the velocity uncertainty enters the state covariance exactly as a

@@ -1,7 +1,7 @@
 //! Pose of one marker face and of three octagon faces from noisy pixels, with both planar
 //! candidates, the covariance, and a calibration file.
 //!
-//! Run: `cargo run -p pose --example solve_pose`
+//! Run: `cargo run -p formation-pose --example solve_pose`
 
 use nalgebra::{Point2, Point3, Vector3};
 use pose::{Intrinsics, Pose, PoseSolver};

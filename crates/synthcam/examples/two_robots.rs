@@ -1,7 +1,7 @@
 //! Render two leader robots carrying octagon rigs of simple cell-grid markers, write the image
 //! as PGM and print the ground truth.
 //!
-//! Run with `cargo run -p synthcam --example two_robots [-- OUT.pgm]`
+//! Run with `cargo run -p formation-synthcam --example two_robots [-- OUT.pgm]`
 //! (default output: `target/synthcam_two_robots.pgm`).
 
 use std::sync::Arc;

@@ -1,7 +1,7 @@
 //! A follower holds formation behind a leader that weaves, using the separation-bearing
 //! controller on the true formation variables. Prints the l12 and alpha12 errors over time.
 //!
-//! Run with `cargo run -p unicycle --example hold_formation`.
+//! Run with `cargo run -p formation-unicycle --example hold_formation`.
 
 use unicycle::{
     ControllerConfig, Formation, Inputs, Pose, SeparationBearingController, UnicycleError,

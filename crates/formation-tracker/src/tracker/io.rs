@@ -35,7 +35,7 @@ pub struct FormationMeasurement {
 /// One robot seen in one frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Observation {
-    /// The robot's id (from its markers' codes, see [`crate::rig::robot_face`]).
+    /// The robot's id (from its markers' codes, see [`crate::rig::RigModel::robot_face`]).
     pub robot: u32,
     /// Number of point correspondences of the pose solve (4 per marker face); used to
     /// rescale the covariance to [`TrackerConfig::corner_sigma_px`](crate::tracker::TrackerConfig::corner_sigma_px).
