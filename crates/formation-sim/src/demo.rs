@@ -444,7 +444,8 @@ impl Follower {
             .find(|m| m.robot == leader_id)
             .map_or_else(nan3, |m| Vector3::new(m.l12, m.alpha12, m.beta12));
         let track = done.report.leaders.iter().find(|l| l.robot == leader_id);
-        let strip_step = world.config.strip_every > 0 && ctx.step % world.config.strip_every == 0;
+        let strip_step =
+            world.config.strip_every > 0 && ctx.step.is_multiple_of(world.config.strip_every);
         let annotated = if me == 1 && strip_step {
             Some(self.annotate(world, &frame, &done.robots)?)
         } else {
