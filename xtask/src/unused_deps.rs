@@ -90,10 +90,15 @@ fn check_package(package: &Value) -> Result<Vec<Unused>> {
             Some(_) => ("build", &normal_src),
         };
         if !sources.iter().any(|text| names(text, &rust_name)) {
+            let dev_only = kind == "normal" && dev_src.iter().any(|text| names(text, &rust_name));
             unused.push(Unused {
                 package: name.clone(),
                 dependency: rust_name,
-                kind,
+                kind: if dev_only {
+                    "normal (only tests, benches or examples name it: make it a dev-dependency)"
+                } else {
+                    kind
+                },
             });
         }
     }
