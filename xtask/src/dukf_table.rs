@@ -11,6 +11,7 @@ use formation_sim::reproduce::{
     Baseline, Reproduction, Summary, baseline, paper_filter_config, reproduce,
 };
 use formation_sim::scenario::{PAPER_X0, ScenarioConfig, simulate};
+use formation_sim::scenario_file::ScenarioSpec;
 
 use crate::Result;
 
@@ -156,8 +157,16 @@ fn workspace_root() -> Result<PathBuf> {
 
 /// Runs the table and writes `docs/dukf-reproduction.md`.
 pub fn run(args: &[String]) -> Result {
-    if let Some(extra) = args.first() {
-        return Err(format!("dukf-table takes no arguments (got {extra})").into());
+    match args {
+        [] => {}
+        [flag, file] if flag == "--scenario" => return run_scenario(std::path::Path::new(file)),
+        _ => {
+            return Err(format!(
+                "dukf-table takes no arguments or --scenario FILE (got {})",
+                args.join(" ")
+            )
+            .into());
+        }
     }
     let x0 = [PAPER_X0[3], PAPER_X0[4], PAPER_X0[5]];
     let mut clean_runs = Vec::new();
@@ -395,6 +404,62 @@ pub fn run(args: &[String]) -> Result {
         c.alpha12,
         c.v1,
         c.w1
+    );
+    Ok(())
+}
+
+/// `dukf-table --scenario FILE`: the dual UKF against the two baselines on a scenario file,
+/// seeds 1..20 without bias, printed to stdout (nothing is written).
+fn run_scenario(path: &std::path::Path) -> Result {
+    let spec = ScenarioSpec::load(path)?;
+    let x0 = spec.filter_x0();
+    let x0 = [x0[3], x0[4], x0[5]];
+    let mut runs = Vec::new();
+    let mut rw = Vec::new();
+    let mut cv = Vec::new();
+    for seed in SEEDS {
+        let scenario = spec.simulate(seed, false)?;
+        rw.push(baseline(&scenario, &x0, Baseline::RANDOM_WALK));
+        cv.push(baseline(&scenario, &x0, Baseline::CONSTANT_VELOCITY));
+        runs.push(spec.reproduce(seed, false)?);
+    }
+    let summaries: Vec<Summary> = runs.iter().map(|r| r.summary.clone()).collect();
+    let c = medians(&summaries);
+    let med3 = |v: &[[f64; 3]], i: usize| median(v.iter().map(|x| x[i]).collect());
+    println!(
+        "dual UKF against the baselines on {}, medians over seeds 1..20 without bias\n",
+        path.display()
+    );
+    println!("| variable | dual UKF | RW | CV | dual / better baseline | beats both |");
+    println!("|---|---:|---:|---:|---:|---|");
+    for (i, (name, d)) in [("l12", c.l12), ("alpha12", c.alpha12), ("beta12", c.beta12)]
+        .into_iter()
+        .enumerate()
+    {
+        let (r, v) = (med3(&rw, i), med3(&cv, i));
+        println!(
+            "| {name} | {d:.3e} | {r:.3e} | {v:.3e} | {:.2} | {} |",
+            d / r.min(v),
+            if d < r.min(v) { "yes" } else { "no" }
+        );
+    }
+    let b3 = chi2_bounds(3.0, runs.len());
+    let b2 = chi2_bounds(2.0, runs.len());
+    let nis = consistency(&runs, |c| c.nis, b3, 2.0);
+    let nx = consistency(&runs, |c| c.nees_formation, b3, 2.0);
+    let nw = consistency(&runs, |c| c.nees_velocity, b2, 2.0);
+    println!(
+        "\nRMS error after 2 s: v1 {:.4} m/s, w1 {:.4} rad/s. After 2 s, mean (steps inside the \
+         95 % bounds): NIS {:.2} ({:.0} %), formation NEES {:.2} ({:.0} %), velocity NEES {:.2} \
+         ({:.0} %).",
+        c.v1,
+        c.w1,
+        nis.0,
+        100.0 * nis.1,
+        nx.0,
+        100.0 * nx.1,
+        nw.0,
+        100.0 * nw.1
     );
     Ok(())
 }

@@ -27,6 +27,8 @@ commands:
                    (--count N, --seed S; --check: only compare)
   dukf-table       run the dual-UKF reproduction over seeds 1..20 (with and without
                    the paper's bias) and write docs/dukf-reproduction.md
+                   (--scenario FILE: that scenario file against the baselines, printed)
+                   (--scenario FILE: that scenario file against the baselines, printed)
 ";
 
 fn main() -> ExitCode {

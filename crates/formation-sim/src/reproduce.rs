@@ -190,17 +190,16 @@ pub fn run_filter(
         let w = filter.leader_velocity();
         let w_std = filter.leader_velocity_std();
         let ex = wrapped_error(&PolarModel::h(filter.state()), &PolarModel::h(&now.truth));
-        let px = filter.state_covariance().fixed_view::<3, 3>(3, 3).into_owned();
+        let px = filter
+            .state_covariance()
+            .fixed_view::<3, 3>(3, 3)
+            .into_owned();
         let ew = Vector2::new(w.v - prev.leader_inputs.v, w.w - prev.leader_inputs.w);
         let pw = *filter.leader_velocity_covariance();
         consistency.push(StepConsistency {
             nis: filter.last_nis().unwrap_or(f64::NAN),
-            nees_formation: px
-                .try_inverse()
-                .map_or(f64::NAN, |inv| ex.dot(&(inv * ex))),
-            nees_velocity: pw
-                .try_inverse()
-                .map_or(f64::NAN, |inv| ew.dot(&(inv * ew))),
+            nees_formation: px.try_inverse().map_or(f64::NAN, |inv| ex.dot(&(inv * ex))),
+            nees_velocity: pw.try_inverse().map_or(f64::NAN, |inv| ew.dot(&(inv * ew))),
         });
         records.push(StepRecord {
             t: now.t,
@@ -311,7 +310,11 @@ pub fn baseline(scenario: &Scenario, x0: &[f64; 3], which: Baseline) -> [f64; 3]
             p01 -= k0 * p01;
             p00 -= k0 * p00;
             let truth = PolarModel::h(&s.truth)[i];
-            let e = if angle { wrap_angle(x - truth) } else { x - truth };
+            let e = if angle {
+                wrap_angle(x - truth)
+            } else {
+                x - truth
+            };
             sum += e * e;
         }
         *mse = sum / (scenario.samples.len() - 1).max(1) as f64;

@@ -114,7 +114,10 @@ fn the_baselines_reproduce_the_issues_figures_and_lose_on_beta12() {
     let rw = baseline_medians(Baseline::RANDOM_WALK);
     let cv = baseline_medians(Baseline::CONSTANT_VELOCITY);
     let close = |got: f64, want: f64| (got / want - 1.0).abs() < 0.03;
-    assert!(close(rw[0], 8.5e-5) && close(rw[1], 2.9e-5) && close(rw[2], 2.4e-3), "{rw:?}");
+    assert!(
+        close(rw[0], 8.5e-5) && close(rw[1], 2.9e-5) && close(rw[2], 2.4e-3),
+        "{rw:?}"
+    );
     assert!(close(cv[0], 2.76e-4) && close(cv[1], 6.7e-5), "{cv:?}");
     let s = runs(false);
     let b = median(s.iter().map(|x| x.mse_beta12).collect());
@@ -144,5 +147,29 @@ fn the_state_filter_is_consistent_over_the_seeds() {
     let nees_w = late_mean(|c| c.nees_velocity);
     assert!((lo3..=hi3).contains(&nis), "mean NIS {nis}");
     assert!((lo3..=hi3).contains(&nees), "mean formation NEES {nees}");
-    assert!(nees_w.is_finite() && nees_w <= hi2, "mean velocity NEES {nees_w}");
+    assert!(
+        nees_w.is_finite() && nees_w <= hi2,
+        "mean velocity NEES {nees_w}"
+    );
+}
+
+fn fixture(name: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures/scenarios")
+        .join(name)
+}
+
+#[test]
+fn the_reference_scenario_file_is_the_built_in_scenario() {
+    let spec = formation_sim::scenario_file::ScenarioSpec::load(&fixture("reference.yaml"))
+        .expect("fixtures/scenarios/reference.yaml loads");
+    for seed in [1, 7] {
+        for bias in [false, true] {
+            assert_eq!(
+                spec.reproduce(seed, bias).expect("runs"),
+                reproduce(seed, bias).expect("runs"),
+                "seed {seed}, bias {bias}"
+            );
+        }
+    }
 }
