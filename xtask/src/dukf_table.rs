@@ -376,6 +376,30 @@ pub fn run(args: &[String]) -> Result {
         );
     }
     let _ = writeln!(md);
+    let _ = writeln!(
+        md,
+        "## Other scenarios (seeds 1..20, without bias, same tuning)\n\n\
+         Scenario files in `fixtures/scenarios/`; rerun one with `cargo xtask dukf-table \
+         --scenario FILE` or `formation-tracker reproduce dukf --scenario FILE`. \
+         `reference.yaml` is the scenario above.\n"
+    );
+    let root = workspace_root()?;
+    for (name, what) in [
+        (
+            "l12-step.yaml",
+            "the follower's l12 set-point steps from 1.0 m to 1.5 m at t = 4 s (10 s)",
+        ),
+        (
+            "hard-turn.yaml",
+            "the leader turns hard, w1 = 0.6 sin(0.6 t) rad/s, v1 = 0.6 + 0.1 sin(0.5 t) m/s",
+        ),
+    ] {
+        let path = root.join("fixtures").join("scenarios").join(name);
+        eprintln!("dukf-table: {name}");
+        let _ = writeln!(md, "### `{name}`: {what}\n");
+        md.push_str(&scenario_table(&path)?);
+        let _ = writeln!(md);
+    }
     let _ = writeln!(md, "### Per seed, without bias\n");
     per_seed_table(&mut md, &clean);
     let _ = writeln!(
@@ -411,6 +435,13 @@ pub fn run(args: &[String]) -> Result {
 /// `dukf-table --scenario FILE`: the dual UKF against the two baselines on a scenario file,
 /// seeds 1..20 without bias, printed to stdout (nothing is written).
 fn run_scenario(path: &std::path::Path) -> Result {
+    print!("{}", scenario_table(path)?);
+    Ok(())
+}
+
+/// The comparison of the dual UKF with the two baselines on a scenario file (seeds 1..20,
+/// without bias), as markdown.
+fn scenario_table(path: &std::path::Path) -> Result<String> {
     let spec = ScenarioSpec::load(path)?;
     let x0 = spec.filter_x0();
     let x0 = [x0[3], x0[4], x0[5]];
@@ -426,18 +457,19 @@ fn run_scenario(path: &std::path::Path) -> Result {
     let summaries: Vec<Summary> = runs.iter().map(|r| r.summary.clone()).collect();
     let c = medians(&summaries);
     let med3 = |v: &[[f64; 3]], i: usize| median(v.iter().map(|x| x[i]).collect());
-    println!(
-        "dual UKF against the baselines on {}, medians over seeds 1..20 without bias\n",
-        path.display()
+    let mut md = String::new();
+    let _ = writeln!(
+        md,
+        "| variable | dual UKF | RW | CV | dual / better baseline | beats both |"
     );
-    println!("| variable | dual UKF | RW | CV | dual / better baseline | beats both |");
-    println!("|---|---:|---:|---:|---:|---|");
+    let _ = writeln!(md, "|---|---:|---:|---:|---:|---|");
     for (i, (name, d)) in [("l12", c.l12), ("alpha12", c.alpha12), ("beta12", c.beta12)]
         .into_iter()
         .enumerate()
     {
         let (r, v) = (med3(&rw, i), med3(&cv, i));
-        println!(
+        let _ = writeln!(
+            md,
             "| {name} | {d:.3e} | {r:.3e} | {v:.3e} | {:.2} | {} |",
             d / r.min(v),
             if d < r.min(v) { "yes" } else { "no" }
@@ -448,7 +480,8 @@ fn run_scenario(path: &std::path::Path) -> Result {
     let nis = consistency(&runs, |c| c.nis, b3, 2.0);
     let nx = consistency(&runs, |c| c.nees_formation, b3, 2.0);
     let nw = consistency(&runs, |c| c.nees_velocity, b2, 2.0);
-    println!(
+    let _ = writeln!(
+        md,
         "\nRMS error after 2 s: v1 {:.4} m/s, w1 {:.4} rad/s. After 2 s, mean (steps inside the \
          95 % bounds): NIS {:.2} ({:.0} %), formation NEES {:.2} ({:.0} %), velocity NEES {:.2} \
          ({:.0} %).",
@@ -461,5 +494,5 @@ fn run_scenario(path: &std::path::Path) -> Result {
         nw.0,
         100.0 * nw.1
     );
-    Ok(())
+    Ok(md)
 }
