@@ -2,7 +2,7 @@
 //! simulate the reference scenario for a few seeds and print what the filter buys over the
 //! raw measurements.
 //!
-//! Run with `cargo run --release -p formation-tracker --example dual_ukf`.
+//! Run with `cargo run --release -p formation-sim --example dual_ukf`.
 
 use formation_sim::reproduce::reproduce;
 
