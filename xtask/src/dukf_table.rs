@@ -7,8 +7,11 @@
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use formation_sim::reproduce::{Summary, paper_filter_config, reproduce};
-use formation_sim::scenario::ScenarioConfig;
+use formation_sim::reproduce::{
+    Baseline, Reproduction, Summary, baseline, paper_filter_config, reproduce,
+};
+use formation_sim::scenario::{PAPER_X0, ScenarioConfig, simulate};
+use formation_sim::scenario_file::ScenarioSpec;
 
 use crate::Result;
 
@@ -19,6 +22,52 @@ const MIN_REDUCTION: f64 = 5.0;
 const MAX_RMS_V1: f64 = 0.05;
 const MAX_RMS_W1: f64 = 0.05;
 const SEEDS: std::ops::RangeInclusive<u64> = 1..=20;
+/// Seeds never used for tuning, reported as a check.
+const CHECK_SEEDS: std::ops::RangeInclusive<u64> = 21..=40;
+/// The dual UKF must reach this fraction of the better baseline's MSE (issue #15).
+const BASELINE_FRACTION: f64 = 0.8;
+
+/// The `p`-quantile of the chi-square distribution with `k` degrees of freedom
+/// (Wilson-Hilferty; within 0.1 % for `k >= 30`). `z` is the standard normal quantile.
+fn chi2_quantile(k: f64, z: f64) -> f64 {
+    let c = 2.0 / (9.0 * k);
+    k * (1.0 - c + z * c.sqrt()).powi(3)
+}
+
+/// The two-sided 95 % bounds of the average over `runs` runs of a chi-square statistic with
+/// `dof` degrees of freedom (Bar-Shalom, Li and Kirubarajan, 2001, sec. 5.4).
+fn chi2_bounds(dof: f64, runs: usize) -> (f64, f64) {
+    let k = dof * runs as f64;
+    (
+        chi2_quantile(k, -1.959_964) / runs as f64,
+        chi2_quantile(k, 1.959_964) / runs as f64,
+    )
+}
+
+/// Per-step averages over the runs of one consistency statistic; then the mean of those
+/// averages over the steps with `t > from_t` and the fraction of them within `bounds`.
+fn consistency(
+    runs: &[Reproduction],
+    stat: fn(&formation_sim::reproduce::StepConsistency) -> f64,
+    bounds: (f64, f64),
+    from_t: f64,
+) -> (f64, f64) {
+    let n = runs.first().map_or(0, |r| r.consistency.len());
+    let (mut sum, mut inside, mut count) = (0.0, 0usize, 0usize);
+    for k in 0..n {
+        if runs[0].records[k].t <= from_t {
+            continue;
+        }
+        let avg = runs.iter().map(|r| stat(&r.consistency[k])).sum::<f64>() / runs.len() as f64;
+        sum += avg;
+        count += 1;
+        if avg >= bounds.0 && avg <= bounds.1 {
+            inside += 1;
+        }
+    }
+    let count = count.max(1) as f64;
+    (sum / count, inside as f64 / count)
+}
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -108,15 +157,40 @@ fn workspace_root() -> Result<PathBuf> {
 
 /// Runs the table and writes `docs/dukf-reproduction.md`.
 pub fn run(args: &[String]) -> Result {
-    if let Some(extra) = args.first() {
-        return Err(format!("dukf-table takes no arguments (got {extra})").into());
+    match args {
+        [] => {}
+        [flag, file] if flag == "--scenario" => return run_scenario(std::path::Path::new(file)),
+        _ => {
+            return Err(format!(
+                "dukf-table takes no arguments or --scenario FILE (got {})",
+                args.join(" ")
+            )
+            .into());
+        }
     }
-    let mut clean = Vec::new();
+    let x0 = [PAPER_X0[3], PAPER_X0[4], PAPER_X0[5]];
+    let mut clean_runs = Vec::new();
     let mut biased = Vec::new();
+    let mut rw = Vec::new();
+    let mut cv = Vec::new();
     for seed in SEEDS {
         eprintln!("dukf-table: seed {seed}");
-        clean.push(reproduce(seed, false)?.summary);
+        let scenario = simulate(&ScenarioConfig::reference(seed))?;
+        rw.push(baseline(&scenario, &x0, Baseline::RANDOM_WALK));
+        cv.push(baseline(&scenario, &x0, Baseline::CONSTANT_VELOCITY));
+        clean_runs.push(reproduce(seed, false)?);
         biased.push(reproduce(seed, true)?.summary);
+    }
+    let clean: Vec<Summary> = clean_runs.iter().map(|r| r.summary.clone()).collect();
+    let mut check = Vec::new();
+    let mut check_rw = Vec::new();
+    let mut check_cv = Vec::new();
+    for seed in CHECK_SEEDS {
+        eprintln!("dukf-table: check seed {seed}");
+        let scenario = simulate(&ScenarioConfig::reference(seed))?;
+        check_rw.push(baseline(&scenario, &x0, Baseline::RANDOM_WALK));
+        check_cv.push(baseline(&scenario, &x0, Baseline::CONSTANT_VELOCITY));
+        check.push(reproduce(seed, false)?.summary);
     }
     let c = medians(&clean);
     let b = medians(&biased);
@@ -217,6 +291,115 @@ pub fn run(args: &[String]) -> Result {
         c.meas_l12 / c.l12,
         c.meas_alpha12 / c.alpha12
     );
+    let med3 = |v: &[[f64; 3]], i: usize| median(v.iter().map(|x| x[i]).collect());
+    let _ = writeln!(
+        md,
+        "## Against single-measurement Kalman filters (issue #15)\n\n\
+         Each baseline filters one measured variable alone, from the paper's x0 with variance 1 \
+         and the true measurement variance: **RW**, a scalar random walk with q = 1e-6 per \
+         step; **CV**, constant velocity driven by white acceleration of spectral density \
+         q = 1e-5 (velocity starts at 0, variance 1). Medians of the MSE over the seeds; the \
+         target is at most {BASELINE_FRACTION} x the better baseline (and, for l12 and alpha12, \
+         at most the paper's figure). Seeds 21..40 were never used for tuning.\n"
+    );
+    let _ = writeln!(
+        md,
+        "| variable | seeds | dual UKF | RW | CV | target | result |\n|---|---|---:|---:|---:|---:|---|"
+    );
+    let paper = [PAPER_MSE_L12, PAPER_MSE_ALPHA12, f64::INFINITY];
+    let check_m = medians(&check);
+    for (seeds, dukf, rwv, cvv) in [
+        ("1..20", [c.l12, c.alpha12, c.beta12], &rw, &cv),
+        (
+            "21..40",
+            [check_m.l12, check_m.alpha12, check_m.beta12],
+            &check_rw,
+            &check_cv,
+        ),
+    ] {
+        for (i, name) in ["l12", "alpha12", "beta12"].iter().enumerate() {
+            let (r, v) = (med3(rwv, i), med3(cvv, i));
+            let target = (BASELINE_FRACTION * r.min(v)).min(paper[i]);
+            let _ = writeln!(
+                md,
+                "| {name} | {seeds} | {:.3e} | {r:.3e} | {v:.3e} | <= {target:.3e} | {} |",
+                dukf[i],
+                verdict(dukf[i] <= target)
+            );
+        }
+    }
+    let _ = writeln!(
+        md,
+        "\nSeeds 21..40: RMS error after 2 s v1 {:.4} m/s, w1 {:.4} rad/s (medians).\n",
+        check_m.v1, check_m.w1
+    );
+    let from_t = 2.0;
+    let b3 = chi2_bounds(3.0, clean_runs.len());
+    let b2 = chi2_bounds(2.0, clean_runs.len());
+    let nis_all = consistency(&clean_runs, |c| c.nis, b3, 0.0);
+    let nis = consistency(&clean_runs, |c| c.nis, b3, from_t);
+    let nx_all = consistency(&clean_runs, |c| c.nees_formation, b3, 0.0);
+    let nx = consistency(&clean_runs, |c| c.nees_formation, b3, from_t);
+    let nw_all = consistency(&clean_runs, |c| c.nees_velocity, b2, 0.0);
+    let nw = consistency(&clean_runs, |c| c.nees_velocity, b2, from_t);
+    let _ = writeln!(
+        md,
+        "## Consistency (seeds 1..20, without bias)\n\n\
+         At every step the statistic is averaged over the {} runs; a consistent filter keeps \
+         that average within the two-sided 95 % chi-square bounds (Bar-Shalom, Li and \
+         Kirubarajan 2001, sec. 5.4). NIS: the state update's innovation, 3 degrees of \
+         freedom. NEES (formation): the error of the estimated [l12, alpha12, beta12] against \
+         their covariance block, 3 degrees of freedom. NEES (velocity): the error of [v1, w1] \
+         against the parameter covariance, 2 degrees of freedom (the dual filter keeps no \
+         cross-covariance between the two, so they are tested apart). The leader's world pose \
+         [x1, y1, theta1] is not tested: it is unobservable from the measurements.\n",
+        clean_runs.len()
+    );
+    let _ = writeln!(
+        md,
+        "| statistic | 95 % bounds of the average | mean, all steps | steps inside, all | mean, t > 2 s | steps inside, t > 2 s |\n|---|---|---:|---:|---:|---:|"
+    );
+    for (name, bounds, all, late) in [
+        ("NIS (3 dof)", b3, nis_all, nis),
+        ("NEES formation (3 dof)", b3, nx_all, nx),
+        ("NEES velocity (2 dof)", b2, nw_all, nw),
+    ] {
+        let _ = writeln!(
+            md,
+            "| {name} | [{:.2}, {:.2}] | {:.2} | {:.0} % | {:.2} | {:.0} % |",
+            bounds.0,
+            bounds.1,
+            all.0,
+            100.0 * all.1,
+            late.0,
+            100.0 * late.1
+        );
+    }
+    let _ = writeln!(md);
+    let _ = writeln!(
+        md,
+        "## Other scenarios (seeds 1..20, without bias, same tuning)\n\n\
+         Scenario files in `fixtures/scenarios/`; rerun one with `cargo xtask dukf-table \
+         --scenario FILE` or `formation-tracker reproduce dukf --scenario FILE`. \
+         `reference.yaml` is the scenario above.\n"
+    );
+    let root = workspace_root()?;
+    for (name, what) in [
+        (
+            "l12-step.yaml",
+            "the follower's l12 set-point steps from 1.0 m to 1.5 m at t = 4 s (10 s)",
+        ),
+        (
+            "hard-turn.yaml",
+            "the leader turns hard, w1 = 0.6 sin(0.6 t) rad/s, v1 = 0.6 + 0.1 sin(0.5 t) m/s",
+        ),
+    ] {
+        let path = root.join("fixtures").join("scenarios").join(name);
+        eprintln!("dukf-table: {name}");
+        let _ = writeln!(md, "### `{name}`: {what}\n");
+        md.push_str(&scenario_table(&path)?);
+        let _ = writeln!(md);
+    }
     let _ = writeln!(md, "### Per seed, without bias\n");
     per_seed_table(&mut md, &clean);
     let _ = writeln!(
@@ -247,4 +430,69 @@ pub fn run(args: &[String]) -> Result {
         c.w1
     );
     Ok(())
+}
+
+/// `dukf-table --scenario FILE`: the dual UKF against the two baselines on a scenario file,
+/// seeds 1..20 without bias, printed to stdout (nothing is written).
+fn run_scenario(path: &std::path::Path) -> Result {
+    print!("{}", scenario_table(path)?);
+    Ok(())
+}
+
+/// The comparison of the dual UKF with the two baselines on a scenario file (seeds 1..20,
+/// without bias), as markdown.
+fn scenario_table(path: &std::path::Path) -> Result<String> {
+    let spec = ScenarioSpec::load(path)?;
+    let x0 = spec.filter_x0();
+    let x0 = [x0[3], x0[4], x0[5]];
+    let mut runs = Vec::new();
+    let mut rw = Vec::new();
+    let mut cv = Vec::new();
+    for seed in SEEDS {
+        let scenario = spec.simulate(seed, false)?;
+        rw.push(baseline(&scenario, &x0, Baseline::RANDOM_WALK));
+        cv.push(baseline(&scenario, &x0, Baseline::CONSTANT_VELOCITY));
+        runs.push(spec.reproduce(seed, false)?);
+    }
+    let summaries: Vec<Summary> = runs.iter().map(|r| r.summary.clone()).collect();
+    let c = medians(&summaries);
+    let med3 = |v: &[[f64; 3]], i: usize| median(v.iter().map(|x| x[i]).collect());
+    let mut md = String::new();
+    let _ = writeln!(
+        md,
+        "| variable | dual UKF | RW | CV | dual / better baseline | beats both |"
+    );
+    let _ = writeln!(md, "|---|---:|---:|---:|---:|---|");
+    for (i, (name, d)) in [("l12", c.l12), ("alpha12", c.alpha12), ("beta12", c.beta12)]
+        .into_iter()
+        .enumerate()
+    {
+        let (r, v) = (med3(&rw, i), med3(&cv, i));
+        let _ = writeln!(
+            md,
+            "| {name} | {d:.3e} | {r:.3e} | {v:.3e} | {:.2} | {} |",
+            d / r.min(v),
+            if d < r.min(v) { "yes" } else { "no" }
+        );
+    }
+    let b3 = chi2_bounds(3.0, runs.len());
+    let b2 = chi2_bounds(2.0, runs.len());
+    let nis = consistency(&runs, |c| c.nis, b3, 2.0);
+    let nx = consistency(&runs, |c| c.nees_formation, b3, 2.0);
+    let nw = consistency(&runs, |c| c.nees_velocity, b2, 2.0);
+    let _ = writeln!(
+        md,
+        "\nRMS error after 2 s: v1 {:.4} m/s, w1 {:.4} rad/s. After 2 s, mean (steps inside the \
+         95 % bounds): NIS {:.2} ({:.0} %), formation NEES {:.2} ({:.0} %), velocity NEES {:.2} \
+         ({:.0} %).",
+        c.v1,
+        c.w1,
+        nis.0,
+        100.0 * nis.1,
+        nx.0,
+        100.0 * nx.1,
+        nw.0,
+        100.0 * nw.1
+    );
+    Ok(md)
 }

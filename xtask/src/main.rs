@@ -28,6 +28,7 @@ commands:
                    (--count N, --seed S; --check: only compare)
   dukf-table       run the dual-UKF reproduction over seeds 1..20 (with and without
                    the paper's bias) and write docs/dukf-reproduction.md
+                   (--scenario FILE: that scenario file against the baselines, printed)
   unused-deps      fail if a workspace crate declares a dependency its code never names
 ";
 

@@ -69,3 +69,45 @@ fn cli_reproduce_dukf_writes_every_output_and_fails_in_one_line() {
     assert!(errors[0].starts_with("formation-tracker: error:"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn cli_reproduce_dukf_reads_a_scenario_file_and_names_a_bad_field() {
+    let exe = env!("CARGO_BIN_EXE_formation-tracker");
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let dir = std::env::temp_dir().join(format!("ft-reproduce-file-{}", std::process::id()));
+    let out = std::process::Command::new(exe)
+        .args(["reproduce", "dukf", "--seed", "2", "--scenario"])
+        .arg(root.join("fixtures/scenarios/l12-step.yaml"))
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // 10 s at 30 Hz.
+    let csv = std::fs::read_to_string(dir.join("series.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 301);
+
+    let bad = dir.join("bad.yaml");
+    std::fs::write(
+        &bad,
+        std::fs::read_to_string(root.join("fixtures/scenarios/reference.yaml"))
+            .unwrap()
+            .replace("frame_rate", "framerate"),
+    )
+    .unwrap();
+    let out = std::process::Command::new(exe)
+        .args(["reproduce", "dukf", "--scenario"])
+        .arg(&bad)
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("framerate"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -26,4 +26,5 @@ pub mod paper;
 pub mod plot;
 pub mod reproduce;
 pub mod scenario;
+pub mod scenario_file;
 pub mod scene;

@@ -2,7 +2,7 @@
 //! simulated [`Scenario`], step records, and the figures of merit.
 
 use formation_tracker::filter::{FilterConfig, FilterError, FormationFilter};
-use nalgebra::Vector3;
+use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 use unicycle::{PolarModel, PolarState, wrap_angle};
 
@@ -194,6 +194,20 @@ pub fn summarize(records: &[StepRecord], seed: u64, bias: bool) -> Summary {
     }
 }
 
+/// The consistency statistics of one filtered frame (Bar-Shalom's tests): each is
+/// chi-square distributed with the given degrees of freedom when the filter is consistent.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepConsistency {
+    /// Normalised innovation squared of the state update (3 degrees of freedom).
+    pub nis: f64,
+    /// Normalised estimation error squared of the measured state components
+    /// `[l12, alpha12, beta12]` against their 3 x 3 covariance block (3 degrees of freedom).
+    pub nees_formation: f64,
+    /// Normalised estimation error squared of the leader velocities `[v1, w1]` against the
+    /// parameter covariance (2 degrees of freedom).
+    pub nees_velocity: f64,
+}
+
 /// A filtered run of a scenario.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Reproduction {
@@ -201,6 +215,8 @@ pub struct Reproduction {
     pub scenario: ScenarioConfig,
     /// One record per filtered frame, `t = dt, 2 dt, ..., duration`.
     pub records: Vec<StepRecord>,
+    /// The consistency statistics of the same frames.
+    pub consistency: Vec<StepConsistency>,
     /// Its figures.
     pub summary: Summary,
 }
@@ -218,11 +234,24 @@ pub fn run_filter(
     let mut filter = FormationFilter::new(config)?;
     let r = scenario.config.noise_covariance();
     let mut records = Vec::with_capacity(scenario.samples.len());
+    let mut consistency = Vec::with_capacity(scenario.samples.len());
     for pair in scenario.samples.windows(2) {
         let (prev, now) = (&pair[0], &pair[1]);
         filter.step(&now.measurement, &r, prev.follower_inputs)?;
         let w = filter.leader_velocity();
         let w_std = filter.leader_velocity_std();
+        let ex = wrapped_error(&PolarModel::h(filter.state()), &PolarModel::h(&now.truth));
+        let px = filter
+            .state_covariance()
+            .fixed_view::<3, 3>(3, 3)
+            .into_owned();
+        let ew = Vector2::new(w.v - prev.leader_inputs.v, w.w - prev.leader_inputs.w);
+        let pw = *filter.leader_velocity_covariance();
+        consistency.push(StepConsistency {
+            nis: filter.last_nis().unwrap_or(f64::NAN),
+            nees_formation: px.try_inverse().map_or(f64::NAN, |inv| ex.dot(&(inv * ex))),
+            nees_velocity: pw.try_inverse().map_or(f64::NAN, |inv| ew.dot(&(inv * ew))),
+        });
         records.push(StepRecord {
             t: now.t,
             truth: PolarModel::h(&now.truth),
@@ -245,6 +274,7 @@ pub fn run_filter(
     Ok(Reproduction {
         scenario: scenario.config.clone(),
         records,
+        consistency,
         summary,
     })
 }
@@ -261,6 +291,86 @@ pub fn reproduce(seed: u64, bias: bool) -> Result<Reproduction, ReproduceError> 
     }
     let scenario = simulate(&config)?;
     run_filter(&scenario, &paper_filter_config(config.d, config.dt))
+}
+
+/// Which single-measurement Kalman filter a [`baseline`] runs on each of `l12`, `alpha12`,
+/// `beta12` (the comparisons of issue #15).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Baseline {
+    /// A scalar random walk: `x_k = x_{k-1} + n`, `n ~ N(0, q)` per step.
+    RandomWalk {
+        /// Process noise per step.
+        q: f64,
+    },
+    /// A constant-velocity model `[x, x']` driven by continuous white acceleration of
+    /// spectral density `q` (discretised exactly: `Q = q [dt^3/3, dt^2/2; dt^2/2, dt]`).
+    ConstantVelocity {
+        /// Spectral density of the white acceleration.
+        q: f64,
+    },
+}
+
+impl Baseline {
+    /// The random-walk baseline of issue #15: `q = 1e-6` per step.
+    pub const RANDOM_WALK: Self = Self::RandomWalk { q: 1e-6 };
+    /// The constant-velocity baseline of issue #15: white acceleration `q = 1e-5`.
+    pub const CONSTANT_VELOCITY: Self = Self::ConstantVelocity { q: 1e-5 };
+}
+
+/// The MSEs of a [`Baseline`] over one scenario: each measured variable filtered alone from
+/// the paper's initial value ([`PAPER_X0`]) with variance 1 (and, for the constant-velocity
+/// model, velocity 0 with variance 1), with the scenario's measurement variance, over the same
+/// steps `k = 1..` as [`run_filter`]. Returns `[l12, alpha12, beta12]`.
+pub fn baseline(scenario: &Scenario, x0: &[f64; 3], which: Baseline) -> [f64; 3] {
+    let dt = scenario.config.dt;
+    let mut out = [0.0; 3];
+    for (i, mse) in out.iter_mut().enumerate() {
+        let r = scenario.config.noise_std[i].powi(2);
+        let angle = i > 0;
+        // State [x, v], covariance [[p00, p01], [p01, p11]].
+        let (mut x, mut v) = (x0[i], 0.0);
+        let (mut p00, mut p01, mut p11) = (1.0, 0.0, 1.0);
+        let mut sum = 0.0;
+        for s in &scenario.samples[1..] {
+            match which {
+                Baseline::RandomWalk { q } => {
+                    p00 += q;
+                }
+                Baseline::ConstantVelocity { q } => {
+                    x += v * dt;
+                    let n00 = p00 + 2.0 * dt * p01 + dt * dt * p11 + q * dt.powi(3) / 3.0;
+                    let n01 = p01 + dt * p11 + q * dt * dt / 2.0;
+                    let n11 = p11 + q * dt;
+                    (p00, p01, p11) = (n00, n01, n11);
+                }
+            }
+            let mut nu = s.measurement[i] - x;
+            if angle {
+                nu = wrap_angle(nu);
+            }
+            let sk = p00 + r;
+            let (k0, k1) = (p00 / sk, p01 / sk);
+            x += k0 * nu;
+            if angle {
+                x = wrap_angle(x);
+            }
+            if matches!(which, Baseline::ConstantVelocity { .. }) {
+                v += k1 * nu;
+                p11 -= k1 * p01;
+            }
+            p01 -= k0 * p01;
+            p00 -= k0 * p00;
+            let truth = PolarModel::h(&s.truth)[i];
+            let e = if angle {
+                wrap_angle(x - truth)
+            } else {
+                x - truth
+            };
+            sum += e * e;
+        }
+        *mse = sum / (scenario.samples.len() - 1).max(1) as f64;
+    }
+    out
 }
 
 #[cfg(test)]

@@ -156,6 +156,32 @@ pub fn simulate_with(
     config: &ScenarioConfig,
     leader_inputs: impl Fn(f64) -> Inputs,
 ) -> Result<Scenario, ScenarioError> {
+    simulate_scheduled(config, leader_inputs, &[])
+}
+
+/// A change of the follower's set-points at time `at`: from the first sample with
+/// `t >= at` on, the controller holds the given `l12` and/or `alpha12` (a missing one keeps
+/// its previous value).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SetpointChange {
+    /// Time of the change, seconds.
+    pub at: f64,
+    /// New desired `l12`, metres.
+    pub l12: Option<f64>,
+    /// New desired `alpha12`, radians.
+    pub alpha12: Option<f64>,
+}
+
+/// As [`simulate_with`], with the follower's set-points changed at the given times (in any
+/// order; at equal times the later entry wins).
+///
+/// # Errors
+/// As [`simulate`]; a set-point the controller refuses (e.g. `l12 <= 0`) is a model error.
+pub fn simulate_scheduled(
+    config: &ScenarioConfig,
+    leader_inputs: impl Fn(f64) -> Inputs,
+    setpoints: &[SetpointChange],
+) -> Result<Scenario, ScenarioError> {
     let n = config.steps();
     if n == 0 || !config.dt.is_finite() {
         return Err(ScenarioError::NoSteps {
@@ -175,7 +201,11 @@ pub fn simulate_with(
     let bias = config.bias.unwrap_or([0.0; 3]);
     let model = PolarModel::new(config.d)?;
     let start = Formation::from_poses(&config.leader0, &config.follower0, config.d)?;
-    let controller = SeparationBearingController::new(config.d, ControllerConfig::hold(&start))?;
+    let mut goal = ControllerConfig::hold(&start);
+    let mut controller = SeparationBearingController::new(config.d, goal)?;
+    let mut schedule: Vec<&SetpointChange> = setpoints.iter().collect();
+    schedule.sort_by(|a, b| a.at.total_cmp(&b.at));
+    let mut next_change = 0;
     let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
 
     let mut leader = config.leader0;
@@ -185,6 +215,16 @@ pub fn simulate_with(
         let t = k as f64 * config.dt;
         let truth = model.state_from_poses(&leader, &follower)?;
         let formation = Formation::from_vector(&PolarModel::h(&truth));
+        let mut changed = false;
+        while let Some(change) = schedule.get(next_change).filter(|c| t >= c.at) {
+            goal.l12_desired = change.l12.unwrap_or(goal.l12_desired);
+            goal.alpha12_desired = change.alpha12.unwrap_or(goal.alpha12_desired);
+            next_change += 1;
+            changed = true;
+        }
+        if changed {
+            controller = SeparationBearingController::new(config.d, goal)?;
+        }
         let u1 = leader_inputs(t);
         let u2 = controller.inputs(&formation, u1)?;
         let mut y = PolarModel::h(&truth);

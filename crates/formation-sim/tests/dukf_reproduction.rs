@@ -4,14 +4,23 @@
 //!
 //! What is asserted, on the medians over the 20 seeds without bias:
 //! - the filtered `l12` and `alpha12` mean square errors are at least 5x below the raw
-//!   measurements' (the filter really filters);
+//!   measurements' (the filter really filters), and no worse than today's figures with a
+//!   margin (5.61e-4 and 1.42e-4; bounds 6.5e-4 and 1.7e-4);
 //! - the RMS errors of the estimated leader velocities after t = 2 s are at most 0.05 m/s
-//!   and 0.05 rad/s.
+//!   and 0.035 rad/s (today 0.048 and 0.031);
+//! - the single-measurement baselines of issue #15 reproduce the issue's figures, and the dual
+//!   UKF beats both on `beta12`;
+//! - the state filter is consistent: NIS and the formation NEES, averaged over the seeds and
+//!   then over the steps after 2 s, lie within their 95 % chi-square bounds; the velocity NEES
+//!   is not above its upper bound (the parameter filter is under-confident, not
+//!   over-confident; see `docs/dukf-reproduction.md`).
 //!
-//! The paper's absolute figures (MSE 1.88e-4 for l12, 7.22e-5 for alpha12) are not reached on
-//! this scenario; `docs/dukf-reproduction.md` reports them with pass/fail and explains why.
+//! The paper's absolute figures (MSE 1.88e-4 for l12, 7.22e-5 for alpha12) and the issue's
+//! "0.8x the better baseline" are not reached on this scenario; `docs/dukf-reproduction.md`
+//! reports them with pass/fail and explains why.
 
-use formation_sim::reproduce::{Summary, reproduce};
+use formation_sim::reproduce::{Baseline, Reproduction, Summary, baseline, reproduce};
+use formation_sim::scenario::{PAPER_X0, ScenarioConfig, simulate};
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -48,8 +57,10 @@ fn dual_ukf_filters_and_tracks_the_leader_velocity_over_seeds_1_to_20() {
         a * 5.0 <= ma,
         "median mse_alpha12 {a:.3e} not 5x below measured {ma:.3e}"
     );
+    assert!(l <= 6.5e-4, "median mse_l12 {l:.3e} above 6.5e-4");
+    assert!(a <= 1.7e-4, "median mse_alpha12 {a:.3e} above 1.7e-4");
     assert!(rv <= 0.05, "median RMS v1 error after 2 s = {rv:.4} m/s");
-    assert!(rw <= 0.05, "median RMS w1 error after 2 s = {rw:.4} rad/s");
+    assert!(rw <= 0.035, "median RMS w1 error after 2 s = {rw:.4} rad/s");
     for x in &s {
         assert_eq!(x.steps, 240);
         assert!(!x.bias);
@@ -83,4 +94,82 @@ fn bias_runs_complete_and_the_bias_shows_in_the_estimate() {
 #[test]
 fn same_seed_gives_the_same_run() {
     assert_eq!(reproduce(5, false).unwrap(), reproduce(5, false).unwrap());
+}
+
+/// Medians over seeds 1..20 of a baseline's `[l12, alpha12, beta12]` MSEs.
+fn baseline_medians(which: Baseline) -> [f64; 3] {
+    let x0 = [PAPER_X0[3], PAPER_X0[4], PAPER_X0[5]];
+    let runs: Vec<[f64; 3]> = (1..=20)
+        .map(|seed| {
+            let scenario = simulate(&ScenarioConfig::reference(seed)).expect("simulates");
+            baseline(&scenario, &x0, which)
+        })
+        .collect();
+    [0, 1, 2].map(|i| median(runs.iter().map(|r| r[i]).collect()))
+}
+
+#[test]
+fn the_baselines_reproduce_the_issues_figures_and_lose_on_beta12() {
+    // Issue #15: RW 8.5e-5 / 2.9e-5 / 2.4e-3, CV 2.76e-4 / 6.7e-5 (l12 / alpha12 / beta12).
+    let rw = baseline_medians(Baseline::RANDOM_WALK);
+    let cv = baseline_medians(Baseline::CONSTANT_VELOCITY);
+    let close = |got: f64, want: f64| (got / want - 1.0).abs() < 0.03;
+    assert!(
+        close(rw[0], 8.5e-5) && close(rw[1], 2.9e-5) && close(rw[2], 2.4e-3),
+        "{rw:?}"
+    );
+    assert!(close(cv[0], 2.76e-4) && close(cv[1], 6.7e-5), "{cv:?}");
+    let s = runs(false);
+    let b = median(s.iter().map(|x| x.mse_beta12).collect());
+    assert!(b <= 0.8 * rw[2].min(cv[2]), "median mse_beta12 {b:.3e}");
+}
+
+#[test]
+fn the_state_filter_is_consistent_over_the_seeds() {
+    let runs: Vec<Reproduction> = (1..=20)
+        .map(|seed| reproduce(seed, false).expect("runs"))
+        .collect();
+    // Two-sided 95 % bounds of the average of 20 chi-square(k) variables (chi2(20 k) / 20).
+    let (lo3, hi3) = (40.48 / 20.0, 83.30 / 20.0);
+    let hi2 = 59.34 / 20.0;
+    let late_mean = |stat: fn(&formation_sim::reproduce::StepConsistency) -> f64| {
+        let steps: Vec<usize> = (0..runs[0].records.len())
+            .filter(|&k| runs[0].records[k].t > 2.0)
+            .collect();
+        steps
+            .iter()
+            .map(|&k| runs.iter().map(|r| stat(&r.consistency[k])).sum::<f64>() / 20.0)
+            .sum::<f64>()
+            / steps.len() as f64
+    };
+    let nis = late_mean(|c| c.nis);
+    let nees = late_mean(|c| c.nees_formation);
+    let nees_w = late_mean(|c| c.nees_velocity);
+    assert!((lo3..=hi3).contains(&nis), "mean NIS {nis}");
+    assert!((lo3..=hi3).contains(&nees), "mean formation NEES {nees}");
+    assert!(
+        nees_w.is_finite() && nees_w <= hi2,
+        "mean velocity NEES {nees_w}"
+    );
+}
+
+fn fixture(name: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures/scenarios")
+        .join(name)
+}
+
+#[test]
+fn the_reference_scenario_file_is_the_built_in_scenario() {
+    let spec = formation_sim::scenario_file::ScenarioSpec::load(&fixture("reference.yaml"))
+        .expect("fixtures/scenarios/reference.yaml loads");
+    for seed in [1, 7] {
+        for bias in [false, true] {
+            assert_eq!(
+                spec.reproduce(seed, bias).expect("runs"),
+                reproduce(seed, bias).expect("runs"),
+                "seed {seed}, bias {bias}"
+            );
+        }
+    }
 }

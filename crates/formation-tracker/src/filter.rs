@@ -128,6 +128,7 @@ pub struct FormationFilter {
     q: Matrix6,
     propagate: bool,
     dual: Dual,
+    last_nis: Option<f64>,
 }
 
 fn state_space() -> Result<AngleMask<6>, UkfError> {
@@ -162,9 +163,9 @@ fn process<'a>(
 fn outcome<T>(
     result: Result<T, UkfError>,
     failure: &Cell<Option<UnicycleError>>,
-) -> Result<(), FilterError> {
+) -> Result<T, FilterError> {
     match (result, failure.get()) {
-        (Ok(_), _) => Ok(()),
+        (Ok(report), _) => Ok(report),
         (Err(_), Some(model_error)) => Err(model_error.into()),
         (Err(e), None) => Err(e.into()),
     }
@@ -191,6 +192,7 @@ impl FormationFilter {
             q: t.q,
             propagate: t.propagate_parameter_uncertainty,
             dual,
+            last_nis: None,
         })
     }
 
@@ -241,7 +243,9 @@ impl FormationFilter {
             y,
             r,
         );
-        outcome(result, &failure)
+        let report = outcome(result, &failure)?;
+        self.last_nis = Some(report.state.nis);
+        Ok(())
     }
 
     /// One frame without a measurement (e.g. the leader was not detected): the state coasts
@@ -256,7 +260,26 @@ impl FormationFilter {
         let result = self
             .dual
             .predict_only(process(&self.model, &u, self.dt, &failure));
-        outcome(result, &failure)
+        outcome(result, &failure)?;
+        self.last_nis = None;
+        Ok(())
+    }
+
+    /// The normalised innovation squared `nu^T S^-1 nu` of the state filter's last update
+    /// (chi-square with 3 degrees of freedom when the filter is consistent); `None` before
+    /// the first update and after a frame without a measurement.
+    pub fn last_nis(&self) -> Option<f64> {
+        self.last_nis
+    }
+
+    /// The state covariance (order `[x1, y1, theta1, l12, alpha12, beta12]`).
+    pub fn state_covariance(&self) -> &Matrix6 {
+        self.dual.state_covariance()
+    }
+
+    /// The leader-velocity covariance (order `[v1, w1]`).
+    pub fn leader_velocity_covariance(&self) -> &Matrix2<f64> {
+        self.dual.parameter_covariance()
     }
 
     /// The state estimate `[x1, y1, theta1, l12, alpha12, beta12]`.

@@ -1,0 +1,378 @@
+//! Scenario files for the dual-UKF experiment (`reproduce dukf --scenario FILE`,
+//! `cargo xtask dukf-table --scenario FILE`): the robots' start, the leader's inputs as sums
+//! of constants, sines and steps, the follower's set-point changes, the measurement noise,
+//! the duration and the filter's initial state. YAML, or JSON when the file is named `.json`.
+//! `fixtures/scenarios/reference.yaml` is the built-in reference scenario
+//! ([`ScenarioConfig::reference`]); it reproduces it exactly.
+//!
+//! ```yaml
+//! camera_offset: 0.5        # d, metres
+//! frame_rate: 30            # Hz; dt = 1 / frame_rate
+//! duration: 8.0             # seconds
+//! follower: [0.0, 0.0, 0.0] # x, y, theta
+//! leader: [1.5, 0.25, 0.0]
+//! leader_inputs:
+//!   v: [{constant: 0.8}, {sine: {amplitude: 0.2, omega: 0.5}}]
+//!   w: [{sine: {amplitude: 0.2, omega: 0.4}}]
+//! setpoints: [{at: 4.0, l12: 1.5}]          # optional; by default the start is held
+//! noise_std: [0.07, 0.03, 0.03]
+//! bias: [-0.0702, 0.0248, 0.0236]           # optional
+//! filter_x0: [1.5, 0.25, 0, 1.047, 0.233, 0.232]   # optional; the paper's by default
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use formation_tracker::filter::FilterConfig;
+use formation_tracker::textfile;
+use serde::Deserialize;
+use unicycle::{Inputs, PolarState, Pose};
+
+use crate::reproduce::{ReproduceError, Reproduction, run_filter};
+use crate::scenario::{
+    PAPER_BIAS, PAPER_X0, Scenario, ScenarioConfig, ScenarioError, SetpointChange,
+    simulate_scheduled,
+};
+
+/// Errors of reading a scenario file.
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioFileError {
+    /// The file could not be read.
+    #[error("cannot read scenario file {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The file is not a valid scenario (the parser's message names the field and position).
+    #[error("scenario file {path}: {message}")]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, and where.
+        message: String,
+    },
+    /// A field has a value the simulation cannot use.
+    #[error("scenario file: field `{field}`: {reason}")]
+    Field {
+        /// The field.
+        field: String,
+        /// Why it is refused.
+        reason: String,
+    },
+}
+
+/// One term of a leader input: the input is the sum of its terms at every time.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum Term {
+    /// A constant.
+    Constant(f64),
+    /// `amplitude sin(omega t + phase)`.
+    Sine {
+        /// Amplitude.
+        amplitude: f64,
+        /// Angular frequency, rad/s.
+        omega: f64,
+        /// Phase, radians (0 by default).
+        #[serde(default)]
+        phase: f64,
+    },
+    /// `value` from `t >= at` on, 0 before.
+    Step {
+        /// Time of the step, seconds.
+        at: f64,
+        /// Value after the step.
+        value: f64,
+    },
+}
+
+impl Term {
+    fn at(&self, t: f64) -> f64 {
+        match *self {
+            Self::Constant(c) => c,
+            Self::Sine {
+                amplitude,
+                omega,
+                phase,
+            } => amplitude * (omega * t + phase).sin(),
+            Self::Step { at, value } => {
+                if t >= at {
+                    value
+                } else {
+                    0.0
+                }
+            }
+        }
+    }
+
+    fn values(&self) -> Vec<f64> {
+        match *self {
+            Self::Constant(c) => vec![c],
+            Self::Sine {
+                amplitude,
+                omega,
+                phase,
+            } => vec![amplitude, omega, phase],
+            Self::Step { at, value } => vec![at, value],
+        }
+    }
+}
+
+fn sum(terms: &[Term], t: f64) -> f64 {
+    terms.iter().fold(0.0, |acc, term| acc + term.at(t))
+}
+
+/// The leader's inputs as sums of terms.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LeaderInputs {
+    /// Terms of `v1`, m/s.
+    pub v: Vec<Term>,
+    /// Terms of `w1`, rad/s.
+    pub w: Vec<Term>,
+}
+
+/// A change of the follower's set-points.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Setpoint {
+    /// Time, seconds.
+    pub at: f64,
+    /// New desired `l12`, metres.
+    #[serde(default)]
+    pub l12: Option<f64>,
+    /// New desired `alpha12`, radians.
+    #[serde(default)]
+    pub alpha12: Option<f64>,
+}
+
+/// A scenario file (see the module documentation).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioSpec {
+    /// Camera offset `d` of the follower, metres.
+    pub camera_offset: f64,
+    /// Frame rate, Hz (`dt = 1 / frame_rate`).
+    pub frame_rate: f64,
+    /// Duration, seconds.
+    pub duration: f64,
+    /// Follower's initial pose `[x, y, theta]`.
+    pub follower: [f64; 3],
+    /// Leader's initial pose `[x, y, theta]`.
+    pub leader: [f64; 3],
+    /// The leader's inputs.
+    pub leader_inputs: LeaderInputs,
+    /// The follower's set-point changes (none: it holds the initial formation).
+    #[serde(default)]
+    pub setpoints: Vec<Setpoint>,
+    /// Measurement noise standard deviations `[l12, alpha12, beta12]`.
+    pub noise_std: [f64; 3],
+    /// Constant measurement bias, if any.
+    #[serde(default)]
+    pub bias: Option<[f64; 3]>,
+    /// The filter's initial state `[x1, y1, theta1, l12, alpha12, beta12]` (the paper's by
+    /// default).
+    #[serde(default)]
+    pub filter_x0: Option<[f64; 6]>,
+}
+
+fn field(field: &str, reason: impl Into<String>) -> ScenarioFileError {
+    ScenarioFileError::Field {
+        field: field.into(),
+        reason: reason.into(),
+    }
+}
+
+fn finite(name: &str, values: &[f64]) -> Result<(), ScenarioFileError> {
+    if values.iter().all(|v| v.is_finite()) {
+        Ok(())
+    } else {
+        Err(field(name, "every value must be finite"))
+    }
+}
+
+impl ScenarioSpec {
+    /// Parses a scenario from text (JSON when `json`, else YAML) and checks its values.
+    ///
+    /// # Errors
+    /// [`ScenarioFileError::Parse`] (with `path` as given) or [`ScenarioFileError::Field`].
+    pub fn parse(text: &str, json: bool, path: &Path) -> Result<Self, ScenarioFileError> {
+        let spec: Self =
+            textfile::parse(text, json).map_err(|message| ScenarioFileError::Parse {
+                path: path.to_path_buf(),
+                message,
+            })?;
+        spec.check()?;
+        Ok(spec)
+    }
+
+    /// Reads and checks a scenario file.
+    ///
+    /// # Errors
+    /// As [`ScenarioSpec::parse`], or the file cannot be read.
+    pub fn load(path: &Path) -> Result<Self, ScenarioFileError> {
+        let (text, json) = textfile::read(path).map_err(|source| ScenarioFileError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::parse(&text, json, path)
+    }
+
+    fn check(&self) -> Result<(), ScenarioFileError> {
+        if !(self.camera_offset.is_finite() && self.camera_offset > 0.0) {
+            return Err(field("camera_offset", "must be finite and > 0"));
+        }
+        if !(self.frame_rate.is_finite() && self.frame_rate > 0.0) {
+            return Err(field("frame_rate", "must be finite and > 0"));
+        }
+        if !(self.duration.is_finite() && self.duration > 0.0) {
+            return Err(field("duration", "must be finite and > 0"));
+        }
+        finite("follower", &self.follower)?;
+        finite("leader", &self.leader)?;
+        finite("noise_std", &self.noise_std)?;
+        if self.noise_std.iter().any(|&s| s <= 0.0) {
+            return Err(field("noise_std", "every deviation must be > 0"));
+        }
+        for (name, terms) in [
+            ("leader_inputs.v", &self.leader_inputs.v),
+            ("leader_inputs.w", &self.leader_inputs.w),
+        ] {
+            for term in terms {
+                finite(name, &term.values())?;
+            }
+        }
+        for (i, s) in self.setpoints.iter().enumerate() {
+            let name = format!("setpoints[{i}]");
+            finite(
+                &name,
+                &[s.at, s.l12.unwrap_or(1.0), s.alpha12.unwrap_or(0.0)],
+            )?;
+            if s.l12.is_some_and(|l| l <= 0.0) {
+                return Err(field(&name, "l12 must be > 0"));
+            }
+        }
+        if let Some(b) = &self.bias {
+            finite("bias", b)?;
+        }
+        if let Some(x0) = &self.filter_x0 {
+            finite("filter_x0", x0)?;
+        }
+        Ok(())
+    }
+
+    /// The simulation configuration with `seed`; the bias is the file's, or the paper's when
+    /// `paper_bias` and the file gives none.
+    pub fn config(&self, seed: u64, paper_bias: bool) -> ScenarioConfig {
+        let [fx, fy, ft] = self.follower;
+        let [lx, ly, lt] = self.leader;
+        ScenarioConfig {
+            d: self.camera_offset,
+            dt: 1.0 / self.frame_rate,
+            duration: self.duration,
+            follower0: Pose::new(fx, fy, ft),
+            leader0: Pose::new(lx, ly, lt),
+            noise_std: self.noise_std,
+            bias: self.bias.or(paper_bias.then_some(PAPER_BIAS)),
+            seed,
+        }
+    }
+
+    /// The leader's inputs at time `t`.
+    pub fn leader_inputs(&self, t: f64) -> Inputs {
+        Inputs::new(sum(&self.leader_inputs.v, t), sum(&self.leader_inputs.w, t))
+    }
+
+    /// Simulates the scenario with `seed`.
+    ///
+    /// # Errors
+    /// As [`simulate_scheduled`].
+    pub fn simulate(&self, seed: u64, paper_bias: bool) -> Result<Scenario, ScenarioError> {
+        let changes: Vec<SetpointChange> = self
+            .setpoints
+            .iter()
+            .map(|s| SetpointChange {
+                at: s.at,
+                l12: s.l12,
+                alpha12: s.alpha12,
+            })
+            .collect();
+        simulate_scheduled(
+            &self.config(seed, paper_bias),
+            |t| self.leader_inputs(t),
+            &changes,
+        )
+    }
+
+    /// The filter's initial state: `filter_x0`, or the paper's.
+    pub fn filter_x0(&self) -> [f64; 6] {
+        self.filter_x0.unwrap_or(PAPER_X0)
+    }
+
+    /// The filter configuration: [`Self::filter_x0`] with the reference tuning.
+    pub fn filter_config(&self) -> FilterConfig {
+        FilterConfig::new(
+            self.camera_offset,
+            1.0 / self.frame_rate,
+            PolarState::from_row_slice(&self.filter_x0()),
+        )
+    }
+
+    /// Simulates and filters the scenario with `seed`.
+    ///
+    /// # Errors
+    /// Any [`ReproduceError`].
+    pub fn reproduce(&self, seed: u64, paper_bias: bool) -> Result<Reproduction, ReproduceError> {
+        let scenario = self.simulate(seed, paper_bias)?;
+        run_filter(&scenario, &self.filter_config())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MINIMAL: &str = "camera_offset: 0.5\nframe_rate: 30\nduration: 1.0\n\
+        follower: [0, 0, 0]\nleader: [1.5, 0.25, 0]\n\
+        leader_inputs: {v: [{constant: 0.8}], w: [{step: {at: 0.5, value: 0.1}}]}\n\
+        noise_std: [0.07, 0.03, 0.03]\n";
+
+    #[test]
+    fn terms_sum_and_steps_start_at_their_time() {
+        let spec = ScenarioSpec::parse(MINIMAL, false, Path::new("x.yaml")).unwrap();
+        assert_eq!(spec.leader_inputs(0.4), Inputs::new(0.8, 0.0));
+        assert_eq!(spec.leader_inputs(0.5), Inputs::new(0.8, 0.1));
+        assert_eq!(spec.filter_x0(), PAPER_X0);
+        assert_eq!(spec.config(3, false).steps(), 30);
+    }
+
+    #[test]
+    fn parse_errors_name_the_field() {
+        let typo = MINIMAL.replace("frame_rate", "frame_rat");
+        let err = ScenarioSpec::parse(&typo, false, Path::new("x.yaml"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("frame_rat"), "{err}");
+        let bad = MINIMAL.replace("duration: 1.0", "duration: -1.0");
+        let err = ScenarioSpec::parse(&bad, false, Path::new("x.yaml"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("`duration`"), "{err}");
+        let bad = MINIMAL.replace("constant: 0.8", "cosine: 0.8");
+        let err = ScenarioSpec::parse(&bad, false, Path::new("x.yaml"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("cosine"), "{err}");
+    }
+
+    #[test]
+    fn a_setpoint_change_moves_the_formation() {
+        let text = MINIMAL.replace("duration: 1.0", "duration: 6.0")
+            + "setpoints: [{at: 1.0, l12: 1.5}]\n";
+        let spec = ScenarioSpec::parse(&text, false, Path::new("x.yaml")).unwrap();
+        let run = spec.simulate(1, false).unwrap();
+        let l_end = run.samples.last().unwrap().truth[3];
+        assert!((l_end - 1.5).abs() < 0.01, "l12 at the end {l_end}");
+    }
+}
