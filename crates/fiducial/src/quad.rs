@@ -31,167 +31,228 @@ pub struct QuadLimits {
 /// Fits four corners (pixel coordinates of contour points, clockwise in the image) to a closed
 /// contour, or `None` if the contour is not a quadrilateral within `limits`.
 pub fn fit_quad(contour: &[[i32; 2]], limits: &QuadLimits) -> Option<[[f64; 2]; 4]> {
-    let n = contour.len();
-    if n < 8 {
+    if contour.len() < 8 {
         return None;
     }
-    let p = |i: usize| -> [f64; 2] {
-        let q = contour[i % n];
-        [f64::from(q[0]), f64::from(q[1])]
-    };
-    let (mut cx, mut cy) = (0.0, 0.0);
-    for q in contour {
-        cx += f64::from(q[0]);
-        cy += f64::from(q[1]);
+    let contour = Contour(contour);
+    let mut v = contour.greedy_vertices()?;
+    contour.settle_vertices(&mut v);
+    let lines = contour.side_lines(&v, limits)?;
+    let corners = contour.corners(&lines, &v, limits)?;
+    convex_clockwise(&corners, limits.min_angle_deg).then_some(corners)
+}
+
+/// A closed contour (at least 8 points) and the point searches of the quad fit.
+#[derive(Clone, Copy)]
+struct Contour<'a>(&'a [[i32; 2]]);
+
+impl Contour<'_> {
+    fn len(&self) -> usize {
+        self.0.len()
     }
-    cx /= n as f64;
-    cy /= n as f64;
-    let far_from = |x: f64, y: f64| -> usize {
+
+    /// Point `i` (circular) as pixel coordinates.
+    #[inline]
+    fn p(&self, i: usize) -> [f64; 2] {
+        let q = self.0[i % self.len()];
+        [f64::from(q[0]), f64::from(q[1])]
+    }
+
+    /// The first point farthest from `(x, y)`.
+    fn farthest_from_point(&self, x: f64, y: f64) -> usize {
         let mut best = (0usize, -1.0f64);
-        for (i, q) in contour.iter().enumerate() {
+        for (i, q) in self.0.iter().enumerate() {
             let d = (f64::from(q[0]) - x).powi(2) + (f64::from(q[1]) - y).powi(2);
             if d > best.1 {
                 best = (i, d);
             }
         }
         best.0
-    };
-    let i0 = far_from(cx, cy);
-    let [x0, y0] = p(i0);
-    let i2 = far_from(x0, y0);
-    if i2 == i0 {
-        return None;
     }
-    // Farthest point strictly inside the circular arc a -> b from the chord p(a) p(b).
-    let farthest = |a: usize, b: usize| -> (usize, f64) {
-        let [ax, ay] = p(a);
-        let [bx, by] = p(b);
+
+    /// The point strictly inside the circular arc `a -> b` farthest from the chord
+    /// `p(a) p(b)`, and its distance (`(a, 0)` when none is off the chord).
+    fn farthest_from_chord(&self, a: usize, b: usize) -> (usize, f64) {
+        let n = self.len();
+        let [ax, ay] = self.p(a);
+        let [bx, by] = self.p(b);
         let (dx, dy) = (bx - ax, by - ay);
         let len = (dx * dx + dy * dy).sqrt().max(1e-9);
         let span = (b + n - a) % n;
         let mut best = (a, 0.0f64);
         for k in 1..span {
             let i = (a + k) % n;
-            let [qx, qy] = p(i);
+            let [qx, qy] = self.p(i);
             let d = ((qx - ax) * dy - (qy - ay) * dx).abs() / len;
             if d > best.1 {
                 best = (i, d);
             }
         }
         best
-    };
-    // Vertices in contour order, kept as contour indices.
-    let (first, second) = if i0 < i2 { (i0, i2) } else { (i2, i0) };
-    let mut v = [first, second, 0, 0];
-    let mut count = 2;
-    while count < 4 {
-        let mut best = (usize::MAX, 0usize, -1.0f64); // (arc start slot, point, deviation)
-        for s in 0..count {
-            let (a, b) = (v[s], v[(s + 1) % count]);
-            let (i, d) = farthest(a, b);
-            if d > best.2 {
-                best = (s, i, d);
-            }
+    }
+
+    /// Four vertices in contour order (contour indices): the point farthest from the
+    /// centroid, the point farthest from it, then twice the point farthest from its chord on
+    /// whichever arc deviates most. `None` for a contour with no such four points.
+    fn greedy_vertices(&self) -> Option<[usize; 4]> {
+        let n = self.len();
+        let (mut cx, mut cy) = (0.0, 0.0);
+        for q in self.0 {
+            cx += f64::from(q[0]);
+            cy += f64::from(q[1]);
         }
-        if best.2 <= 0.0 || best.0 == usize::MAX {
+        cx /= n as f64;
+        cy /= n as f64;
+        let i0 = self.farthest_from_point(cx, cy);
+        let [x0, y0] = self.p(i0);
+        let i2 = self.farthest_from_point(x0, y0);
+        if i2 == i0 {
             return None;
         }
-        // Insert after slot best.0, keeping contour order.
-        let slot = best.0 + 1;
-        for k in (slot..count).rev() {
-            v[k + 1] = v[k];
-        }
-        v[slot] = best.1;
-        count += 1;
-    }
-    // The first two vertices are the farthest pair, and the others the farthest from a chord
-    // through them; when two sides are parallel (a face turned about an axis parallel to
-    // them: a trapezoid), every point of the side opposite that chord is equally far and the
-    // vertex chosen may lie anywhere along it. Each vertex is therefore re-chosen as the
-    // farthest point from the chord of its two neighbours, which is a true corner whenever
-    // those neighbours are (two rounds settle every case seen). A vertex moves only to a
-    // point farther from the chord *and* more than 1.5 px away: two contour points within a
-    // diagonal step of each other are the same corner to digitisation, and a small marker
-    // whose border the threshold notched keeps its first, equally good vertex.
-    for _ in 0..2 {
-        for i in 0..4 {
-            let (a, b) = (v[(i + 3) % 4], v[(i + 1) % 4]);
-            let (k, d) = farthest(a, b);
-            let [ax, ay] = p(a);
-            let [bx, by] = p(b);
-            let [qx, qy] = p(v[i]);
-            let [kx, ky] = p(k);
-            let (dx, dy) = (bx - ax, by - ay);
-            let current = ((qx - ax) * dy - (qy - ay) * dx).abs() / dx.hypot(dy).max(1e-9);
-            if d > current && (kx - qx).hypot(ky - qy) > 1.5 {
-                v[i] = k;
+        let (first, second) = if i0 < i2 { (i0, i2) } else { (i2, i0) };
+        let mut v = [first, second, 0, 0];
+        let mut count = 2;
+        while count < 4 {
+            let mut best = (usize::MAX, 0usize, -1.0f64); // (arc start slot, point, deviation)
+            for s in 0..count {
+                let (a, b) = (v[s], v[(s + 1) % count]);
+                let (i, d) = self.farthest_from_chord(a, b);
+                if d > best.2 {
+                    best = (s, i, d);
+                }
             }
-        }
-    }
-    // Each arc must be straight. Blur and the threshold blunt the corners, so the vertices
-    // found may sit a pixel or more inside the true corners (most on small, sharp-cornered
-    // views): a line is fitted to the middle two thirds of each arc, those points must lie
-    // within the tolerance of it, and the corners are the intersections of adjacent lines.
-    let mut lines = [[0.0f64; 3]; 4];
-    let inside = v.iter().fold([0.0, 0.0], |m, &i| {
-        let [x, y] = p(i);
-        [m[0] + x / 4.0, m[1] + y / 4.0]
-    });
-    for s in 0..4 {
-        let (a, b) = (v[s], v[(s + 1) % 4]);
-        let [ax, ay] = p(a);
-        let [bx, by] = p(b);
-        let len = (bx - ax).hypot(by - ay);
-        if len < limits.min_side {
-            return None;
-        }
-        let span = (b + n - a) % n;
-        let trim = span / 6;
-        let (from, count) = (a + trim, span + 1 - 2 * trim);
-        let tol = limits.line_tolerance + limits.line_tolerance_rel * len;
-        let mut line = fit_line(contour, from, count, None)?;
-        if !deviations(contour, from, count, &line, tol, inside).straight() {
-            // A notched side: on a small or oblique marker whose border is one or two pixels
-            // wide, blur lets a white data cell break through the border in the binary image,
-            // and the contour dives into the marker there. Such dents only go inwards and
-            // leave most of the side on its line: starting from the chord of the two
-            // vertices (which blunted or bulging corners may put a pixel off the side), the
-            // line is refitted three times to the points not more than the tolerance, then
-            // less, then `DENT_BAND` inside it, and the side is accepted if no point sticks
-            // out beyond the tolerance and at most half of them are in dents (the grey-level
-            // refinement never sees the binary image).
-            line = chord_line(p(a), p(b))?;
-            for band in [tol, 0.5 * (tol + DENT_BAND), DENT_BAND] {
-                line = fit_line(contour, from, count, Some((&line, inside, tol, band)))?;
-            }
-            let d = deviations(contour, from, count, &line, tol, inside);
-            if d.outward > 0 || 2 * d.inward > count {
+            if best.2 <= 0.0 || best.0 == usize::MAX {
                 return None;
             }
+            // Insert after slot best.0, keeping contour order.
+            let slot = best.0 + 1;
+            for k in (slot..count).rev() {
+                v[k + 1] = v[k];
+            }
+            v[slot] = best.1;
+            count += 1;
         }
-        lines[s] = line;
+        Some(v)
     }
-    let mut corners = [[0.0; 2]; 4];
-    for (i, c) in corners.iter_mut().enumerate() {
-        let (l1, l2) = (lines[(i + 3) % 4], lines[i]);
-        let det = l1[0] * l2[1] - l1[1] * l2[0];
-        if det.abs() < 1e-6 {
+
+    /// Re-chooses each vertex as the point farthest from the chord of its two neighbours.
+    ///
+    /// The first two vertices are the farthest pair, and the others the farthest from a chord
+    /// through them; when two sides are parallel (a face turned about an axis parallel to
+    /// them: a trapezoid), every point of the side opposite that chord is equally far and the
+    /// vertex chosen may lie anywhere along it. Re-chosen this way a vertex is a true corner
+    /// whenever its neighbours are (two rounds settle every case seen). A vertex moves only
+    /// to a point farther from the chord *and* more than 1.5 px away: two contour points
+    /// within a diagonal step of each other are the same corner to digitisation, and a small
+    /// marker whose border the threshold notched keeps its first, equally good vertex.
+    fn settle_vertices(&self, v: &mut [usize; 4]) {
+        for _ in 0..2 {
+            for i in 0..4 {
+                let (a, b) = (v[(i + 3) % 4], v[(i + 1) % 4]);
+                let (k, d) = self.farthest_from_chord(a, b);
+                let [ax, ay] = self.p(a);
+                let [bx, by] = self.p(b);
+                let [qx, qy] = self.p(v[i]);
+                let [kx, ky] = self.p(k);
+                let (dx, dy) = (bx - ax, by - ay);
+                let current = ((qx - ax) * dy - (qy - ay) * dx).abs() / dx.hypot(dy).max(1e-9);
+                if d > current && (kx - qx).hypot(ky - qy) > 1.5 {
+                    v[i] = k;
+                }
+            }
+        }
+    }
+
+    /// The line of each side `v[s] -> v[s + 1]`, or `None` if a side is too short or not
+    /// straight.
+    ///
+    /// Blur and the threshold blunt the corners, so the vertices found may sit a pixel or
+    /// more inside the true corners (most on small, sharp-cornered views): a line is fitted
+    /// to the middle two thirds of each arc, and those points must lie within the tolerance
+    /// of it (see [`Contour::notched_side_line`] for a side the threshold notched).
+    fn side_lines(&self, v: &[usize; 4], limits: &QuadLimits) -> Option<[[f64; 3]; 4]> {
+        let n = self.len();
+        let mut lines = [[0.0f64; 3]; 4];
+        let inside = v.iter().fold([0.0, 0.0], |m, &i| {
+            let [x, y] = self.p(i);
+            [m[0] + x / 4.0, m[1] + y / 4.0]
+        });
+        for s in 0..4 {
+            let (a, b) = (v[s], v[(s + 1) % 4]);
+            let [ax, ay] = self.p(a);
+            let [bx, by] = self.p(b);
+            let len = (bx - ax).hypot(by - ay);
+            if len < limits.min_side {
+                return None;
+            }
+            let span = (b + n - a) % n;
+            let trim = span / 6;
+            let (from, count) = (a + trim, span + 1 - 2 * trim);
+            let tol = limits.line_tolerance + limits.line_tolerance_rel * len;
+            let line = fit_line(self.0, from, count, None)?;
+            lines[s] = if deviations(self.0, from, count, &line, tol, inside).straight() {
+                line
+            } else {
+                self.notched_side_line((a, b), (from, count), tol, inside)?
+            };
+        }
+        Some(lines)
+    }
+
+    /// The line of a side that is not straight, if it is a notched one.
+    ///
+    /// On a small or oblique marker whose border is one or two pixels wide, blur lets a white
+    /// data cell break through the border in the binary image, and the contour dives into the
+    /// marker there. Such dents only go inwards and leave most of the side on its line:
+    /// starting from the chord of the two vertices (which blunted or bulging corners may put
+    /// a pixel off the side), the line is refitted three times to the points not more than
+    /// the tolerance, then less, then `DENT_BAND` inside it, and the side is accepted if no
+    /// point sticks out beyond the tolerance and at most half of them are in dents (the
+    /// grey-level refinement never sees the binary image).
+    fn notched_side_line(
+        &self,
+        (a, b): (usize, usize),
+        (from, count): (usize, usize),
+        tol: f64,
+        inside: [f64; 2],
+    ) -> Option<[f64; 3]> {
+        let mut line = chord_line(self.p(a), self.p(b))?;
+        for band in [tol, 0.5 * (tol + DENT_BAND), DENT_BAND] {
+            line = fit_line(self.0, from, count, Some((&line, inside, tol, band)))?;
+        }
+        let d = deviations(self.0, from, count, &line, tol, inside);
+        if d.outward > 0 || 2 * d.inward > count {
             return None;
         }
-        let x = (l1[2] * l2[1] - l2[2] * l1[1]) / det;
-        let y = (l1[0] * l2[2] - l2[0] * l1[2]) / det;
-        let [vx, vy] = p(v[i]);
-        // The intersection must stay near the vertex found (not run off along a side).
-        let moved = (x - vx).hypot(y - vy);
-        if moved.is_nan() || moved > 0.25 * limits.min_side.max(4.0) + 3.0 {
-            return None;
+        Some(line)
+    }
+
+    /// The corners: intersections of adjacent side lines, each of which must stay near the
+    /// vertex found (not run off along a side).
+    fn corners(
+        &self,
+        lines: &[[f64; 3]; 4],
+        v: &[usize; 4],
+        limits: &QuadLimits,
+    ) -> Option<[[f64; 2]; 4]> {
+        let mut corners = [[0.0; 2]; 4];
+        for (i, c) in corners.iter_mut().enumerate() {
+            let (l1, l2) = (lines[(i + 3) % 4], lines[i]);
+            let det = l1[0] * l2[1] - l1[1] * l2[0];
+            if det.abs() < 1e-6 {
+                return None;
+            }
+            let x = (l1[2] * l2[1] - l2[2] * l1[1]) / det;
+            let y = (l1[0] * l2[2] - l2[0] * l1[2]) / det;
+            let [vx, vy] = self.p(v[i]);
+            let moved = (x - vx).hypot(y - vy);
+            if moved.is_nan() || moved > 0.25 * limits.min_side.max(4.0) + 3.0 {
+                return None;
+            }
+            *c = [x, y];
         }
-        *c = [x, y];
+        Some(corners)
     }
-    if !convex_clockwise(&corners, limits.min_angle_deg) {
-        return None;
-    }
-    Some(corners)
 }
 
 /// How far inside a notched side's line its points may lie and still be fitted in the end,

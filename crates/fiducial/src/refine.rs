@@ -287,6 +287,113 @@ impl Refiner {
         cell: f64,
         cfg: &RefineConfig,
     ) -> Option<(Line, f64)> {
+        let st = Stations::new(a, b, pass, cell, cfg)?;
+        let (mut mins, maxs) = self.sample_profiles(img, &st, pass);
+        let m = st.count.min(MAX_LEVELS);
+        let levels = Levels::new(&mut mins[..m], &maxs[..m]);
+        let mut csum = 0.0;
+        self.pts.clear();
+        for (i, ([px, py], prof)) in self.profiles.iter().enumerate().take(m) {
+            let (lo, hi) = levels.at(i);
+            if hi - lo < cfg.min_edge_contrast {
+                continue;
+            }
+            csum += hi - lo;
+            if let Some(pos) = edge_in_profile(&prof[..=st.k_max], st.half, lo, hi) {
+                self.pts.push([px + pos * st.n[0], py + pos * st.n[1], 1.0]);
+            }
+        }
+        let contrast = csum / self.pts.len().max(1) as f64;
+        if self.pts.len() < 2 || self.pts.len() * 2 < st.count {
+            return None;
+        }
+        Some((self.fit_without_outliers()?, contrast))
+    }
+
+    /// Samples the edge profile of every station (into `self.profiles`) and returns each
+    /// profile's minimum and negated maximum, for the first [`MAX_LEVELS`] stations.
+    fn sample_profiles(
+        &mut self,
+        img: &GrayView<'_>,
+        st: &Stations,
+        pass: usize,
+    ) -> ([f64; MAX_LEVELS], [f64; MAX_LEVELS]) {
+        self.profiles.clear();
+        let mut mins = [0.0f64; MAX_LEVELS];
+        let mut maxs = [0.0f64; MAX_LEVELS];
+        // The first pass starts from the coarse corners, whose true edge lies about half a
+        // pixel outside the dark pixel centres; the second from the refined lines.
+        let offset = if pass == 0 { 0.5 } else { 0.0 };
+        let (t, n) = (st.t, st.n);
+        for s in 0..st.count {
+            let d = st.margin + s as f64 * st.spacing;
+            let px = st.a[0] + d * t[0] + offset * n[0];
+            let py = st.a[1] + d * t[1] + offset * n[1];
+            let mut prof = [0.0f64; PROFILE];
+            sample_profile(
+                img,
+                [px - st.half * n[0], py - st.half * n[1]],
+                [STEP * n[0], STEP * n[1]],
+                &mut prof[..=st.k_max],
+            );
+            let (mut plo, mut phi) = (f64::MAX, f64::MIN);
+            for &v in &prof[..=st.k_max] {
+                plo = plo.min(v);
+                phi = phi.max(v);
+            }
+            if s < MAX_LEVELS {
+                mins[s] = plo;
+                maxs[s] = -phi;
+            }
+            self.profiles.push(([px, py], prof));
+        }
+        (mins, maxs)
+    }
+
+    /// Fits a line to `self.pts`, drops the points more than 0.75 px off it and refits.
+    fn fit_without_outliers(&mut self) -> Option<Line> {
+        let line = fit_line(&self.pts)?;
+        let tol = 0.75;
+        self.pts
+            .retain(|p| (line.n[0] * p[0] + line.n[1] * p[1] - line.c).abs() <= tol);
+        if self.pts.len() < 2 {
+            return None;
+        }
+        fit_line(&self.pts)
+    }
+}
+
+/// Spacing of the samples of an edge profile, pixels.
+const STEP: f64 = 0.5;
+
+/// Stations whose profile minima and maxima set the edge levels (the rest are sampled too).
+const MAX_LEVELS: usize = 64;
+
+/// Where the edge profiles of one side are taken.
+#[derive(Debug, Clone, Copy)]
+struct Stations {
+    /// The side's start.
+    a: [f64; 2],
+    /// Unit direction along the side.
+    t: [f64; 2],
+    /// Unit outward normal.
+    n: [f64; 2],
+    /// Distance of the first station from `a`.
+    margin: f64,
+    /// Number of stations.
+    count: usize,
+    /// Distance between stations.
+    spacing: f64,
+    /// Half-length of a profile, pixels.
+    half: f64,
+    /// Index of a profile's last sample.
+    k_max: usize,
+}
+
+impl Stations {
+    /// Stations along the side `a -> b` for refinement pass `pass`, with `cell` the estimated
+    /// border-cell width across it; `None` for a side too short to have any.
+    fn new(a: [f64; 2], b: [f64; 2], pass: usize, cell: f64, cfg: &RefineConfig) -> Option<Self> {
         let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
         let len = (dx * dx + dy * dy).sqrt();
         if len.is_nan() || len <= 2.0 {
@@ -305,8 +412,8 @@ impl Refiner {
         } else {
             cfg.max_stations.max(2)
         };
-        let stations = ((usable / cfg.station_spacing.max(0.5)) as usize + 1).clamp(2, cap);
-        let step_s = usable / (stations - 1) as f64;
+        let count = ((usable / cfg.station_spacing.max(0.5)) as usize + 1).clamp(2, cap);
+        let spacing = usable / (count - 1) as f64;
         // Half-width of the profile: wide enough for blur, short enough to stay inside the
         // border cell on small markers (`min` ignores a NaN cell width, `max` a NaN cap).
         let half = if pass == 0 {
@@ -318,58 +425,56 @@ impl Refiner {
                 .max(1.5);
             (0.1 * len).clamp(1.5, cap)
         };
-        const STEP: f64 = 0.5;
         let k_max = ((2.0 * half / STEP).round() as usize).min(PROFILE - 1);
-        self.profiles.clear();
-        self.pts.clear();
-        let mut mins = [0.0f64; 64];
-        let mut maxs = [0.0f64; 64];
-        for s in 0..stations {
-            let d = margin + s as f64 * step_s;
-            // The first pass starts from the coarse corners, whose true edge lies about half
-            // a pixel outside the dark pixel centres; the second from the refined lines.
-            let offset = if pass == 0 { 0.5 } else { 0.0 };
-            let px = a[0] + d * t[0] + offset * n[0];
-            let py = a[1] + d * t[1] + offset * n[1];
-            let mut prof = [0.0f64; PROFILE];
-            sample_profile(
-                img,
-                [px - half * n[0], py - half * n[1]],
-                [STEP * n[0], STEP * n[1]],
-                &mut prof[..=k_max],
-            );
-            let (mut plo, mut phi) = (f64::MAX, f64::MIN);
-            for &v in &prof[..=k_max] {
-                plo = plo.min(v);
-                phi = phi.max(v);
-            }
-            if s < mins.len() {
-                mins[s] = plo;
-                maxs[s] = -phi;
-            }
-            self.profiles.push(([px, py], prof));
-        }
-        let m = stations.min(mins.len());
-        // Each station's dark and light levels. Stations next to a white data cell see a dark
-        // level lifted by blur (on small markers), stations next to a black one see the true
-        // dark, so a low percentile of the minima over the whole side is the border's own
-        // level; noise pushes minima and maxima alike, so their midpoint stays unbiased.
-        // Lighting may vary along the side: the light level (the quiet zone, never
-        // contaminated) is taken over each half of the side and interpolated linearly, and
-        // the dark level scales with it (reflectance times light).
+        Some(Self {
+            a,
+            t,
+            n,
+            margin,
+            count,
+            spacing,
+            half,
+            k_max,
+        })
+    }
+}
+
+/// The dark and light levels of each station of a side.
+///
+/// Stations next to a white data cell see a dark level lifted by blur (on small markers),
+/// stations next to a black one see the true dark, so a low percentile of the minima over the
+/// whole side is the border's own level; noise pushes minima and maxima alike, so their
+/// midpoint stays unbiased. Lighting may vary along the side: the light level (the quiet
+/// zone, never contaminated) is taken over each half of the side and interpolated linearly,
+/// and the dark level scales with it (reflectance times light).
+#[derive(Debug, Clone, Copy)]
+struct Levels {
+    lo_all: f64,
+    hi_all: f64,
+    hi_a: f64,
+    hi_b: f64,
+    /// Station positions (fractional indices) where the light level is `hi_a`, `hi_b`.
+    c_a: f64,
+    c_b: f64,
+}
+
+impl Levels {
+    /// From the profile minima (reordered in place) and negated maxima of the stations.
+    fn new(mins: &mut [f64], maxs: &[f64]) -> Self {
+        let m = mins.len();
         let pct = |v: &mut [f64]| -> f64 {
             let rank = v.len() / 10;
             *v.select_nth_unstable_by(rank, |a: &f64, b: &f64| a.total_cmp(b))
                 .1
         };
-        let lo_all = pct(&mut mins[..m]);
-        let mut all = [0.0f64; 64];
+        let lo_all = pct(mins);
+        let mut all = [0.0f64; MAX_LEVELS];
         all[..m].copy_from_slice(&maxs[..m]);
         let hi_all = -pct(&mut all[..m]);
         let half_m = m / 2;
         let (hi_a, hi_b, c_a, c_b) = if m >= 6 {
-            let mut a = [0.0f64; 64];
-            let mut b = [0.0f64; 64];
+            let mut a = [0.0f64; MAX_LEVELS];
+            let mut b = [0.0f64; MAX_LEVELS];
             a[..half_m].copy_from_slice(&maxs[..half_m]);
             b[..m - half_m].copy_from_slice(&maxs[half_m..m]);
             let (ha, hb) = (-pct(&mut a[..half_m]), -pct(&mut b[..m - half_m]));
@@ -388,53 +493,48 @@ impl Refiner {
         } else {
             (hi_all, hi_all, 0.0, 1.0)
         };
-        let mut csum = 0.0;
-        for (i, ([px, py], prof)) in self.profiles.iter().enumerate().take(m) {
-            let t = (i as f64 - c_a) / (c_b - c_a);
-            let hi = hi_a + (hi_b - hi_a) * t;
-            let lo = if hi_all > 0.0 {
-                lo_all * hi / hi_all
-            } else {
-                lo_all
-            };
-            if hi - lo < cfg.min_edge_contrast {
-                continue;
-            }
-            csum += hi - lo;
-            let mid = 0.5 * (lo + hi);
-            // The upward crossing nearest the profile centre.
-            let mut best: Option<f64> = None;
-            for k in 0..k_max {
-                let (g0, g1) = (prof[k], prof[k + 1]);
-                if g0 < mid && g1 >= mid {
-                    let pos = (k as f64 + (mid - g0) / (g1 - g0)) * STEP - half;
-                    if best.is_none_or(|p| pos.abs() < p.abs()) {
-                        best = Some(pos);
-                    }
-                }
-            }
-            if let Some(pos) = best {
-                // The crossing of interpolated samples is biased by up to a tenth of a pixel
-                // depending on the edge's phase against the pixel grid ("pixel locking");
-                // the area over a window centred on it is not, and shrinks its error.
-                let pos = area_edge(&prof[..=k_max], STEP, half, pos, lo, hi).unwrap_or(pos);
-                self.pts.push([px + pos * n[0], py + pos * n[1], 1.0]);
-            }
+        Self {
+            lo_all,
+            hi_all,
+            hi_a,
+            hi_b,
+            c_a,
+            c_b,
         }
-        let contrast = csum / self.pts.len().max(1) as f64;
-        if self.pts.len() < 2 || self.pts.len() * 2 < stations {
-            return None;
-        }
-        let line = fit_line(&self.pts)?;
-        // Drop outliers and refit.
-        let tol = 0.75;
-        self.pts
-            .retain(|p| (line.n[0] * p[0] + line.n[1] * p[1] - line.c).abs() <= tol);
-        if self.pts.len() < 2 {
-            return None;
-        }
-        Some((fit_line(&self.pts)?, contrast))
     }
+
+    /// `(dark, light)` at station `i`.
+    fn at(&self, i: usize) -> (f64, f64) {
+        let t = (i as f64 - self.c_a) / (self.c_b - self.c_a);
+        let hi = self.hi_a + (self.hi_b - self.hi_a) * t;
+        let lo = if self.hi_all > 0.0 {
+            self.lo_all * hi / self.hi_all
+        } else {
+            self.lo_all
+        };
+        (lo, hi)
+    }
+}
+
+/// The edge in a profile of samples `STEP` apart centred on its station (sample `k` at
+/// `k * STEP - half`): the upward crossing of the levels' midpoint nearest the centre, refined
+/// by the area method; `None` without a crossing.
+fn edge_in_profile(prof: &[f64], half: f64, lo: f64, hi: f64) -> Option<f64> {
+    let mid = 0.5 * (lo + hi);
+    let mut best: Option<f64> = None;
+    for k in 0..prof.len() - 1 {
+        let (g0, g1) = (prof[k], prof[k + 1]);
+        if g0 < mid && g1 >= mid {
+            let pos = (k as f64 + (mid - g0) / (g1 - g0)) * STEP - half;
+            if best.is_none_or(|p| pos.abs() < p.abs()) {
+                best = Some(pos);
+            }
+        }
+    }
+    // The crossing of interpolated samples is biased by up to a tenth of a pixel depending
+    // on the edge's phase against the pixel grid ("pixel locking"); the area over a window
+    // centred on it is not, and shrinks its error.
+    best.map(|pos| area_edge(prof, STEP, half, pos, lo, hi).unwrap_or(pos))
 }
 
 #[cfg(test)]

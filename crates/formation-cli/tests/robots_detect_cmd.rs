@@ -84,6 +84,42 @@ fn robots_match_the_truth_of_a_rendered_scene() {
             assert!(r[key].as_f64().is_some(), "{key}");
         }
     }
+    // The output format: every robot's field names, in this order.
+    let text = String::from_utf8(out.stdout.clone()).unwrap();
+    let fields = [
+        "robot",
+        "faces",
+        "rejected_faces",
+        "rotation",
+        "translation",
+        "reprojection_rms_px",
+        "l12",
+        "alpha12",
+        "beta12",
+        "covariance",
+        "ambiguous",
+        "ambiguity_ratio",
+        "ground_plane",
+    ];
+    for r in robots {
+        let keys: Vec<&str> = r.as_object().unwrap().keys().map(String::as_str).collect();
+        let mut sorted = fields.to_vec();
+        sorted.sort_unstable();
+        let mut got = keys.clone();
+        got.sort_unstable();
+        assert_eq!(got, sorted, "robot fields");
+    }
+    let robots_text = &text[text.find("\"robots\":[").expect("a robots array")..];
+    for object in robots_text.split("{\"robot\":").skip(1).take(robots.len()) {
+        let mut at = 0;
+        for name in &fields[1..] {
+            let key = format!(",\"{name}\":");
+            let pos = object[at..]
+                .find(&key)
+                .unwrap_or_else(|| panic!("field {name} missing or out of order in {object}"));
+            at += pos + key.len();
+        }
+    }
     // Without --camera, `robots` stays empty.
     let out = bin()
         .arg("detect")

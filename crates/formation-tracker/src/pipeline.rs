@@ -10,8 +10,9 @@
 //!    pose refined on the ground plane and turned into `(l12, alpha12, beta12)` with its
 //!    covariance. Those become [`PoseMeasurement::Formation`] observations. A robot seen
 //!    through a single face that `measure_robots` marks `ambiguous` is instead given to the
-//!    tracker as both planar candidates of `pose` ([`PoseMeasurement::Candidates`]), so the
-//!    tracker's prediction, not the reprojection RMS, chooses between them.
+//!    tracker as both planar candidates of `pose` that `measure_robots` computed for that
+//!    face ([`PoseMeasurement::Candidates`]), so the tracker's prediction, not the
+//!    reprojection RMS, chooses between them.
 //! 3. **Track** with [`Tracker::update`].
 //!
 //! The time spent in each stage is measured with `std::time::Instant` and returned in
@@ -174,8 +175,7 @@ impl Pipeline {
             &mount,
             &self.robot_config,
         );
-        let observations: Vec<Observation> =
-            found.robots.iter().map(|m| self.observation(m)).collect();
+        let observations: Vec<Observation> = found.robots.iter().map(observation).collect();
         let posed = Instant::now();
         let report = self.tracker.update(&FrameInput {
             t,
@@ -197,40 +197,23 @@ impl Pipeline {
             },
         })
     }
+}
 
-    /// The tracker's observation of one measured robot (see the module documentation).
-    fn observation(&self, m: &RobotMeasurement) -> Observation {
-        let formation = Observation {
+/// The tracker's observation of one measured robot (see the module documentation).
+fn observation(m: &RobotMeasurement) -> Observation {
+    match m.candidates {
+        Some(candidates) if m.ambiguous && m.faces.len() == 1 => Observation {
+            robot: m.robot,
+            points: 4,
+            pose: PoseMeasurement::Candidates(candidates),
+        },
+        _ => Observation {
             robot: m.robot,
             points: 4 * m.faces.len(),
             pose: PoseMeasurement::Formation(FormationMeasurement {
                 y: Vector3::new(m.l12, m.alpha12, m.beta12),
                 r: Matrix3::from_fn(|i, j| m.covariance[i][j]),
             }),
-        };
-        if !(m.ambiguous && m.faces.len() == 1) {
-            return formation;
-        }
-        let face = m.faces[0];
-        let Some(index) = self.rig.index_of(m.robot, face) else {
-            return formation;
-        };
-        let Some(marker) = self.markers.iter().find(|o| o.index == index) else {
-            return formation;
-        };
-        let Ok(geometry) = self.rig.face(face) else {
-            return formation;
-        };
-        match self
-            .solver
-            .planar_candidates(&geometry.corner_points(), &marker.corners)
-        {
-            Ok(candidates) => Observation {
-                robot: m.robot,
-                points: 4,
-                pose: PoseMeasurement::Candidates(candidates),
-            },
-            Err(_) => formation,
-        }
+        },
     }
 }

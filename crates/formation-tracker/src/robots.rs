@@ -17,7 +17,17 @@
 //!
 //! A robot seen through a single face gets both planar candidates from `pose`; the better
 //! one is kept and the robot is marked `ambiguous` when the other's reprojection RMS is
-//! within [`RobotConfig::ambiguity_ratio`] of it.
+//! within [`RobotConfig::ambiguity_ratio`] of it. Both candidates are returned with the
+//! measurement ([`RobotMeasurement::candidates`]) for a tracker that would rather choose by
+//! its prediction.
+//!
+//! # Ground plane
+//! The leader stands on the floor the follower stands on, and the camera mount is known, so
+//! only the leader's `(x, y, theta)` on the floor are free. With
+//! [`RobotConfig::ground_plane`] (the default) every candidate of the 6-DOF stage seeds
+//! `pose`'s refinement of a body on a plane ([`pose::PoseSolver::refine_on_plane`]), the
+//! plane being the follower's body frame seen from the camera; the best fit is kept, and
+//! for a single face the ambiguity is the other distinct fit's RMS over the best's.
 //!
 //! # Formation variables
 //! The pose (rig frame to camera frame) goes through the camera mount with
@@ -25,7 +35,7 @@
 //! vector, translation) through [`mount::propagate_covariance`].
 
 use nalgebra::{Matrix3, Point2, Point3, Rotation3, SMatrix, SVector, Vector3};
-use pose::{PoseError, PoseSolver};
+use pose::{PlaneFrame, PoseError, PoseSolver};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
@@ -96,137 +106,8 @@ pub enum RobotError {
     Rig(#[from] RigError),
 }
 
-/// Planar pose of a leader in the follower's body frame and its fit.
-#[derive(Debug, Clone, Copy)]
-struct Planar {
-    q: Vector3<f64>,
-    rms: f64,
-    cov: Matrix3<f64>,
-}
-
-/// Reprojection residuals (2 per corner) of the planar pose `q`; `None` if a corner falls
-/// behind the camera.
-fn planar_residuals(
-    q: &Vector3<f64>,
-    faces: &[FaceObs],
-    k: &pose::Intrinsics,
-    mount: &CameraMount,
-    out: &mut Vec<f64>,
-) -> Option<()> {
-    let (r, t) = mount.leader_to_camera(q.x, q.y, q.z);
-    out.clear();
-    for f in faces {
-        for (m, i) in f.model.iter().zip(&f.image) {
-            let p = k.project(&Point3::from(r * m.coords + t)).ok()?;
-            out.push(p.x - i.x);
-            out.push(p.y - i.y);
-        }
-    }
-    Some(())
-}
-
-/// Levenberg-Marquardt on `(x, y, theta)` from `q0`; numerical Jacobian (three parameters,
-/// a few dozen residuals: cheap), covariance `sigma^2 (J^T J)^-1` with the same noise floor
-/// as `pose` (0.1 px).
-fn refine_planar(
-    q0: Vector3<f64>,
-    faces: &[FaceObs],
-    k: &pose::Intrinsics,
-    mount: &CameraMount,
-) -> Option<Planar> {
-    let mut q = q0;
-    let mut e = Vec::new();
-    let mut ep = Vec::new();
-    let mut em = Vec::new();
-    planar_residuals(&q, faces, k, mount, &mut e)?;
-    let mut cost: f64 = e.iter().map(|v| v * v).sum();
-    let mut lambda = 1e-3;
-    let n = e.len();
-    let mut jac = vec![Vector3::zeros(); n];
-    for _ in 0..100 {
-        for j in 0..3 {
-            let h = if j == 2 {
-                1e-6
-            } else {
-                1e-6 * q[j].abs().max(0.1)
-            };
-            let mut qp = q;
-            qp[j] += h;
-            let mut qm = q;
-            qm[j] -= h;
-            planar_residuals(&qp, faces, k, mount, &mut ep)?;
-            planar_residuals(&qm, faces, k, mount, &mut em)?;
-            for i in 0..n {
-                jac[i][j] = (ep[i] - em[i]) / (2.0 * h);
-            }
-        }
-        let mut jtj = Matrix3::zeros();
-        let mut jte = Vector3::zeros();
-        for i in 0..n {
-            jtj += jac[i] * jac[i].transpose();
-            jte += jac[i] * e[i];
-        }
-        let mut improved = false;
-        while lambda < 1e10 {
-            let mut a = jtj;
-            for d in 0..3 {
-                a[(d, d)] *= 1.0 + lambda;
-            }
-            let Some(step) = a.lu().solve(&(-jte)) else {
-                lambda *= 10.0;
-                continue;
-            };
-            let qn = q + step;
-            if planar_residuals(&qn, faces, k, mount, &mut ep).is_some() {
-                let c: f64 = ep.iter().map(|v| v * v).sum();
-                if c < cost {
-                    let done = (cost - c) <= 1e-12 * cost.max(1e-30) || step.norm() < 1e-10;
-                    q = qn;
-                    cost = c;
-                    std::mem::swap(&mut e, &mut ep);
-                    lambda = (lambda / 10.0).max(1e-9);
-                    improved = true;
-                    if done {
-                        lambda = 0.0;
-                    }
-                    break;
-                }
-            }
-            lambda *= 10.0;
-        }
-        if !improved || lambda == 0.0 {
-            break;
-        }
-    }
-    if !q.iter().all(|v| v.is_finite()) {
-        return None;
-    }
-    let mut jtj = Matrix3::zeros();
-    for row in &jac {
-        jtj += row * row.transpose();
-    }
-    let dof = (n as f64 - 3.0).max(1.0);
-    let sigma2 = (cost / dof).max(0.01);
-    let cov = jtj.try_inverse()? * sigma2;
-    q.z = unicycle::wrap_angle(q.z);
-    Some(Planar {
-        q,
-        rms: (cost / (n as f64 / 2.0)).sqrt(),
-        cov,
-    })
-}
-
-/// The planar pose `(x, y, theta)` in the follower's body frame nearest a 6-DOF pose.
-fn planar_from_pose(p: &pose::Pose, mount: &CameraMount) -> Vector3<f64> {
-    let cam_to_body = mount.camera_to_body_rotation();
-    let r = cam_to_body * Rotation3::new(p.rotation);
-    let t = cam_to_body * p.translation + mount.camera_position();
-    let x_axis = r * Vector3::x();
-    Vector3::new(t.x, t.y, x_axis.y.atan2(x_axis.x))
-}
-
-/// One robot measured in a frame, as the `detect` command writes it.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// One robot measured in a frame.
+#[derive(Debug, Clone, PartialEq)]
 pub struct RobotMeasurement {
     /// Robot number.
     pub robot: u32,
@@ -254,6 +135,10 @@ pub struct RobotMeasurement {
     pub ambiguity_ratio: Option<f64>,
     /// The pose was refined on the ground plane ([`RobotConfig::ground_plane`]).
     pub ground_plane: bool,
+    /// A robot measured through a single face: both 6-DOF pose candidates of that face
+    /// (`pose`'s planar candidates, best first), for a tracker that chooses between them by
+    /// its prediction. `None` with two faces or more.
+    pub candidates: Option<[pose::Estimate; 2]>,
 }
 
 impl RobotMeasurement {
@@ -372,13 +257,22 @@ fn joint(
     Ok((sol, per_face))
 }
 
-fn measure_robot(
+/// The faces of a robot that agree with each other, the joint pose of those faces and the
+/// faces rejected (see the module documentation).
+struct Consistent {
+    faces: Vec<FaceObs>,
+    rejected: Vec<u8>,
+    solution: pose::PoseSolution,
+}
+
+/// Solves `faces` jointly and drops faces that disagree with the others while one stands
+/// out and at least two remain.
+fn consistent_faces(
     robot: u32,
     mut faces: Vec<FaceObs>,
     solver: &PoseSolver,
-    mount: &CameraMount,
     config: &RobotConfig,
-) -> Result<RobotMeasurement, RobotError> {
+) -> Result<Consistent, RobotError> {
     let mut rejected = Vec::new();
     let (mut sol, mut per_face) = joint(solver, &faces, robot)?;
     while faces.len() >= 2 && per_face.iter().any(|&r| r > config.outlier_px) {
@@ -386,112 +280,204 @@ fn measure_robot(
             // No majority: drop the smaller quad.
             usize::from(area(&faces[0].image) >= area(&faces[1].image))
         } else {
-            // Leave one out: the face whose removal fits the rest best, if that is a clear
-            // improvement.
-            let mut best: Option<(usize, f64)> = None;
-            for i in 0..faces.len() {
-                let rest: Vec<FaceObs> = faces
-                    .iter()
-                    .enumerate()
-                    .filter(|&(j, _)| j != i)
-                    .map(|(_, f)| FaceObs {
-                        face: f.face,
-                        model: f.model,
-                        image: f.image,
-                    })
-                    .collect();
-                if let Ok((s, _)) = joint(solver, &rest, robot)
-                    && best.is_none_or(|(_, r)| s.rms() < r)
-                {
-                    best = Some((i, s.rms()));
-                }
-            }
-            match best {
-                Some((i, r))
-                    if r < sol.rms() / config.outlier_factor || r <= config.outlier_px / 2.0 =>
-                {
-                    i
-                }
-                _ => break,
+            match face_to_leave_out(robot, &faces, solver, &sol, config) {
+                Some(i) => i,
+                None => break,
             }
         };
         rejected.push(faces.remove(drop).face);
         (sol, per_face) = joint(solver, &faces, robot)?;
     }
+    Ok(Consistent {
+        faces,
+        rejected,
+        solution: sol,
+    })
+}
+
+/// Leave one out: the face whose removal fits the rest best, if that is a clear improvement
+/// on the joint pose `sol`.
+fn face_to_leave_out(
+    robot: u32,
+    faces: &[FaceObs],
+    solver: &PoseSolver,
+    sol: &pose::PoseSolution,
+    config: &RobotConfig,
+) -> Option<usize> {
+    let mut best: Option<(usize, f64)> = None;
+    for i in 0..faces.len() {
+        let rest: Vec<FaceObs> = faces
+            .iter()
+            .enumerate()
+            .filter(|&(j, _)| j != i)
+            .map(|(_, f)| FaceObs {
+                face: f.face,
+                model: f.model,
+                image: f.image,
+            })
+            .collect();
+        if let Ok((s, _)) = joint(solver, &rest, robot)
+            && best.is_none_or(|(_, r)| s.rms() < r)
+        {
+            best = Some((i, s.rms()));
+        }
+    }
+    match best {
+        Some((i, r)) if r < sol.rms() / config.outlier_factor || r <= config.outlier_px / 2.0 => {
+            Some(i)
+        }
+        _ => None,
+    }
+}
+
+/// The rig pose reported for a robot and what its covariance is of.
+struct RigFit {
+    rotation: Rotation3<f64>,
+    translation: Vector3<f64>,
+    rms: f64,
+    ambiguity_ratio: Option<f64>,
+    /// The fitted parameters and their covariance: `(x, y, theta, 0, 0, 0)` with the 3x3
+    /// block filled on the ground plane, the rotation vector and translation otherwise.
+    params: SVector<f64, 6>,
+    covariance: SMatrix<f64, 6, 6>,
+}
+
+/// The follower's body frame (the floor, z up) in the camera frame.
+fn ground_plane(mount: &CameraMount) -> PlaneFrame {
+    let rotation = mount.camera_to_body_rotation().inverse();
+    PlaneFrame {
+        rotation,
+        translation: -(rotation * mount.camera_position()),
+    }
+}
+
+/// The 6-DOF pose of `sol` as it is.
+fn free_fit(sol: &pose::PoseSolution) -> RigFit {
     let p = sol.pose();
-    let mut ratio = if sol.coplanar {
-        sol.ambiguity_ratio()
+    RigFit {
+        rotation: Rotation3::new(p.rotation),
+        translation: p.translation,
+        rms: sol.rms(),
+        ambiguity_ratio: if sol.coplanar {
+            sol.ambiguity_ratio()
+        } else {
+            None
+        },
+        params: p.to_params(),
+        covariance: sol.best.covariance,
+    }
+}
+
+/// Every candidate of the 6-DOF stage seeds a refinement on the ground plane; the best is
+/// kept, and for a single face the ambiguity is the other distinct fit's RMS over the best's.
+fn ground_plane_fit(
+    robot: u32,
+    faces: &[FaceObs],
+    sol: &pose::PoseSolution,
+    solver: &PoseSolver,
+    mount: &CameraMount,
+) -> Result<RigFit, RobotError> {
+    let plane = ground_plane(mount);
+    let model: Vec<Point3<f64>> = faces.iter().flat_map(|f| f.model).collect();
+    let image: Vec<Point2<f64>> = faces.iter().flat_map(|f| f.image).collect();
+    let seeds = std::iter::once(&sol.best)
+        .chain(&sol.alternative)
+        .map(|e| plane.planar_from_pose(&e.pose));
+    let fits: Vec<pose::PlanarEstimate> = seeds
+        .filter_map(|q0| solver.refine_on_plane(&plane, &model, &image, &q0).ok())
+        .map(|mut fit| {
+            fit.pose.yaw = unicycle::wrap_angle(fit.pose.yaw);
+            fit
+        })
+        .collect();
+    let best = fits
+        .iter()
+        .min_by(|a, b| a.rms.total_cmp(&b.rms))
+        .copied()
+        .ok_or(RobotError::Pose {
+            robot,
+            source: PoseError::Degenerate {
+                reason: "the ground-plane refinement did not converge",
+            },
+        })?;
+    let q = best.pose.to_vector();
+    let ambiguity_ratio = if sol.coplanar {
+        fits.iter()
+            .filter(|f| (f.pose.to_vector() - q).norm() > 1e-4)
+            .map(|f| f.rms / best.rms.max(1e-12))
+            .reduce(f64::min)
     } else {
         None
     };
-    let mut rms = sol.rms();
-    let (rot, t, params, cov6) = if config.ground_plane {
-        // Every candidate of the 6-DOF stage seeds a planar refinement; keep the best.
-        let k = solver.intrinsics();
-        let mut seeds = vec![planar_from_pose(&p, mount)];
-        if let Some(alt) = &sol.alternative {
-            seeds.push(planar_from_pose(&alt.pose, mount));
-        }
-        let fits: Vec<Planar> = seeds
-            .into_iter()
-            .filter_map(|q0| refine_planar(q0, &faces, k, mount))
-            .collect();
-        let best = fits
-            .iter()
-            .min_by(|a, b| a.rms.total_cmp(&b.rms))
-            .copied()
-            .ok_or(RobotError::Pose {
-                robot,
-                source: PoseError::Degenerate {
-                    reason: "the ground-plane refinement did not converge",
-                },
-            })?;
-        if sol.coplanar {
-            ratio = fits
-                .iter()
-                .filter(|f| (f.q - best.q).norm() > 1e-4)
-                .map(|f| f.rms / best.rms.max(1e-12))
-                .reduce(f64::min);
-        }
-        rms = best.rms;
-        let (r, t) = mount.leader_to_camera(best.q.x, best.q.y, best.q.z);
-        let mut cov6 = SMatrix::<f64, 6, 6>::zeros();
-        cov6.fixed_view_mut::<3, 3>(0, 0).copy_from(&best.cov);
-        let params = SVector::<f64, 6>::new(best.q.x, best.q.y, best.q.z, 0.0, 0.0, 0.0);
-        (r, t, params, cov6)
-    } else {
-        (
-            Rotation3::new(p.rotation),
-            p.translation,
-            p.to_params(),
-            sol.best.covariance,
-        )
-    };
-    let f = mount::formation_from_camera_pose(&rot, &t, mount)
-        .map_err(|source| RobotError::Measurement { robot, source })?;
-    let cov = if config.ground_plane {
-        mount::propagate_covariance(&params, &cov6, |q| {
+    let (rotation, translation) = mount.leader_to_camera(q.x, q.y, q.z);
+    let mut covariance = SMatrix::<f64, 6, 6>::zeros();
+    covariance
+        .fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&best.covariance);
+    Ok(RigFit {
+        rotation,
+        translation,
+        rms: best.rms,
+        ambiguity_ratio,
+        params: SVector::<f64, 6>::new(q.x, q.y, q.z, 0.0, 0.0, 0.0),
+        covariance,
+    })
+}
+
+/// The covariance of `(l12, alpha12, beta12)` from the fit's parameter covariance.
+fn formation_covariance(
+    fit: &RigFit,
+    ground_plane: bool,
+    mount: &CameraMount,
+) -> Result<Matrix3<f64>, MeasurementError> {
+    if ground_plane {
+        mount::propagate_covariance(&fit.params, &fit.covariance, |q| {
             let (r, t) = mount.leader_to_camera(q[0], q[1], q[2]);
             mount::formation_from_camera_pose(&r, &t, mount)
         })
     } else {
-        mount::propagate_covariance(&params, &cov6, |q| {
+        mount::propagate_covariance(&fit.params, &fit.covariance, |q| {
             let r = Rotation3::new(Vector3::new(q[0], q[1], q[2]));
             mount::formation_from_camera_pose(&r, &Vector3::new(q[3], q[4], q[5]), mount)
         })
     }
-    .map_err(|source| RobotError::Measurement { robot, source })?;
-    let rv = rot.scaled_axis();
+}
+
+fn measure_robot(
+    robot: u32,
+    faces: Vec<FaceObs>,
+    solver: &PoseSolver,
+    mount: &CameraMount,
+    config: &RobotConfig,
+) -> Result<RobotMeasurement, RobotError> {
+    let Consistent {
+        faces,
+        mut rejected,
+        solution: sol,
+    } = consistent_faces(robot, faces, solver, config)?;
+    let fit = if config.ground_plane {
+        ground_plane_fit(robot, &faces, &sol, solver, mount)?
+    } else {
+        free_fit(&sol)
+    };
+    let measurement = |source| RobotError::Measurement { robot, source };
+    let f = mount::formation_from_camera_pose(&fit.rotation, &fit.translation, mount)
+        .map_err(measurement)?;
+    let cov = formation_covariance(&fit, config.ground_plane, mount).map_err(measurement)?;
     let mut face_numbers: Vec<u8> = faces.iter().map(|f| f.face).collect();
     face_numbers.sort_unstable();
     rejected.sort_unstable();
+    let candidates = match (&faces[..], sol.alternative) {
+        ([_], Some(alt)) if sol.coplanar => Some([sol.best, alt]),
+        _ => None,
+    };
     Ok(RobotMeasurement {
         robot,
         faces: face_numbers,
         rejected_faces: rejected,
-        rotation: rv.into(),
-        translation: t.into(),
-        reprojection_rms_px: rms,
+        rotation: fit.rotation.scaled_axis().into(),
+        translation: fit.translation.into(),
+        reprojection_rms_px: fit.rms,
         l12: f[0],
         alpha12: f[1],
         beta12: f[2],
@@ -500,8 +486,11 @@ fn measure_robot(
             [cov[(1, 0)], cov[(1, 1)], cov[(1, 2)]],
             [cov[(2, 0)], cov[(2, 1)], cov[(2, 2)]],
         ],
-        ambiguous: ratio.is_some_and(|r| r < config.ambiguity_ratio),
-        ambiguity_ratio: ratio,
+        ambiguous: fit
+            .ambiguity_ratio
+            .is_some_and(|r| r < config.ambiguity_ratio),
+        ambiguity_ratio: fit.ambiguity_ratio,
         ground_plane: config.ground_plane,
+        candidates,
     })
 }

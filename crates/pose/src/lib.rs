@@ -20,6 +20,11 @@
 //! [`PoseSolver::planar_candidates`] hands both to a tracker that can choose by consistency
 //! with its prediction. [`PoseSolver::refine`] starts from a caller's pose instead.
 //!
+//! **A body on a known plane** has three free parameters, not six:
+//! [`PoseSolver::refine_on_plane`] fits `(x, y, yaw)` in the plane's frame given the plane's
+//! pose in the camera frame ([`plane`]), with the same Levenberg-Marquardt loop and an
+//! analytic Jacobian.
+//!
 //! **Fast and allocation-free.** The solver never forms the 2N x 6 Jacobian: each point adds its
 //! block to `J^T J` and `J^T e` directly, POSIT keeps no per-point state, the homography's
 //! normal equations are 8x8 and static, and undistorted points live in a stack buffer for up to
@@ -59,11 +64,12 @@
 #[cfg(feature = "calib")]
 pub mod calib;
 mod camera;
-mod chol6;
 mod distortion;
 mod error;
 mod ippe;
+mod ldl;
 mod lm;
+pub mod plane;
 mod posit;
 pub mod so3;
 mod solve;
@@ -72,6 +78,7 @@ pub use camera::{Frustum, Intrinsics};
 pub use distortion::{Distortion, UNDISTORT_MAX_ITERATIONS, UNDISTORT_TOLERANCE};
 pub use error::PoseError;
 pub use lm::LmConfig;
+pub use plane::{PlanarEstimate, PlanarPose, PlaneFrame};
 pub use posit::{POSIT_MAX_ITERATIONS, POSIT_TOLERANCE, posit};
 pub use so3::Pose;
 pub use solve::{Estimate, PoseSolution, PoseSolver, SolverOptions};

@@ -1,6 +1,11 @@
 //! Levenberg-Marquardt refinement of the exponential-map pose parameters
 //! `[wx, wy, wz, tx, ty, tz]` (spec 4.4, paper eqs. 26-28), and the pose covariance.
 //!
+//! The loop ([`refine`]) and the covariance are written once for any [`LeastSquares`]
+//! problem of `N` parameters with static normal equations: the 6-DOF pose here
+//! ([`Reprojection`]) and the pose of a body constrained to a plane
+//! (`crate::plane::PlaneReprojection`, three parameters).
+//!
 //! The residual is the reprojection error in pixels of every correspondence, all faces
 //! together. The 2N x 6 Jacobian is never formed: each point adds its 2x6 block straight into
 //! `J^T J` (6x6) and `J^T e` (6), so a solve allocates nothing whatever the number of points.
@@ -25,9 +30,9 @@
 //! tilt, where LM converges only linearly: the relative-cost test is what ends those solves.) Running out
 //! of `max_iterations` [100] returns [`PoseError::NotConverged`] carrying the last estimate.
 
-use crate::chol6::Chol6;
+use crate::ldl::Ldl;
 use crate::{Intrinsics, Pose, PoseError, so3};
-use nalgebra::{Matrix2x3, Matrix3, Matrix6, Point2, Point3, Vector6};
+use nalgebra::{Matrix2x3, Matrix3, Matrix6, Point2, Point3, SMatrix, SVector, Vector6};
 
 /// Levenberg-Marquardt settings. `Default` gives the documented defaults.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -60,15 +65,65 @@ impl Default for LmConfig {
     }
 }
 
-/// Normal equations of the reprojection error at one pose.
+/// Normal equations of the reprojection error at one parameter vector of `N` entries.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Normal {
+pub(crate) struct Normal<const N: usize> {
     /// `J^T J`.
-    pub jtj: Matrix6<f64>,
+    pub jtj: SMatrix<f64, N, N>,
     /// `J^T e`.
-    pub jte: Vector6<f64>,
+    pub jte: SVector<f64, N>,
     /// Sum of squared residuals (px^2).
     pub sse: f64,
+}
+
+/// A reprojection least-squares problem of `N` parameters that [`refine`] can solve.
+pub(crate) trait LeastSquares<const N: usize> {
+    /// The parameters in their own type.
+    type Params: Copy + PartialEq;
+    /// The parameter vector LM steps in.
+    fn to_vector(p: &Self::Params) -> SVector<f64, N>;
+    /// The parameters of a vector.
+    fn from_vector(v: &SVector<f64, N>) -> Self::Params;
+    /// The canonical form of equivalent parameters (e.g. a rotation vector wrapped to angle
+    /// `<= pi`); the identity unless overridden.
+    fn normalized(p: &Self::Params) -> Self::Params {
+        *p
+    }
+    /// Residuals and normal equations at `p`. `Err(index, z)` names the first point on or
+    /// behind the camera plane.
+    fn normal_equations(&self, p: &Self::Params) -> Result<Normal<N>, (usize, f64)>;
+}
+
+/// The 6-DOF pose problem: model points (rig frame) and their pixels.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Reprojection<'a> {
+    pub k: &'a Intrinsics,
+    pub model: &'a [Point3<f64>],
+    pub image: &'a [Point2<f64>],
+}
+
+impl LeastSquares<6> for Reprojection<'_> {
+    type Params = Pose;
+
+    #[inline]
+    fn to_vector(p: &Pose) -> Vector6<f64> {
+        p.to_params()
+    }
+
+    #[inline]
+    fn from_vector(v: &Vector6<f64>) -> Pose {
+        Pose::from_params(v)
+    }
+
+    #[inline]
+    fn normalized(p: &Pose) -> Pose {
+        p.normalized()
+    }
+
+    #[inline]
+    fn normal_equations(&self, p: &Pose) -> Result<Normal<6>, (usize, f64)> {
+        normal_equations(self.k, self.model, self.image, p)
+    }
 }
 
 /// Reprojection residuals and normal equations at `pose`. `Err(index, z)` names the first
@@ -78,7 +133,7 @@ pub(crate) fn normal_equations(
     model: &[Point3<f64>],
     image: &[Point2<f64>],
     pose: &Pose,
-) -> Result<Normal, (usize, f64)> {
+) -> Result<Normal<6>, (usize, f64)> {
     let (r, jl) = so3::exp_and_left_jacobian(&pose.rotation);
     // Local-frame accumulation: blocks [rot | trans] with rot = J_proj [-Rp]x.
     let mut rr = Matrix3::<f64>::zeros();
@@ -123,40 +178,36 @@ pub(crate) fn normal_equations(
     Ok(Normal { jtj, jte, sse })
 }
 
-/// The outcome of a converged refinement.
+/// The outcome of a refinement: converged, or out of iterations (the estimate is still
+/// usable).
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Refined {
-    pub pose: Pose,
-    pub normal: Normal,
+pub(crate) struct Refined<P, const N: usize> {
+    pub pose: P,
+    pub normal: Normal<N>,
     pub iterations: usize,
 }
 
 /// Failure of a refinement that still has an estimate.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Unconverged {
-    pub pose: Pose,
-    pub normal: Normal,
-    pub iterations: usize,
-}
+pub(crate) type Unconverged<P, const N: usize> = Refined<P, N>;
 
 /// Levenberg-Marquardt from `initial`. Errors: a point behind the camera at the start, a
 /// non-finite cost; `Ok(Err(_))` when iterations ran out (the estimate is still usable).
-pub(crate) fn refine(
-    k: &Intrinsics,
-    model: &[Point3<f64>],
-    image: &[Point2<f64>],
-    initial: &Pose,
+#[allow(clippy::type_complexity)] // the two outcomes of an estimate are one `Result` each
+pub(crate) fn refine<P: LeastSquares<N>, const N: usize>(
+    problem: &P,
+    initial: &P::Params,
     cfg: &LmConfig,
-) -> Result<Result<Refined, Unconverged>, PoseError> {
-    let mut pose = initial.normalized();
-    let mut cur = normal_equations(k, model, image, &pose)
+) -> Result<Result<Refined<P::Params, N>, Unconverged<P::Params, N>>, PoseError> {
+    let mut pose = P::normalized(initial);
+    let mut cur = problem
+        .normal_equations(&pose)
         .map_err(|(index, z)| PoseError::PointBehindCamera { index, z })?;
     if !cur.sse.is_finite() {
         return Err(PoseError::Degenerate {
             reason: "reprojection error is not finite at the initial pose",
         });
     }
-    let max_diag = (0..6).map(|i| cur.jtj[(i, i)]).fold(0.0, f64::max);
+    let max_diag = (0..N).map(|i| cur.jtj[(i, i)]).fold(0.0, f64::max);
     let mut lambda = cfg.initial_damping * max_diag.max(f64::MIN_POSITIVE);
     let mut nu = 2.0;
     for iter in 1..=cfg.max_iterations {
@@ -168,16 +219,16 @@ pub(crate) fn refine(
             }));
         }
         let mut a = cur.jtj;
-        for i in 0..6 {
+        for i in 0..N {
             a[(i, i)] += lambda;
         }
-        let Some(chol) = Chol6::new(&a) else {
+        let Some(chol) = Ldl::new(&a) else {
             lambda *= nu;
             nu *= 2.0;
             continue;
         };
         let step = chol.solve(&(-cur.jte));
-        let x = pose.to_params();
+        let x = P::to_vector(&pose);
         if step.norm() <= cfg.step_tolerance * (x.norm() + cfg.step_tolerance) {
             return Ok(Ok(Refined {
                 pose,
@@ -185,12 +236,12 @@ pub(crate) fn refine(
                 iterations: iter,
             }));
         }
-        let candidate = Pose::from_params(&(x + step));
+        let candidate = P::from_vector(&(x + step));
         // Predicted reduction of sse by the linear model: -2 d^T g - d^T J^T J d = d^T (lambda d - g).
         let predicted = step.dot(&(step * lambda - cur.jte));
         // Nearly Gauss-Newton and the model promises less than the cost tolerance: the current
         // pose is the minimum within tolerance, no need to evaluate the step.
-        let max_diag = (0..6).map(|i| cur.jtj[(i, i)]).fold(0.0, f64::max);
+        let max_diag = (0..N).map(|i| cur.jtj[(i, i)]).fold(0.0, f64::max);
         if lambda <= 1e-3 * max_diag
             && (0.0..=cfg.relative_cost_tolerance * cur.sse).contains(&predicted)
         {
@@ -200,16 +251,17 @@ pub(crate) fn refine(
                 iterations: iter,
             }));
         }
-        let rho = match normal_equations(k, model, image, &candidate) {
+        let rho = match problem.normal_equations(&candidate) {
             Ok(n) if n.sse.is_finite() && predicted > 0.0 => {
                 let rho = (cur.sse - n.sse) / predicted;
                 if rho > 0.0 {
                     let old = cur.sse;
-                    pose = candidate.normalized();
+                    pose = P::normalized(&candidate);
                     cur = if pose == candidate {
                         n
                     } else {
-                        normal_equations(k, model, image, &pose)
+                        problem
+                            .normal_equations(&pose)
                             .map_err(|(index, z)| PoseError::PointBehindCamera { index, z })?
                     };
                     if old - cur.sse <= cfg.relative_cost_tolerance * old {
@@ -248,15 +300,16 @@ pub(crate) fn refine(
     }))
 }
 
-/// The pose covariance `sigma^2 (J^T J)^-1` with `sigma^2 = max(sse / (2N - 6), sigma_min^2)`.
-pub(crate) fn covariance(
-    normal: &Normal,
+/// The parameter covariance `sigma^2 (J^T J)^-1` with
+/// `sigma^2 = max(sse / (2 n_points - N), sigma_min^2)`.
+pub(crate) fn covariance<const N: usize>(
+    normal: &Normal<N>,
     n_points: usize,
     min_pixel_sigma: f64,
-) -> Result<Matrix6<f64>, PoseError> {
-    let dof = (2 * n_points).saturating_sub(6).max(1) as f64;
+) -> Result<SMatrix<f64, N, N>, PoseError> {
+    let dof = (2 * n_points).saturating_sub(N).max(1) as f64;
     let var = (normal.sse / dof).max(min_pixel_sigma * min_pixel_sigma);
-    let inv = Chol6::new(&normal.jtj)
+    let inv = Ldl::new(&normal.jtj)
         .ok_or(PoseError::Degenerate {
             reason: "J^T J is singular at the optimum: the points do not fix the pose",
         })?

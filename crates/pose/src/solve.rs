@@ -2,6 +2,7 @@
 //! candidates) + LM (coplanar), and the result with its covariance.
 
 use crate::lm::{self, LmConfig, Normal};
+use crate::plane::{PlanarEstimate, PlanarPose, PlaneFrame, PlaneReprojection};
 use crate::{Distortion, Intrinsics, Pose, PoseError, ippe, posit};
 use nalgebra::{Matrix3, Matrix6, Point2, Point3, SymmetricEigen, Vector3};
 
@@ -13,6 +14,11 @@ const STACK_POINTS: usize = 32;
 pub struct SolverOptions {
     /// Levenberg-Marquardt settings.
     pub lm: LmConfig,
+    /// Levenberg-Marquardt settings of [`PoseSolver::refine_on_plane`]. Default: those of
+    /// `lm` with `relative_cost_tolerance` 1e-12: three parameters from a start near the
+    /// minimum converge in a few iterations, so the refinement runs to the minimum within
+    /// rounding (a caller derives other quantities from it and compares candidates).
+    pub plane_lm: LmConfig,
     /// Floor on the pixel noise standard deviation used to scale the covariance (pixels).
     /// Default 0.1 px: a noise-free solve (residual ~0) still reports the uncertainty of a
     /// good corner detector instead of a zero covariance.
@@ -30,6 +36,10 @@ impl Default for SolverOptions {
     fn default() -> Self {
         Self {
             lm: LmConfig::default(),
+            plane_lm: LmConfig {
+                relative_cost_tolerance: 1e-12,
+                ..LmConfig::default()
+            },
             min_pixel_sigma: 0.1,
             planarity_tolerance: 1e-3,
             collinearity_tolerance: 1e-6,
@@ -257,6 +267,57 @@ impl PoseSolver {
         self.planar_refined(model, pixels.as_slice(), &geo)
     }
 
+    /// Refines the pose of a body constrained to a plane (see [`crate::plane`]): model points
+    /// in the body frame, their pixels, the plane's frame in the camera frame and a start
+    /// (e.g. [`PlaneFrame::planar_from_pose`] of a 6-DOF solution). It converges to the
+    /// minimum nearest `initial`; running out of iterations is not an error but an estimate
+    /// with `converged: false`.
+    ///
+    /// # Errors
+    /// Bad input as for [`PoseSolver::refine`] (too few points, mismatched lengths,
+    /// non-finite numbers, including the plane and the start), a point behind the camera at
+    /// the start, and a Jacobian that does not fix the three parameters at the optimum.
+    pub fn refine_on_plane(
+        &self,
+        plane: &PlaneFrame,
+        model: &[Point3<f64>],
+        image: &[Point2<f64>],
+        initial: &PlanarPose,
+    ) -> Result<PlanarEstimate, PoseError> {
+        check_inputs(model, image, &self.options)?;
+        if !plane.is_finite() {
+            return Err(PoseError::NonFinite {
+                which: "plane frame",
+                index: 0,
+            });
+        }
+        if !initial.is_finite() {
+            return Err(PoseError::NonFinite {
+                which: "initial pose",
+                index: 0,
+            });
+        }
+        let pixels = self.undistort(image)?;
+        let problem = PlaneReprojection {
+            k: &self.intrinsics,
+            plane,
+            model,
+            image: pixels.as_slice(),
+        };
+        let (r, converged) = match lm::refine(&problem, initial, &self.options.plane_lm)? {
+            Ok(r) => (r, true),
+            Err(u) => (u, false),
+        };
+        let n = model.len();
+        Ok(PlanarEstimate {
+            pose: r.pose,
+            rms: (r.normal.sse / n as f64).sqrt(),
+            covariance: lm::covariance(&r.normal, n, self.options.min_pixel_sigma)?,
+            iterations: r.iterations,
+            converged,
+        })
+    }
+
     /// LM from `initial`; a non-converged solve is an error carrying its estimate.
     fn refine_checked(
         &self,
@@ -264,7 +325,12 @@ impl PoseSolver {
         px: &[Point2<f64>],
         initial: &Pose,
     ) -> Result<Estimate, PoseError> {
-        match lm::refine(&self.intrinsics, model, px, initial, &self.options.lm)? {
+        let problem = lm::Reprojection {
+            k: &self.intrinsics,
+            model,
+            image: px,
+        };
+        match lm::refine(&problem, initial, &self.options.lm)? {
             Ok(r) => self.estimate(r.pose, &r.normal, r.iterations, true, model.len()),
             Err(u) => Err(PoseError::NotConverged {
                 iterations: u.iterations,
@@ -276,7 +342,7 @@ impl PoseSolver {
     fn estimate(
         &self,
         pose: Pose,
-        normal: &Normal,
+        normal: &Normal<6>,
         iterations: usize,
         converged: bool,
         n: usize,
@@ -343,7 +409,12 @@ impl PoseSolver {
             // Camera-from-rig: R_rig = R F^T, t_rig = t - R_rig c.
             let r_rig = r * f.transpose();
             let init = Pose::from_matrix(&r_rig, t - r_rig * geo.centroid);
-            let res = match lm::refine(k, model, px, &init, &self.options.lm) {
+            let problem = lm::Reprojection {
+                k,
+                model,
+                image: px,
+            };
+            let res = match lm::refine(&problem, &init, &self.options.lm) {
                 Ok(Ok(r)) => self.estimate(r.pose, &r.normal, r.iterations, true, model.len()),
                 Ok(Err(u)) => self.estimate(u.pose, &u.normal, u.iterations, false, model.len()),
                 Err(e) => Err(e),
@@ -418,7 +489,7 @@ fn rank(e: &Estimate) -> (bool, f64) {
 }
 
 fn check_options(opts: &SolverOptions) -> Result<(), PoseError> {
-    let lm = &opts.lm;
+    let (lm, plm) = (&opts.lm, &opts.plane_lm);
     for (name, value) in [
         ("min_pixel_sigma", opts.min_pixel_sigma),
         ("planarity_tolerance", opts.planarity_tolerance),
@@ -427,6 +498,13 @@ fn check_options(opts: &SolverOptions) -> Result<(), PoseError> {
         ("lm.step_tolerance", lm.step_tolerance),
         ("lm.relative_cost_tolerance", lm.relative_cost_tolerance),
         ("lm.initial_damping", lm.initial_damping),
+        ("plane_lm.gradient_tolerance", plm.gradient_tolerance),
+        ("plane_lm.step_tolerance", plm.step_tolerance),
+        (
+            "plane_lm.relative_cost_tolerance",
+            plm.relative_cost_tolerance,
+        ),
+        ("plane_lm.initial_damping", plm.initial_damping),
     ] {
         if !value.is_finite() || value < 0.0 {
             return Err(PoseError::InvalidOptions { name, value });
@@ -435,11 +513,12 @@ fn check_options(opts: &SolverOptions) -> Result<(), PoseError> {
     Ok(())
 }
 
-fn validate(
+/// Options, lengths and finiteness of the inputs.
+fn check_inputs(
     model: &[Point3<f64>],
     image: &[Point2<f64>],
     opts: &SolverOptions,
-) -> Result<Geometry, PoseError> {
+) -> Result<(), PoseError> {
     check_options(opts)?;
     posit::check_correspondences(model, image)?;
     if let Some(index) = model
@@ -460,6 +539,17 @@ fn validate(
             index,
         });
     }
+    Ok(())
+}
+
+/// [`check_inputs`], then the shape of the model: no coincident points, not collinear,
+/// coplanar or not.
+fn validate(
+    model: &[Point3<f64>],
+    image: &[Point2<f64>],
+    opts: &SolverOptions,
+) -> Result<Geometry, PoseError> {
+    check_inputs(model, image, opts)?;
     let n = model.len() as f64;
     let centroid = model.iter().fold(Vector3::zeros(), |acc, p| acc + p.coords) / n;
     let mut scatter = Matrix3::<f64>::zeros();

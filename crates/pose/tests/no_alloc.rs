@@ -1,4 +1,5 @@
-//! The solve paths for one face (4 points) and three faces (12 points) do not touch the heap.
+//! The solve paths for one face (4 points) and three faces (12 points), and the refinement on
+//! a plane, do not touch the heap.
 //! A counting global allocator sees every allocation of this test binary, which holds this one
 //! test only.
 #![allow(unsafe_code)] // implementing GlobalAlloc requires it; the impl only forwards to System.
@@ -6,7 +7,8 @@
 mod common;
 
 use common::*;
-use pose::{Distortion, PoseSolver};
+use nalgebra::Rotation3;
+use pose::{Distortion, PlanarPose, PlaneFrame, PoseSolver};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -41,6 +43,16 @@ fn solves_do_not_allocate() {
     let rig_px_distorted: Vec<_> = rig_px.iter().map(|m| d.distort_pixel(&k, m)).collect();
     let solver = PoseSolver::new(k);
     let with_lens = PoseSolver::new(k).with_distortion(d);
+    // The rig standing at the origin of a plane whose frame is the rig's own.
+    let plane = PlaneFrame {
+        rotation: Rotation3::new(rig_pose.rotation),
+        translation: rig_pose.translation,
+    };
+    let start = PlanarPose {
+        x: 0.01,
+        y: -0.01,
+        yaw: 0.02,
+    };
 
     let before = ALLOCATIONS.load(Ordering::SeqCst);
     let a = solver.solve(&face, &face_px);
@@ -48,8 +60,11 @@ fn solves_do_not_allocate() {
     let c = solver.refine(&rig, &rig_px, &rig_pose);
     let e = with_lens.solve(&rig, &rig_px_distorted);
     let f = solver.planar_candidates(&face, &face_px);
+    let g = solver.refine_on_plane(&plane, &rig, &rig_px, &start);
     let after = ALLOCATIONS.load(Ordering::SeqCst);
     assert!(a.is_ok() && b.is_ok() && c.is_ok() && e.is_ok() && f.is_ok());
+    let g = g.expect("the rig on its plane");
+    assert!(g.converged && g.pose.to_vector().norm() < 1e-9, "{g:?}");
     assert_eq!(
         after - before,
         0,

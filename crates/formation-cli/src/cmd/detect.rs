@@ -49,6 +49,52 @@ struct MarkerOut {
     contrast: f64,
 }
 
+/// One robot in the JSON output (with `--camera`), built from the library's
+/// [`RobotMeasurement`]. The field names and their order are the command's output format:
+/// keep them when the library's type changes.
+#[derive(Debug, Serialize)]
+struct RobotOut {
+    robot: u32,
+    /// Faces used for the pose.
+    faces: Vec<u8>,
+    /// Faces read but rejected as inconsistent with the others.
+    rejected_faces: Vec<u8>,
+    /// Rotation vector, rig frame to camera frame (radians).
+    rotation: [f64; 3],
+    /// Rig origin in the camera frame (metres).
+    translation: [f64; 3],
+    reprojection_rms_px: f64,
+    l12: f64,
+    alpha12: f64,
+    beta12: f64,
+    /// Covariance of `(l12, alpha12, beta12)`.
+    covariance: [[f64; 3]; 3],
+    ambiguous: bool,
+    /// `null` unless a single face left two candidates.
+    ambiguity_ratio: Option<f64>,
+    ground_plane: bool,
+}
+
+impl From<&RobotMeasurement> for RobotOut {
+    fn from(m: &RobotMeasurement) -> Self {
+        Self {
+            robot: m.robot,
+            faces: m.faces.clone(),
+            rejected_faces: m.rejected_faces.clone(),
+            rotation: m.rotation,
+            translation: m.translation,
+            reprojection_rms_px: m.reprojection_rms_px,
+            l12: m.l12,
+            alpha12: m.alpha12,
+            beta12: m.beta12,
+            covariance: m.covariance,
+            ambiguous: m.ambiguous,
+            ambiguity_ratio: m.ambiguity_ratio,
+            ground_plane: m.ground_plane,
+        }
+    }
+}
+
 /// Timing of one image.
 #[derive(Debug, Serialize)]
 struct Timing {
@@ -67,7 +113,7 @@ struct ImageOut {
     height: usize,
     markers: Vec<MarkerOut>,
     /// Robots seen (rig pose per robot), with `--camera`; empty otherwise.
-    robots: Vec<RobotMeasurement>,
+    robots: Vec<RobotOut>,
     timing: Timing,
 }
 
@@ -126,7 +172,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             markers: found.iter().map(|d| marker_out(d, &rig)).collect(),
             robots: stage
                 .as_ref()
-                .map(|stage| stage.measure(&found))
+                .map(|stage| stage.measure(&found).iter().map(RobotOut::from).collect())
                 .unwrap_or_default(),
             timing: Timing {
                 detect_ms: (t1 - t0).as_secs_f64() * 1e3,
