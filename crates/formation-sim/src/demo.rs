@@ -318,7 +318,7 @@ pub fn run_demo_with_progress(
                 .collect();
             let spec = SceneSpec {
                 name: String::new(),
-                camera_robot: scene::Pose {
+                camera_robot: Pose {
                     x: poses[me].x,
                     y: poses[me].y,
                     theta: poses[me].theta,

@@ -152,7 +152,6 @@ fn screen_box(camera: &Camera, pts: &[Point3<f64>]) -> Option<ScreenBox> {
             v1: f64::INFINITY,
         });
     }
-    let k = camera.intrinsics();
     let mut b = ScreenBox {
         u0: f64::INFINITY,
         u1: f64::NEG_INFINITY,
@@ -160,7 +159,7 @@ fn screen_box(camera: &Camera, pts: &[Point3<f64>]) -> Option<ScreenBox> {
         v1: f64::NEG_INFINITY,
     };
     for p in pts {
-        if let Some(q) = k.project(p) {
+        if let Some(q) = camera.project(p) {
             b.u0 = b.u0.min(q.x);
             b.u1 = b.u1.max(q.x);
             b.v0 = b.v0.min(q.y);
@@ -188,7 +187,7 @@ impl<'a> Prepared<'a> {
         let mut prims = Vec::new();
         let world_factor = |n: &Vector3<f64>| light.map_or(1.0, |l| l.factor(n));
         for (ri, robot) in scene.robots.iter().enumerate() {
-            let b2w = robot.pose.body_to_world();
+            let b2w = crate::scene::body_to_world(&robot.pose);
             let b2c = w2c * b2w;
             let rot_bc = *b2c.rotation.to_rotation_matrix().matrix();
             let rot_cb = rot_bc.transpose();
