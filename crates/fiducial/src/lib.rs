@@ -84,8 +84,6 @@
 //! - [`quad`]: four-corner polygons from contours.
 //! - [`refine`]: sub-pixel corners from grey-level edge lines.
 //! - [`detector`](mod@detector): the pipeline ([`Detector`], [`DetectorConfig`]).
-//! - [`synth`]: seeded synthetic views with exact ground truth (scenes, clutter, foreign
-//!   markers) for tests, benchmarks and `cargo xtask detector-accuracy`.
 //!
 //! # Conventions
 //!
@@ -95,8 +93,11 @@
 //!
 //! # Examples
 //!
-//! `cargo run --release -p fiducial --example detect_scene [SEED]` detects a synthetic
-//! scene and prints each marker's code, bits corrected and corner error.
+//! `cargo run -p fiducial --example render_and_decode [INDEX]` draws a dictionary entry with
+//! [`render_marker`] and decodes it. Seeded synthetic scenes with exact ground truth (for the
+//! tests, benchmarks and `cargo xtask detector-accuracy`) come from the workspace's test-only
+//! crate `formation-marker-testkit`, rendered by `synthcam`:
+//! `cargo run --release -p formation-marker-testkit --example detect_scene [SEED]`.
 //!
 //! Decoding a marker from known corners:
 //!
@@ -126,7 +127,6 @@ pub mod image;
 pub mod quad;
 pub mod refine;
 pub mod render;
-pub mod synth;
 pub mod threshold;
 
 pub use crate::cross_ratio::CrossRatioFrame;

@@ -5,10 +5,20 @@
 //! correction recovers them.
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
-use fiducial::synth::{SceneConfig, marker_scene};
 use fiducial::{Detector, DetectorConfig, Dictionary, GrayView};
+use marker_testkit::{CellPattern, SceneConfig, marker_scene};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+
+/// Every entry of `dict` as a test pattern (index = dictionary index).
+fn entries(dict: &Dictionary) -> Vec<CellPattern> {
+    let f = dict.family();
+    CellPattern::from_codes(
+        f.rows() as usize,
+        f.cols() as usize,
+        (0..dict.len()).map(|i| dict.code(i).unwrap_or(0)),
+    )
+}
 
 /// Scenes of the accuracy run that lost one marker each before soft decisions.
 const SEEDS: [u64; 6] = [17, 143, 146, 151, 155, 174];
@@ -23,7 +33,7 @@ fn found(seed: u64, cfg: DetectorConfig) -> (usize, usize, usize) {
     let dict = Dictionary::paper();
     let scene = marker_scene(
         &SceneConfig::default(),
-        dict,
+        &entries(dict),
         &mut ChaCha8Rng::seed_from_u64(seed),
     )
     .unwrap();

@@ -124,7 +124,7 @@ pub use error::{MAX_INTRINSIC, MAX_MAGNITUDE, SynthError};
 pub use render::{
     Frame, Gradient, MAX_SUPERSAMPLING, PixelFormat, RenderSettings, Rendered, Shading, render,
 };
-pub use scene::{Body, Face, FaceFrame, FacePlacement, Ground, Robot, Scene};
+pub use scene::{Body, Face, FaceFrame, FacePlacement, Ground, Panel, Robot, Scene};
 pub use texture::{CellGrid, Filter, ImageTexture, SoftChecker, Texture, Uniform};
 pub use truth::{CORNER_INSET, FaceTruth, FrameTruth, RobotTruth, ground_truth};
 

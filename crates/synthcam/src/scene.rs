@@ -210,6 +210,48 @@ impl Robot {
     }
 }
 
+/// A flat textured parallelogram fixed in the world: a poster, a test chart, or a marker held
+/// up in front of the camera (any image quadrilateral is the view of some parallelogram).
+///
+/// Texture `s` runs from corner NW to NE and `t` from NW to SW; SE is `NE + SW - NW`. The
+/// front is the side from which NW, NE, SE, SW run clockwise (as a face seen from outside).
+#[derive(Clone, Debug)]
+pub struct Panel {
+    /// Corners NW, NE and SW (m, world frame).
+    pub corners: [Point3<f64>; 3],
+    /// What is drawn on its front.
+    pub texture: Arc<dyn Texture>,
+    /// Grey albedo of its back side, in `[0, 1]`.
+    pub back_albedo: f64,
+}
+
+impl Panel {
+    /// A panel with the default back albedo (0.25).
+    pub fn new(corners: [Point3<f64>; 3], texture: Arc<dyn Texture>) -> Self {
+        Self {
+            corners,
+            texture,
+            back_albedo: 0.25,
+        }
+    }
+
+    fn validate(&self) -> Result<(), SynthError> {
+        for c in &self.corners {
+            finite_vec("panel corner", &c.coords)?;
+        }
+        let [nw, ne, sw] = self.corners;
+        let n = (sw - nw).cross(&(ne - nw));
+        let scale = (ne - nw).norm() * (sw - nw).norm();
+        if !(n.norm() > 1e-12 * scale && scale > 0.0) {
+            return Err(SynthError::DegenerateGeometry {
+                what: "panel corners are collinear or coincide",
+            });
+        }
+        in_range("panel back albedo", self.back_albedo, 0.0, 1.0)?;
+        Ok(())
+    }
+}
+
 /// The ground plane `z = 0`, textured by tiling a texture: one texture period covers
 /// `tile x tile` metres, with `s` along world x and `t` along world -y.
 #[derive(Clone, Debug)]
@@ -225,6 +267,8 @@ pub struct Ground {
 pub struct Scene {
     /// The robots (their index is their id in the ground truth).
     pub robots: Vec<Robot>,
+    /// Panels fixed in the world.
+    pub panels: Vec<Panel>,
     /// The ground plane, if any (without one, rays that miss everything see the background).
     pub ground: Option<Ground>,
     /// Grey albedo in `[0, 1]` of everything the rays do not hit (sky or far wall).
@@ -236,6 +280,7 @@ impl Scene {
     pub fn new(background: f64) -> Self {
         Self {
             robots: Vec::new(),
+            panels: Vec::new(),
             ground: None,
             background,
         }
@@ -247,6 +292,9 @@ impl Scene {
         in_range("background albedo", self.background, 0.0, 1.0)?;
         if let Some(g) = &self.ground {
             positive("ground tile", g.tile)?;
+        }
+        for p in &self.panels {
+            p.validate()?;
         }
         for r in &self.robots {
             validate_pose(&r.pose)?;
