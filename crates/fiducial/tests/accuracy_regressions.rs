@@ -4,7 +4,7 @@
 //! good corners and the right aspect, but one data cell reads on the wrong side of the
 //! threshold by a small margin; the soft-decision correction recovers them. (With the
 //! earlier in-crate renderer the seeds were 17, 143, 146, 151, 155 and 174; scene 17's
-//! smallest marker now has more than two weak cells and is lost either way, the one marker
+//! smallest marker (placements are drawn from the RNG exactly as before) is now lost either way, the one marker
 //! in 1600 that `detector-accuracy` misses.)
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
