@@ -3,9 +3,9 @@
 //! losses are ~20 px markers (cells of ~3 px under blur 1, noise 3) whose quad is found with
 //! good corners and the right aspect, but one data cell reads on the wrong side of the
 //! threshold by a small margin; the soft-decision correction recovers them. (With the
-//! earlier in-crate renderer the seeds were 17, 143, 146, 151, 155 and 174; scene 17's
-//! smallest marker (placements are drawn from the RNG exactly as before) is now lost either way, the one marker
-//! in 1600 that `detector-accuracy` misses.)
+//! earlier in-crate renderer the seeds were 17, 143, 146, 151, 155 and 174; marker
+//! placements are drawn from the RNG exactly as before, and scene 17 now loses one marker
+//! even with soft decisions: the one marker in 1600 that `detector-accuracy` misses.)
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
 use fiducial::{Detector, DetectorConfig, Dictionary, GrayView};
