@@ -1,7 +1,7 @@
 //! `cargo xtask detector-accuracy [--quick]`: measures the marker detector on synthetic scenes
 //! with exact ground truth and writes `docs/detector-accuracy.md`.
 //!
-//! Scenes come from `fiducial::synth` (seeded, so the file is reproducible): 640x480 frames
+//! Scenes come from `marker_testkit`, rendered by `synthcam` (seeded, so the file is reproducible): 640x480 frames
 //! with 8 real markers of 20-120 px at random perspective, blur sigma 1 and noise sigma 3
 //! unless a table varies one of them; marker-free clutter frames; frames of foreign markers
 //! (bordered 4 x 5 codes that are not in the dictionary). The work runs in release mode: from
@@ -10,12 +10,37 @@
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use fiducial::synth::{
-    CellPattern, SceneConfig, clutter_frame, foreign_marker, marker_scene, render_scene,
-};
 use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Threshold};
-use rand::SeedableRng;
+use marker_testkit::{
+    CellPattern, MarkerScene, SceneConfig, clutter_frame, marker_scene, render_scene,
+};
+use rand::{Rng, RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+
+/// Every entry of `dict` as a test pattern (index = dictionary index).
+fn entries(dict: &Dictionary) -> Vec<CellPattern> {
+    let f = dict.family();
+    CellPattern::from_codes(
+        f.rows() as usize,
+        f.cols() as usize,
+        (0..dict.len()).map(|i| dict.code(i).unwrap_or(0)),
+    )
+}
+
+/// A foreign marker: a one-cell black border around a random code of the dictionary's
+/// family that is *not* in `dictionary` (none of its entries in any orientation), with a
+/// one-cell quiet zone. A detector reading it as a dictionary entry has corrected bit errors
+/// that were never there; the rate of such reads is a property of the dictionary's distance
+/// and the correction allowed.
+fn foreign_marker<R: Rng + ?Sized>(dictionary: &Dictionary, rng: &mut R) -> CellPattern {
+    let family = dictionary.family();
+    loop {
+        let code = rng.random_range(0..=family.mask());
+        if dictionary.lookup_within(code, 0).is_none() {
+            return CellPattern::from_code(family.rows() as usize, family.cols() as usize, code);
+        }
+    }
+}
 
 const USAGE: &str = "usage: cargo xtask detector-accuracy [--quick]";
 
@@ -32,44 +57,86 @@ pub fn run(args: &[String]) -> crate::Result {
         _ => return Err(USAGE.into()),
     };
     if cfg!(debug_assertions) && std::env::var_os("XTASK_DETECTOR_ACCURACY_RELEASE").is_none() {
-        // Thousands of rendered frames: worth a release build.
-        let status = std::process::Command::new(env!("CARGO"))
-            .args([
-                "run",
-                "--release",
-                "-q",
-                "-p",
-                "xtask",
-                "--bin",
-                "xtask",
-                "--",
-            ])
-            .arg("detector-accuracy")
-            .args(args)
-            .env("XTASK_DETECTOR_ACCURACY_RELEASE", "1")
-            .status()?;
-        return if status.success() {
-            Ok(())
-        } else {
-            Err("detector-accuracy (release) failed".into())
-        };
+        return rerun_in_release(args);
     }
     let n = |full: usize, q: usize| if quick { q } else { full };
     let dict = Dictionary::paper();
+    let all = entries(dict);
+    let mut doc = header(quick)?;
+    let (by_errors, otsu) = accuracy_scenes(&mut doc, &all, n(200, 20))?;
+    let clutter_reads = false_reads(&mut doc, dict, &by_errors, n(1000, 100), n(100, 10))?;
+    recall_curves(&mut doc, &all, n(50, 8))?;
+    writeln!(
+        doc,
+        "Otsu on the accuracy scenes: recall {:.2} %, corner RMS {:.4} px, wrong codes {}.",
+        otsu.recall(),
+        otsu.rms(),
+        otsu.wrong
+    )?;
+    let path = target();
+    std::fs::write(&path, doc)?;
+    let def = &by_errors[0].2;
+    println!(
+        "detector-accuracy: wrote {} (found {}/{}, corner RMS {:.4} px, clutter reads {})",
+        path.display(),
+        def.found,
+        def.total,
+        def.rms(),
+        clutter_reads
+    );
+    Ok(())
+}
+
+/// Thousands of rendered frames are worth a release build: from the dev profile, run this
+/// command again through `cargo run --release`.
+fn rerun_in_release(args: &[String]) -> crate::Result {
+    let status = std::process::Command::new(env!("CARGO"))
+        .args([
+            "run",
+            "--release",
+            "-q",
+            "-p",
+            "xtask",
+            "--bin",
+            "xtask",
+            "--",
+        ])
+        .arg("detector-accuracy")
+        .args(args)
+        .env("XTASK_DETECTOR_ACCURACY_RELEASE", "1")
+        .status()?;
+    if status.success() {
+        Ok(())
+    } else {
+        Err("detector-accuracy (release) failed".into())
+    }
+}
+
+/// The document's title and preamble.
+fn header(quick: bool) -> Result<String, std::fmt::Error> {
     let mut doc = String::new();
     writeln!(doc, "# Detector accuracy\n")?;
     writeln!(
         doc,
         "Generated by `cargo xtask detector-accuracy`{} from seeded synthetic scenes \
-         (`fiducial::synth`): do not edit by hand. Corner errors are against the exact \
+         (`marker_testkit`, rendered by `synthcam`): do not edit by hand. Corner errors are against the exact \
          ground truth of the warp, in the marker's own corner order (NW, NE, SE, SW), \
          pixel-centre convention. A marker counts as found only if it is read with its own \
          dictionary index; any other read is a wrong code.\n",
         if quick { " --quick" } else { "" }
     )?;
+    Ok(doc)
+}
 
-    // 1. The accuracy scenes.
-    let scenes = n(200, 20);
+/// The decoding variants' tallies on the accuracy scenes, and Otsu's.
+type VariantTallies = Vec<(String, DetectorConfig, Tally)>;
+
+/// Step 1: `scenes` accuracy scenes, every decoding variant and Otsu; writes their table.
+fn accuracy_scenes(
+    doc: &mut String,
+    all: &[CellPattern],
+    scenes: usize,
+) -> crate::Result<(VariantTallies, Tally)> {
     eprintln!("detector-accuracy: {scenes} accuracy scenes");
     let base = SceneConfig::default();
     let mut by_errors: Vec<(String, DetectorConfig, Tally)> = variants()
@@ -78,7 +145,7 @@ pub fn run(args: &[String]) -> crate::Result {
         .collect();
     let mut otsu = Tally::default();
     for seed in 0..scenes as u64 {
-        let scene = marker_scene(&base, dict, &mut ChaCha8Rng::seed_from_u64(seed))?;
+        let scene = marker_scene(&base, all, &mut ChaCha8Rng::seed_from_u64(seed))?;
         for (_, cfg, tally) in &mut by_errors {
             tally.add(&scene, *cfg)?;
         }
@@ -133,9 +200,20 @@ pub fn run(args: &[String]) -> crate::Result {
             )?;
         }
     }
+    Ok((by_errors, otsu))
+}
 
-    // 2. Clutter.
-    let frames = n(1000, 100);
+/// Steps 2 and 3: `frames` marker-free clutter frames and `foreign_scenes` scenes of foreign
+/// markers, every decoding variant; writes their table. Returns the default detector's
+/// reads in clutter.
+fn false_reads(
+    doc: &mut String,
+    dict: &Dictionary,
+    by_errors: &VariantTallies,
+    frames: usize,
+    foreign_scenes: usize,
+) -> crate::Result<usize> {
+    let base = SceneConfig::default();
     eprintln!("detector-accuracy: {frames} clutter frames");
     let nv = by_errors.len();
     let mut clutter = vec![0usize; nv + 1]; // each variant, then Otsu
@@ -161,8 +239,7 @@ pub fn run(args: &[String]) -> crate::Result {
             clutter[k] += out.len();
         }
     }
-    // 3. Foreign markers.
-    let foreign_scenes = n(100, 10);
+    // Foreign markers.
     eprintln!("detector-accuracy: {foreign_scenes} foreign-marker scenes");
     let mut foreign = vec![0usize; nv];
     let mut foreign_total = 0;
@@ -213,9 +290,12 @@ pub fn run(args: &[String]) -> crate::Result {
          decoding): {} codes read in clutter.",
         clutter[nv]
     )?;
+    Ok(clutter[0])
+}
 
-    // 4. Recall curves.
-    let per = n(50, 8);
+/// Step 4: recall and corner RMS against lighting, noise and blur, `per` scenes a row.
+fn recall_curves(doc: &mut String, all: &[CellPattern], per: usize) -> crate::Result {
+    let base = SceneConfig::default();
     writeln!(doc, "\n## Recall under lighting, noise and blur\n")?;
     writeln!(
         doc,
@@ -263,8 +343,7 @@ pub fn run(args: &[String]) -> crate::Result {
         for (label, cfg) in rows {
             let (mut a, mut o) = (Tally::default(), Tally::default());
             for seed in 0..per as u64 {
-                let scene =
-                    marker_scene(&cfg, dict, &mut ChaCha8Rng::seed_from_u64(50_000 + seed))?;
+                let scene = marker_scene(&cfg, all, &mut ChaCha8Rng::seed_from_u64(50_000 + seed))?;
                 a.add(&scene, DetectorConfig::default())?;
                 o.add(
                     &scene,
@@ -286,23 +365,6 @@ pub fn run(args: &[String]) -> crate::Result {
         }
         writeln!(doc)?;
     }
-    writeln!(
-        doc,
-        "Otsu on the accuracy scenes: recall {:.2} %, corner RMS {:.4} px, wrong codes {}.",
-        otsu.recall(),
-        otsu.rms(),
-        otsu.wrong
-    )?;
-    let path = target();
-    std::fs::write(&path, doc)?;
-    println!(
-        "detector-accuracy: wrote {} (found {}/{}, corner RMS {:.4} px, clutter reads {})",
-        path.display(),
-        def.found,
-        def.total,
-        def.rms(),
-        clutter[0]
-    );
     Ok(())
 }
 
@@ -348,7 +410,7 @@ struct Tally {
 }
 
 impl Tally {
-    fn add(&mut self, scene: &fiducial::synth::Scene, cfg: DetectorConfig) -> crate::Result {
+    fn add(&mut self, scene: &MarkerScene, cfg: DetectorConfig) -> crate::Result {
         let img = GrayView::new(&scene.pixels, scene.width, scene.height)?;
         let mut det = Detector::new(cfg);
         let mut out = Vec::new();

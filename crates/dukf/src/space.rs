@@ -185,8 +185,10 @@ impl<const D: usize> Space<D> for AngleMask<D> {
 
 /// Wraps an angle to `(-pi, pi]`.
 ///
-/// `pi` stays `pi`, `-pi` becomes `pi`. A non-finite input gives NaN (the filters reject
-/// non-finite values before they get here).
+/// Angles already in `(-pi, pi]` come back bit for bit; `-pi` becomes `pi`. A non-finite
+/// input (NaN or infinite) gives NaN (the filters reject non-finite values before they get
+/// here). `unicycle::wrap_angle` is an identical copy (so that neither leaf crate depends on
+/// the other); both are tested with the same cases.
 #[inline]
 pub fn wrap_angle(a: f64) -> f64 {
     if a > -PI && a <= PI {

@@ -7,11 +7,21 @@
 //! the same run so that ratios survive a loaded machine.
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use fiducial::synth::{SceneConfig, clutter_frame, marker_scene};
 use fiducial::{Detector, DetectorConfig, Dictionary, GrayView};
+use marker_testkit::{CellPattern, SceneConfig, clutter_frame, marker_scene};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::hint::black_box;
+
+/// Every entry of `dict` as a test pattern (index = dictionary index).
+fn entries(dict: &Dictionary) -> Vec<CellPattern> {
+    let f = dict.family();
+    CellPattern::from_codes(
+        f.rows() as usize,
+        f.cols() as usize,
+        (0..dict.len()).map(|i| dict.code(i).unwrap_or(0)),
+    )
+}
 
 fn scene(width: usize, height: usize, noise: f64) -> Vec<u8> {
     let cfg = SceneConfig {
@@ -22,7 +32,7 @@ fn scene(width: usize, height: usize, noise: f64) -> Vec<u8> {
     };
     marker_scene(
         &cfg,
-        Dictionary::paper(),
+        &entries(Dictionary::paper()),
         &mut ChaCha8Rng::seed_from_u64(42),
     )
     .expect("the benchmark scene fits its frame")

@@ -1,29 +1,41 @@
-//! Accuracy scenes (`cargo xtask detector-accuracy`, seeds of `ChaCha8Rng`) in which the
-//! detector once lost a marker. All six losses were ~20 px markers (cells of ~3 px under
-//! blur 1, noise 3) whose quad was found with good corners and the right aspect, but one
-//! data cell read on the wrong side of the threshold by a small margin; the soft-decision
-//! correction recovers them.
+//! Accuracy scenes (`cargo xtask detector-accuracy`, seeds of `ChaCha8Rng`, rendered by
+//! `synthcam` through `marker_testkit`) in which hard decisions alone lose a marker. The
+//! losses are ~20 px markers (cells of ~3 px under blur 1, noise 3) whose quad is found with
+//! good corners and the right aspect, but one data cell reads on the wrong side of the
+//! threshold by a small margin; the soft-decision correction recovers them. (With the
+//! earlier in-crate renderer the seeds were 17, 143, 146, 151, 155 and 174; marker
+//! placements are drawn from the RNG exactly as before, and scene 17 now loses one marker
+//! even with soft decisions: the one marker in 1600 that `detector-accuracy` misses.)
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
-use fiducial::synth::{SceneConfig, marker_scene};
 use fiducial::{Detector, DetectorConfig, Dictionary, GrayView};
+use marker_testkit::{CellPattern, SceneConfig, marker_scene};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-/// Scenes of the accuracy run that lost one marker each before soft decisions.
-const SEEDS: [u64; 6] = [17, 143, 146, 151, 155, 174];
+/// Every entry of `dict` as a test pattern (index = dictionary index).
+fn entries(dict: &Dictionary) -> Vec<CellPattern> {
+    let f = dict.family();
+    CellPattern::from_codes(
+        f.rows() as usize,
+        f.cols() as usize,
+        (0..dict.len()).map(|i| dict.code(i).unwrap_or(0)),
+    )
+}
 
-/// Those of them that still lose a marker to hard decisions alone. Scene 146 no longer does
-/// since the edge profiles are bounded by the border cell (`max_half_profile_cells`): its
-/// small marker's corners moved inwards less and every cell reads on the right side.
-const WEAK_CELL_SEEDS: [u64; 5] = [17, 143, 151, 155, 174];
+/// Scenes of the accuracy run (seeds 0..200) that lose one marker each to hard decisions
+/// alone (found by scanning all 200).
+const SEEDS: [u64; 4] = [113, 151, 155, 174];
+
+/// All of them still exercise the weak-cell case.
+const WEAK_CELL_SEEDS: [u64; 4] = SEEDS;
 
 /// Markers of the scene `seed` read with their own index, and reads of other indices.
 fn found(seed: u64, cfg: DetectorConfig) -> (usize, usize, usize) {
     let dict = Dictionary::paper();
     let scene = marker_scene(
         &SceneConfig::default(),
-        dict,
+        &entries(dict),
         &mut ChaCha8Rng::seed_from_u64(seed),
     )
     .unwrap();

@@ -6,10 +6,20 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
-use fiducial::synth::{SceneConfig, clutter_frame, marker_scene};
 use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Threshold};
+use marker_testkit::{CellPattern, SceneConfig, clutter_frame, marker_scene};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+
+/// Every entry of `dict` as a test pattern (index = dictionary index).
+fn entries(dict: &Dictionary) -> Vec<CellPattern> {
+    let f = dict.family();
+    CellPattern::from_codes(
+        f.rows() as usize,
+        f.cols() as usize,
+        (0..dict.len()).map(|i| dict.code(i).unwrap_or(0)),
+    )
+}
 
 struct Counting;
 
@@ -52,7 +62,7 @@ fn frames() -> Vec<Vec<u8>> {
     let cfg = SceneConfig::default();
     let mut frames: Vec<Vec<u8>> = (0..3)
         .map(|_| {
-            marker_scene(&cfg, Dictionary::paper(), &mut rng)
+            marker_scene(&cfg, &entries(Dictionary::paper()), &mut rng)
                 .unwrap()
                 .pixels
         })

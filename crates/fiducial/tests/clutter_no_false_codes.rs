@@ -2,8 +2,8 @@
 //! insides, text-like strokes, checkers) never produces a code.
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
-use fiducial::synth::clutter_frame;
 use fiducial::{Detector, DetectorConfig, GrayView, Threshold};
+use marker_testkit::clutter_frame;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 

@@ -3,8 +3,8 @@
 //! order, and arbitrary images never make it panic.
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
-use fiducial::synth::{Canvas, CellPattern};
 use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Threshold};
+use marker_testkit::{Canvas, CellPattern, Effects};
 use proptest::prelude::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -45,7 +45,8 @@ fn marker_view(
 ) -> (Vec<u8>, [[f64; 2]; 4]) {
     let dict = Dictionary::paper();
     let code = dict.code(index % dict.len()).unwrap();
-    let pattern = CellPattern::from_code(dict.family(), code);
+    let f = dict.family();
+    let pattern = CellPattern::from_code(f.rows() as usize, f.cols() as usize, code);
     let (pixels, q) = warp(&pattern, side, angle, jitter, blur, noise, seed);
     (pixels, q)
 }
@@ -83,12 +84,17 @@ fn warp(
             H as f64 / 2.0 + s * x + c * y + jitter[2 * i + 1] * side,
         ]
     });
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut canvas = Canvas::new(w, h, 215.0).unwrap();
     canvas.draw_pattern(pattern, &q, 25.0, 215.0);
-    canvas.blur(blur);
-    canvas.noise(noise, &mut rng);
-    (canvas.to_gray(), q)
+    let pixels = canvas
+        .render(&Effects {
+            blur,
+            noise,
+            seed,
+            ..Effects::default()
+        })
+        .unwrap();
+    (pixels, q)
 }
 
 proptest! {
@@ -225,7 +231,7 @@ fn a_marker_touching_the_frame_border_is_rejected() {
     let p = CellPattern::random_marker(4, 5, &mut rng);
     let q = [[0.2, 20.0], [60.0, 20.0], [60.0, 80.0], [0.2, 80.0]];
     canvas.draw_pattern(&p, &q, 25.0, 215.0);
-    let px = canvas.to_gray();
+    let px = canvas.render(&Effects::default()).unwrap();
     let img = GrayView::new(&px, 120, 100).unwrap();
     let mut det = Detector::new(DetectorConfig::default());
     let touching = det
@@ -239,7 +245,7 @@ fn a_marker_touching_the_frame_border_is_rejected() {
     let mut canvas = Canvas::new(120, 100, 215.0).unwrap();
     let q = [[20.0, 20.0], [80.0, 20.0], [80.0, 80.0], [20.0, 80.0]];
     canvas.draw_pattern(&p, &q, 25.0, 215.0);
-    let px = canvas.to_gray();
+    let px = canvas.render(&Effects::default()).unwrap();
     let img = GrayView::new(&px, 120, 100).unwrap();
     let best = det
         .find_quads(&img)

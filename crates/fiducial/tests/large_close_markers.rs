@@ -7,18 +7,21 @@
 //! against their neighbours' chord.
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
-use fiducial::synth::{Canvas, CellPattern};
 use fiducial::{Detector, Dictionary, GrayView};
+use marker_testkit::{Canvas, CellPattern, Effects};
 use proptest::prelude::*;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 
 /// Renders marker `index` onto a grey background as the trapezoid of a face seen obliquely:
 /// left edge `height` px tall at `x0`, right edge `width` px further right and `shrink` px
 /// shorter at each end (longer if negative); blur 1 px, noise sigma 3.
 fn oblique_face(index: usize, x0: f64, width: f64, height: f64, shrink: f64, seed: u64) -> Vec<u8> {
     let dict = Dictionary::paper();
-    let pattern = CellPattern::from_code(dict.family(), dict.code(index).unwrap());
+    let f = dict.family();
+    let pattern = CellPattern::from_code(
+        f.rows() as usize,
+        f.cols() as usize,
+        dict.code(index).unwrap(),
+    );
     let mut canvas = Canvas::new(640, 480, 90.0).unwrap();
     let y0 = 240.0 - height / 2.0;
     let corners = [
@@ -28,9 +31,14 @@ fn oblique_face(index: usize, x0: f64, width: f64, height: f64, shrink: f64, see
         [x0, y0 + height],
     ];
     assert!(canvas.draw_pattern(&pattern, &corners, 30.0, 220.0));
-    canvas.blur(1.0);
-    canvas.noise(3.0, &mut ChaCha8Rng::seed_from_u64(seed));
-    canvas.to_gray()
+    canvas
+        .render(&Effects {
+            blur: 1.0,
+            noise: 3.0,
+            seed,
+            ..Effects::default()
+        })
+        .unwrap()
 }
 
 fn read(pixels: &[u8]) -> Vec<usize> {

@@ -7,10 +7,20 @@ use std::path::PathBuf;
 use std::process::Command;
 
 use fiducial::Dictionary;
-use fiducial::synth::{SceneConfig, marker_scene};
 use formation_tracker::rig::RigModel;
+use marker_testkit::{CellPattern, SceneConfig, marker_scene};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+
+/// Every entry of `dict` as a test pattern (index = dictionary index).
+fn entries(dict: &Dictionary) -> Vec<CellPattern> {
+    let f = dict.family();
+    CellPattern::from_codes(
+        f.rows() as usize,
+        f.cols() as usize,
+        (0..dict.len()).map(|i| dict.code(i).unwrap_or(0)),
+    )
+}
 
 fn dir(name: &str) -> PathBuf {
     let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
@@ -32,7 +42,12 @@ fn reads_scenes_and_reports_bad_files() {
         min_side: 40.0,
         ..SceneConfig::default()
     };
-    let scene = marker_scene(&cfg, Dictionary::paper(), &mut ChaCha8Rng::seed_from_u64(5)).unwrap();
+    let scene = marker_scene(
+        &cfg,
+        &entries(Dictionary::paper()),
+        &mut ChaCha8Rng::seed_from_u64(5),
+    )
+    .unwrap();
     let grey = image::GrayImage::from_raw(640, 480, scene.pixels.clone()).unwrap();
     let png = d.join("scene.png");
     grey.save(&png).unwrap();
@@ -106,7 +121,12 @@ fn human_listing_names_robots_and_faces() {
         min_side: 60.0,
         ..SceneConfig::default()
     };
-    let scene = marker_scene(&cfg, Dictionary::paper(), &mut ChaCha8Rng::seed_from_u64(8)).unwrap();
+    let scene = marker_scene(
+        &cfg,
+        &entries(Dictionary::paper()),
+        &mut ChaCha8Rng::seed_from_u64(8),
+    )
+    .unwrap();
     let png = d.join("two.png");
     image::GrayImage::from_raw(640, 480, scene.pixels.clone())
         .unwrap()

@@ -9,10 +9,10 @@ use std::process::{Command, Stdio};
 
 use fiducial::Dictionary;
 use formation_sim::scenario::{ScenarioConfig, simulate};
-use formation_sim::scene::{CameraSpec, Pose, RenderSpec, RobotSpec, SceneSpec, render_scene};
+use formation_sim::scene::{CameraSpec, RenderSpec, RobotSpec, SceneSpec, render_scene};
 use formation_tracker::mount::CameraMount;
 use formation_tracker::rig::RigModel;
-use unicycle::{PolarModel, wrap_angle};
+use unicycle::{PolarModel, Pose, wrap_angle};
 
 const FRAMES: usize = 12;
 

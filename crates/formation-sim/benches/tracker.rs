@@ -72,10 +72,11 @@ fn tracker_step(c: &mut Criterion) {
 /// 1.5 m ahead, noise and blur on); rendering is outside the measurement.
 fn frame_pipeline(c: &mut Criterion) {
     use fiducial::{Detector, DetectorConfig, Dictionary};
-    use formation_sim::scene::{Pose, RobotSpec, SceneSpec, render_scene};
+    use formation_sim::scene::{RobotSpec, SceneSpec, render_scene};
     use formation_tracker::pipeline::Pipeline;
     use formation_tracker::rig::RigModel;
     use formation_tracker::robots::RobotConfig;
+    use unicycle::Pose;
 
     let spec = SceneSpec {
         name: String::new(),

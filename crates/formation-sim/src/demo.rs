@@ -390,7 +390,7 @@ fn follower_scene(world: &World<'_>, ctx: &StepContext<'_>, me: usize) -> SceneS
         .collect();
     SceneSpec {
         name: String::new(),
-        camera_robot: scene::Pose {
+        camera_robot: Pose {
             x: ctx.poses[me].x,
             y: ctx.poses[me].y,
             theta: ctx.poses[me].theta,

@@ -27,6 +27,8 @@ use formation_tracker::mount::{self, CameraMount, MeasurementError};
 use formation_tracker::rig::RigError;
 use formation_tracker::rig::RigModel;
 use formation_tracker::textfile;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use unicycle::Pose;
 
 /// Faces seen more obliquely than this (degrees) are not required to be read.
 pub const MAX_OFF_AXIS_DEG: f64 = 75.0;
@@ -63,6 +65,9 @@ pub enum SceneError {
     /// The rig is invalid or lacks a marker for a robot.
     #[error(transparent)]
     Rig(#[from] RigError),
+    /// The camera's intrinsics are invalid.
+    #[error(transparent)]
+    Camera(#[from] pose::PoseError),
     /// The synthetic camera refused the scene.
     #[error(transparent)]
     Synth(#[from] synthcam::SynthError),
@@ -135,18 +140,6 @@ impl Default for RenderSpec {
     }
 }
 
-/// A planar pose `(x, y, theta)`: metres, metres, radians.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Pose {
-    /// x, metres (forward of the camera robot at heading 0).
-    pub x: f64,
-    /// y, metres (left).
-    pub y: f64,
-    /// Heading, radians, counter-clockwise.
-    pub theta: f64,
-}
-
 /// One leader in a scene.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -159,6 +152,13 @@ pub struct RobotSpec {
     pub y: f64,
     /// Heading, radians.
     pub theta: f64,
+}
+
+impl RobotSpec {
+    /// The leader's planar pose.
+    pub fn pose(&self) -> Pose {
+        Pose::new(self.x, self.y, self.theta)
+    }
 }
 
 /// The camera mount of the paper scenes: level, at marker height (0.30 m), no offset, no pan.
@@ -316,6 +316,14 @@ pub fn marker_texture(family: MarkerFamily, code: u64) -> Result<synthcam::CellG
     Ok(synthcam::CellGrid::from_bits(rows, cols, &black)?)
 }
 
+/// The rigid transform camera frame -> body frame of `mount`: the form `synthcam` takes.
+pub fn camera_to_body(mount: &CameraMount) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::from(mount.camera_position()),
+        UnitQuaternion::from_rotation_matrix(&mount.camera_to_body_rotation()),
+    )
+}
+
 /// A built scene, ready to render.
 #[derive(Debug, Clone)]
 pub struct BuiltScene {
@@ -355,7 +363,7 @@ pub fn build_scene(
     });
     let geometries = rig.face_geometries()?;
     for rb in &spec.robots {
-        let mut robot = synthcam::Robot::new(synthcam::Pose2::new(rb.x, rb.y, rb.theta), body);
+        let mut robot = synthcam::Robot::new(rb.pose(), body);
         for g in &geometries {
             let code = rig.code(dictionary, rb.robot, g.face)?;
             let texture = Arc::new(marker_texture(family, code)?);
@@ -370,25 +378,19 @@ pub fn build_scene(
         }
         scene.robots.push(robot);
     }
-    let intrinsics = synthcam::Intrinsics::from_hfov(
-        spec.camera.width,
-        spec.camera.height,
-        spec.camera.hfov_deg,
+    let (width, height) = (spec.camera.width, spec.camera.height);
+    // `validate` bounds the size to 8192 px a side.
+    let intrinsics = pose::Intrinsics::from_hfov(
+        spec.camera.hfov_deg.to_radians(),
+        width as u32,
+        height as u32,
     )?;
-    let m = &spec.mount;
     let camera = synthcam::Camera::on_robot(
         intrinsics,
-        &synthcam::CameraMount {
-            d: m.offset,
-            height: m.height,
-            pan: m.pan,
-            tilt: m.tilt,
-        },
-        synthcam::Pose2::new(
-            spec.camera_robot.x,
-            spec.camera_robot.y,
-            spec.camera_robot.theta,
-        ),
+        width,
+        height,
+        &camera_to_body(&spec.mount),
+        &spec.camera_robot,
     )?;
     let settings = synthcam::RenderSettings {
         supersampling: spec.render.supersampling,
@@ -491,7 +493,7 @@ fn truth_from(
     rig: &RigModel,
     dictionary: &Dictionary,
 ) -> Result<SceneTruth, SceneError> {
-    let intr = truth.intrinsics;
+    let intr = truth.camera;
     let geometries = rig.face_geometries()?;
     let mut robots = Vec::with_capacity(spec.robots.len());
     for (rb, rt) in spec.robots.iter().zip(&truth.robots) {
@@ -525,11 +527,7 @@ fn truth_from(
         let rv = rot.scaled_axis();
         robots.push(RobotTruthOut {
             robot: rb.robot,
-            pose: Pose {
-                x: rb.x,
-                y: rb.y,
-                theta: rb.theta,
-            },
+            pose: rb.pose(),
             rotation: [rv.x, rv.y, rv.z],
             translation: [t.x, t.y, t.z],
             relative_heading: unicycle::wrap_angle(rb.theta - spec.camera_robot.theta),

@@ -6,10 +6,11 @@ use std::hint::black_box;
 use std::sync::Arc;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use synthcam::{
-    Body, Camera, CameraMount, CellGrid, Face, Ground, Intrinsics, Pose2, RenderSettings, Robot,
-    Scene, SoftChecker, reference_octagon_faces, render,
-};
+#[path = "../tests/common/mod.rs"]
+mod common;
+
+use synthcam::{Body, CellGrid, Face, Ground, RenderSettings, Robot, Scene, SoftChecker, render};
+use unicycle::Pose;
 
 fn marker(seed: u64) -> CellGrid {
     // 8 x 9 cells: quiet zone, border, pseudo-random data cells (a fixed LCG).
@@ -32,7 +33,7 @@ fn scene() -> Scene {
         texture: Arc::new(SoftChecker::new(0.42, 0.58).expect("valid")),
         tile: 1.0,
     });
-    for (k, pose) in [Pose2::new(1.6, 0.45, 0.5), Pose2::new(2.2, -0.5, -0.4)]
+    for (k, pose) in [Pose::new(1.6, 0.45, 0.5), Pose::new(2.2, -0.5, -0.4)]
         .into_iter()
         .enumerate()
     {
@@ -44,7 +45,7 @@ fn scene() -> Scene {
                 albedo: 0.35,
             },
         );
-        for (i, p) in reference_octagon_faces(0.16)
+        for (i, p) in common::octagon_faces(0.16)
             .expect("valid")
             .into_iter()
             .enumerate()
@@ -62,14 +63,8 @@ fn scene() -> Scene {
 
 fn bench(c: &mut Criterion) {
     let s = scene();
-    let intr = Intrinsics::from_hfov(640, 480, 60.0).expect("valid intrinsics");
-    let mount = CameraMount {
-        d: 0.1,
-        height: 0.3,
-        pan: 0.0,
-        tilt: 0.0,
-    };
-    let cam = Camera::on_robot(intr, &mount, Pose2::default()).expect("valid camera");
+    let mount = common::mount(0.1, 0.3, 0.0, 0.0);
+    let cam = common::camera(640, 480, 60.0, &mount, Pose::default()).expect("valid camera");
     for (name, n) in [
         ("synthcam/render_640x480_ss4", 2),
         ("synthcam/render_640x480_ss16", 4),

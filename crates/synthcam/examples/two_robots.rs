@@ -6,10 +6,14 @@
 
 use std::sync::Arc;
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use synthcam::{
-    Body, CameraMount, CellGrid, Face, Gradient, Ground, Intrinsics, Pose2, RenderSettings, Robot,
-    Scene, SoftChecker, SynthError, reference_octagon_faces, render,
+    Body, CellGrid, Face, Gradient, Ground, RenderSettings, Robot, Scene, SoftChecker, SynthError,
+    render,
 };
+use unicycle::Pose;
 
 /// A marker-like cell grid: one-cell white quiet zone, one-cell black border, 4 x 5 data cells
 /// taken from the bits of `code` (bit k at row k / 5, column k % 5; 1 = black). 8 rows x 9 cols,
@@ -26,7 +30,7 @@ fn marker(code: u32) -> Result<CellGrid, SynthError> {
     CellGrid::from_bits(rows, cols, &black)
 }
 
-fn robot(pose: Pose2, first_code: u32) -> Result<Robot, SynthError> {
+fn robot(pose: Pose, first_code: u32) -> Result<Robot, SynthError> {
     let mut r = Robot::new(
         pose,
         Body::Cylinder {
@@ -35,7 +39,7 @@ fn robot(pose: Pose2, first_code: u32) -> Result<Robot, SynthError> {
             albedo: 0.35,
         },
     );
-    for (i, placement) in reference_octagon_faces(0.16)?.into_iter().enumerate() {
+    for (i, placement) in common::octagon_faces(0.16)?.into_iter().enumerate() {
         let code = first_code
             .wrapping_mul(2_654_435_761)
             .rotate_left(i as u32 * 5)
@@ -56,18 +60,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         tile: 1.0,
     });
     // Leader A ahead and to the left, turned a little left; leader B ahead and to the right.
-    scene.robots.push(robot(Pose2::new(1.6, 0.45, 0.5), 1)?);
-    scene.robots.push(robot(Pose2::new(2.2, -0.5, -0.4), 7)?);
+    scene.robots.push(robot(Pose::new(1.6, 0.45, 0.5), 1)?);
+    scene.robots.push(robot(Pose::new(2.2, -0.5, -0.4), 7)?);
 
     // The follower's camera: 10 cm ahead of its reference point, 30 cm high, level.
-    let intrinsics = Intrinsics::from_hfov(640, 480, 60.0)?;
-    let mount = CameraMount {
-        d: 0.1,
-        height: 0.3,
-        pan: 0.0,
-        tilt: 0.0,
-    };
-    let camera = synthcam::Camera::on_robot(intrinsics, &mount, Pose2::new(0.0, 0.0, 0.0))?;
+    let mount = common::mount(0.1, 0.3, 0.0, 0.0);
+    let camera = common::camera(640, 480, 60.0, &mount, Pose::new(0.0, 0.0, 0.0))?;
 
     let settings = RenderSettings {
         supersampling: 2,

@@ -3,7 +3,7 @@
 //!
 //! The paper checks its tracker against a synthetic OpenGL camera. This crate is our own: it
 //! renders grey (or RGB) images of robots standing on a ground plane, each carrying a rig of
-//! flat textured faces (the octagon of fiducial markers, spec 3.3), and for every frame it
+//! flat textured faces (e.g. fiducial markers), and for every frame it
 //! reports what the image *should* contain, computed exactly rather than measured.
 //!
 //! # Conventions (spec 2.1)
@@ -65,29 +65,47 @@
 //! fiducial marker (border, data cells, quiet zone) is supplied; [`ImageTexture`] stretches a
 //! grey buffer (nearest or bilinear); [`Uniform`] and [`SoftChecker`] (a smooth, low-contrast
 //! ground pattern with no marker-like edges) complete the set. The crate knows nothing about
-//! marker codes, dictionaries or robot dynamics: callers build textures and poses from their
-//! own types.
+//! marker codes, dictionaries, rig layouts or robot dynamics: callers build textures and faces
+//! from their own types.
+//!
+//! # Vocabulary
+//! The pinhole model is `pose`'s ([`pose::Intrinsics`]; a [`Camera`] adds the image size and
+//! its pose), robots stand at `unicycle`'s planar [`unicycle::Pose`], and a camera mounted on a
+//! robot is given by the rigid transform camera frame -> body frame ([`Camera::on_robot`]).
 //!
 //! # Example
 //! ```
 //! use std::sync::Arc;
+//! use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 //! use synthcam::*;
+//! use unicycle::Pose;
 //!
-//! // One texture per face; a real rig would carry five different markers.
+//! // One face 0.2 m behind the leader's reference point, looking backwards.
 //! let marker: Arc<dyn Texture> = Arc::new(CellGrid::from_bits(2, 2, &[true, false, false, true])?);
-//! let rig = reference_octagon_rig(0.16, std::array::from_fn(|_| marker.clone()))?;
-//! let leader = Robot::new(Pose2::new(1.5, 0.2, 0.0), Body::Cylinder { radius: 0.2, height: 0.2, albedo: 0.3 })
-//!     .with_faces(rig);
+//! let face = FacePlacement {
+//!     centre: Point3::new(-0.2, 0.0, 0.3),
+//!     normal: -Vector3::x(),
+//!     up: Vector3::z(),
+//!     width: 0.18,
+//!     height: 0.16,
+//! };
+//! let leader = Robot::new(Pose::new(1.5, 0.2, 0.0), Body::Cylinder { radius: 0.15, height: 0.2, albedo: 0.3 })
+//!     .with_face(Face::new(3, face, marker));
 //! let mut scene = Scene::new(0.8);
 //! scene.robots.push(leader);
 //! scene.ground = Some(Ground { texture: Arc::new(SoftChecker::new(0.45, 0.6)?), tile: 1.0 });
 //!
-//! let intrinsics = Intrinsics::from_hfov(160, 120, 60.0)?;
-//! let mount = CameraMount { d: 0.1, height: 0.3, pan: 0.0, tilt: 0.0 };
-//! let camera = Camera::on_robot(intrinsics, &mount, Pose2::new(0.0, 0.0, 0.0))?;
+//! // A level camera 0.1 m ahead of the follower's reference point and 0.3 m up (camera z
+//! // along body x, camera y along body -z).
+//! let camera_to_body = Isometry3::from_parts(
+//!     Translation3::new(0.1, 0.0, 0.3),
+//!     UnitQuaternion::face_towards(&Vector3::x(), &-Vector3::z()),
+//! );
+//! let intrinsics = pose::Intrinsics::from_hfov(60f64.to_radians(), 160, 120).expect("valid");
+//! let camera = Camera::on_robot(intrinsics, 160, 120, &camera_to_body, &Pose::new(0.0, 0.0, 0.0))?;
 //! let out = render(&scene, &camera, &RenderSettings::default())?;
 //! assert_eq!(out.frame.data.len(), 160 * 120);
-//! // The leader faces away from the camera, so face 3 (pointing backwards) is visible.
+//! // The leader faces away from the camera, so its backward face (label 3) is visible.
 //! assert!(out.truth.face(0, 3).is_some_and(|f| f.visible));
 //! # Ok::<(), synthcam::SynthError>(())
 //! ```
@@ -101,16 +119,12 @@ mod scene;
 mod texture;
 mod truth;
 
-pub use camera::{Camera, CameraMount, Intrinsics, MAX_PIXELS, MIN_DEPTH};
+pub use camera::{Camera, MAX_PIXELS, MIN_DEPTH};
 pub use error::{MAX_INTRINSIC, MAX_MAGNITUDE, SynthError};
 pub use render::{
     Frame, Gradient, MAX_SUPERSAMPLING, PixelFormat, RenderSettings, Rendered, Shading, render,
 };
-pub use scene::{
-    Body, Face, FaceFrame, FacePlacement, Ground, OCTAGON_FACE_YAWS_DEG, Pose2,
-    REFERENCE_FACE_CENTRE_HEIGHT, REFERENCE_FACE_WIDTH, Robot, Scene, octagon_apothem,
-    octagon_faces, reference_octagon_faces, reference_octagon_rig,
-};
+pub use scene::{Body, Face, FaceFrame, FacePlacement, Ground, Panel, Robot, Scene};
 pub use texture::{CellGrid, Filter, ImageTexture, SoftChecker, Texture, Uniform};
 pub use truth::{CORNER_INSET, FaceTruth, FrameTruth, RobotTruth, ground_truth};
 

@@ -49,7 +49,7 @@ impl ScreenBox {
     }
 }
 
-/// A textured rectangle in the camera frame.
+/// A textured rectangle (or parallelogram) in the camera frame.
 #[derive(Debug)]
 pub(crate) struct Rect<'a> {
     normal: Vector3<f64>,
@@ -152,7 +152,6 @@ fn screen_box(camera: &Camera, pts: &[Point3<f64>]) -> Option<ScreenBox> {
             v1: f64::INFINITY,
         });
     }
-    let k = camera.intrinsics();
     let mut b = ScreenBox {
         u0: f64::INFINITY,
         u1: f64::NEG_INFINITY,
@@ -160,7 +159,7 @@ fn screen_box(camera: &Camera, pts: &[Point3<f64>]) -> Option<ScreenBox> {
         v1: f64::NEG_INFINITY,
     };
     for p in pts {
-        if let Some(q) = k.project(p) {
+        if let Some(q) = camera.project(p) {
             b.u0 = b.u0.min(q.x);
             b.u1 = b.u1.max(q.x);
             b.v0 = b.v0.min(q.y);
@@ -188,7 +187,7 @@ impl<'a> Prepared<'a> {
         let mut prims = Vec::new();
         let world_factor = |n: &Vector3<f64>| light.map_or(1.0, |l| l.factor(n));
         for (ri, robot) in scene.robots.iter().enumerate() {
-            let b2w = robot.pose.body_to_world();
+            let b2w = crate::scene::body_to_world(&robot.pose);
             let b2c = w2c * b2w;
             let rot_bc = *b2c.rotation.to_rotation_matrix().matrix();
             let rot_cb = rot_bc.transpose();
@@ -305,6 +304,35 @@ impl<'a> Prepared<'a> {
                     owner: (ri, Some(fi)),
                 });
             }
+        }
+        for panel in &scene.panels {
+            let [nw, ne, sw] = panel.corners.map(|p| w2c * p);
+            let se = ne + (sw - nw);
+            let Some(bbox) = screen_box(camera, &[nw, ne, se, sw]) else {
+                continue;
+            };
+            let (a, b) = (ne - nw, sw - nw);
+            // Outward normal, and the dual basis giving s and t from a point's offset to NW.
+            let normal = b.cross(&a);
+            let s_dir = b.cross(&normal) / a.dot(&b.cross(&normal));
+            let t_dir = normal.cross(&a) / b.dot(&normal.cross(&a));
+            let offset = normal.dot(&nw.coords);
+            prims.push(Prim {
+                shape: Shape::Rect(Rect {
+                    normal,
+                    offset,
+                    s_dir,
+                    s0: s_dir.dot(&nw.coords),
+                    t_dir,
+                    t0: t_dir.dot(&nw.coords),
+                    front: offset < 0.0,
+                    texture: panel.texture.as_ref(),
+                    front_shade: 1.0,
+                    back_albedo: panel.back_albedo as f32,
+                }),
+                bbox,
+                owner: (usize::MAX, None),
+            });
         }
         let ground = scene.ground.as_ref().map(|g| {
             let c2w = w2c.inverse();

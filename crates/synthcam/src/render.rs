@@ -212,7 +212,7 @@ pub fn render(
     let prepared = Prepared::new(scene, camera, light.as_ref())?;
     let truth = ground_truth_prepared(scene, camera, &prepared)?;
     let mut radiance = trace_image(&prepared, camera, settings);
-    let (w, h) = (camera.intrinsics().width(), camera.intrinsics().height());
+    let (w, h) = (camera.width(), camera.height());
     if settings.blur_sigma > 0.0 {
         gaussian_blur(&mut radiance, w, h, settings.blur_sigma);
     }
@@ -242,9 +242,8 @@ fn light_plane(settings: &RenderSettings, w: usize, h: usize) -> [f64; 3] {
 
 /// Radiance in grey levels (`255 * albedo * light`), row-major `f32`, not clamped.
 fn trace_image(prepared: &Prepared<'_>, camera: &Camera, settings: &RenderSettings) -> Vec<f32> {
-    let intr = camera.intrinsics();
-    let (w, h) = (intr.width(), intr.height());
-    let kinv = *intr.k_inv();
+    let (w, h) = (camera.width(), camera.height());
+    let kinv = *camera.k_inv();
     let (c0, c1, c2) = (
         kinv.column(0).into_owned(),
         kinv.column(1).into_owned(),

@@ -8,43 +8,26 @@ use std::sync::Arc;
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
+use unicycle::Pose;
+
 use crate::error::{SynthError, finite, finite_vec, in_range, positive};
 use crate::texture::Texture;
 
-/// A planar robot pose on the ground: position `(x, y)` in metres and heading `theta` in
-/// radians (counter-clockwise from the world x axis).
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct Pose2 {
-    /// World x of the reference point (m).
-    pub x: f64,
-    /// World y of the reference point (m).
-    pub y: f64,
-    /// Heading (rad, CCW positive).
-    pub theta: f64,
+/// Checks that a robot's planar pose is finite (and within [`crate::MAX_MAGNITUDE`]).
+pub(crate) fn validate_pose(pose: &Pose) -> Result<(), SynthError> {
+    finite("pose x", pose.x)?;
+    finite("pose y", pose.y)?;
+    finite("pose theta", pose.theta)?;
+    Ok(())
 }
 
-impl Pose2 {
-    /// A pose.
-    pub fn new(x: f64, y: f64, theta: f64) -> Self {
-        Self { x, y, theta }
-    }
-
-    /// Check that all three numbers are finite.
-    pub fn validate(&self) -> Result<(), SynthError> {
-        finite("pose x", self.x)?;
-        finite("pose y", self.y)?;
-        finite("pose theta", self.theta)?;
-        Ok(())
-    }
-
-    /// The rigid transform body frame -> world frame (the body frame's origin is the reference
-    /// point on the ground, x forward, y left, z up).
-    pub fn body_to_world(&self) -> Isometry3<f64> {
-        Isometry3::from_parts(
-            Translation3::new(self.x, self.y, 0.0),
-            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), self.theta),
-        )
-    }
+/// The rigid transform body frame -> world frame of a robot at `pose` (the body frame's
+/// origin is the reference point on the ground, x forward, y left, z up).
+pub(crate) fn body_to_world(pose: &Pose) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::new(pose.x, pose.y, 0.0),
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), pose.theta),
+    )
 }
 
 /// A robot's opaque body, standing on the ground and centred on its reference point.
@@ -173,7 +156,7 @@ impl FacePlacement {
 /// A textured face of a robot's rig.
 #[derive(Clone, Debug)]
 pub struct Face {
-    /// A label reported in the ground truth (the octagon helper uses the spec's face numbers 1..5).
+    /// A label reported in the ground truth (e.g. a rig's face number).
     pub label: u32,
     /// Where the face is, in the body frame.
     pub placement: FacePlacement,
@@ -198,8 +181,8 @@ impl Face {
 /// A robot: a planar pose, a body and a rig of faces given in the body frame.
 #[derive(Clone, Debug)]
 pub struct Robot {
-    /// Pose on the ground.
-    pub pose: Pose2,
+    /// Pose on the ground (`unicycle`'s planar pose: metres, metres, radians CCW).
+    pub pose: Pose,
     /// The opaque body.
     pub body: Body,
     /// The rig's faces (body frame).
@@ -208,7 +191,7 @@ pub struct Robot {
 
 impl Robot {
     /// A robot with a body and no faces yet.
-    pub fn new(pose: Pose2, body: Body) -> Self {
+    pub fn new(pose: Pose, body: Body) -> Self {
         Self {
             pose,
             body,
@@ -227,6 +210,48 @@ impl Robot {
     }
 }
 
+/// A flat textured parallelogram fixed in the world: a poster, a test chart, or a marker held
+/// up in front of the camera (any image quadrilateral is the view of some parallelogram).
+///
+/// Texture `s` runs from corner NW to NE and `t` from NW to SW; SE is `NE + SW - NW`. The
+/// front is the side from which NW, NE, SE, SW run clockwise (as a face seen from outside).
+#[derive(Clone, Debug)]
+pub struct Panel {
+    /// Corners NW, NE and SW (m, world frame).
+    pub corners: [Point3<f64>; 3],
+    /// What is drawn on its front.
+    pub texture: Arc<dyn Texture>,
+    /// Grey albedo of its back side, in `[0, 1]`.
+    pub back_albedo: f64,
+}
+
+impl Panel {
+    /// A panel with the default back albedo (0.25).
+    pub fn new(corners: [Point3<f64>; 3], texture: Arc<dyn Texture>) -> Self {
+        Self {
+            corners,
+            texture,
+            back_albedo: 0.25,
+        }
+    }
+
+    fn validate(&self) -> Result<(), SynthError> {
+        for c in &self.corners {
+            finite_vec("panel corner", &c.coords)?;
+        }
+        let [nw, ne, sw] = self.corners;
+        let n = (sw - nw).cross(&(ne - nw));
+        let scale = (ne - nw).norm() * (sw - nw).norm();
+        if !(n.norm() > 1e-12 * scale && scale > 0.0) {
+            return Err(SynthError::DegenerateGeometry {
+                what: "panel corners are collinear or coincide",
+            });
+        }
+        in_range("panel back albedo", self.back_albedo, 0.0, 1.0)?;
+        Ok(())
+    }
+}
+
 /// The ground plane `z = 0`, textured by tiling a texture: one texture period covers
 /// `tile x tile` metres, with `s` along world x and `t` along world -y.
 #[derive(Clone, Debug)]
@@ -242,6 +267,8 @@ pub struct Ground {
 pub struct Scene {
     /// The robots (their index is their id in the ground truth).
     pub robots: Vec<Robot>,
+    /// Panels fixed in the world.
+    pub panels: Vec<Panel>,
     /// The ground plane, if any (without one, rays that miss everything see the background).
     pub ground: Option<Ground>,
     /// Grey albedo in `[0, 1]` of everything the rays do not hit (sky or far wall).
@@ -253,6 +280,7 @@ impl Scene {
     pub fn new(background: f64) -> Self {
         Self {
             robots: Vec::new(),
+            panels: Vec::new(),
             ground: None,
             background,
         }
@@ -265,8 +293,11 @@ impl Scene {
         if let Some(g) = &self.ground {
             positive("ground tile", g.tile)?;
         }
+        for p in &self.panels {
+            p.validate()?;
+        }
         for r in &self.robots {
-            r.pose.validate()?;
+            validate_pose(&r.pose)?;
             r.body.validate()?;
             for f in &r.faces {
                 f.placement.frame()?;
@@ -277,93 +308,20 @@ impl Scene {
     }
 }
 
-/// Width of each face of the spec's reference octagon rig (m, spec 3.3).
-pub const REFERENCE_FACE_WIDTH: f64 = 0.18;
-/// Height of the reference rig's face centres above the ground (m, spec 3.3).
-pub const REFERENCE_FACE_CENTRE_HEIGHT: f64 = 0.30;
-/// Yaw of the outward normals of faces 1..5 in the body frame (degrees, spec 3.3).
-pub const OCTAGON_FACE_YAWS_DEG: [f64; 5] = [90.0, 135.0, 180.0, -135.0, -90.0];
-
-/// Apothem (centre-to-face distance) of a regular octagon with side `width`:
-/// `width / (2 tan(22.5 deg))`.
-pub fn octagon_apothem(width: f64) -> f64 {
-    width / (2.0 * (std::f64::consts::PI / 8.0).tan())
-}
-
-/// The five faces of an octagon rig centred over the reference point: faces numbered 1..5
-/// (index `i` is face `i + 1`), outward normals at yaw +90, +135, 180, -135, -90 degrees,
-/// each `width` wide and `height` tall, centres `centre_height` above the ground at the
-/// octagon's apothem, up = body z.
-pub fn octagon_faces(
-    width: f64,
-    height: f64,
-    centre_height: f64,
-) -> Result<[FacePlacement; 5], SynthError> {
-    positive("octagon face width", width)?;
-    positive("octagon face height", height)?;
-    finite("octagon face centre height", centre_height)?;
-    let a = octagon_apothem(width);
-    Ok(OCTAGON_FACE_YAWS_DEG.map(|yaw_deg| {
-        let (s, c) = yaw_deg.to_radians().sin_cos();
-        FacePlacement {
-            centre: Point3::new(a * c, a * s, centre_height),
-            normal: Vector3::new(c, s, 0.0),
-            up: Vector3::z(),
-            width,
-            height,
-        }
-    }))
-}
-
-/// The spec's reference octagon (faces 0.18 m wide, centres at 0.30 m), with faces of the given
-/// height (e.g. 0.16 m for a 4 x 5 marker of 20 mm cells with border and one-cell quiet zone).
-pub fn reference_octagon_faces(height: f64) -> Result<[FacePlacement; 5], SynthError> {
-    octagon_faces(REFERENCE_FACE_WIDTH, height, REFERENCE_FACE_CENTRE_HEIGHT)
-}
-
-/// The spec's reference octagon rig as faces: [`reference_octagon_faces`] with `textures[i]`
-/// on face `i + 1` (labels 1..5).
-pub fn reference_octagon_rig(
-    height: f64,
-    textures: [Arc<dyn Texture>; 5],
-) -> Result<Vec<Face>, SynthError> {
-    let placements = reference_octagon_faces(height)?;
-    Ok(placements
-        .into_iter()
-        .zip(textures)
-        .enumerate()
-        .map(|(i, (placement, texture))| Face::new(i as u32 + 1, placement, texture))
-        .collect())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
-    fn octagon_faces_meet_edge_to_edge() {
-        let faces = reference_octagon_faces(0.16).unwrap();
-        for pair in faces.windows(2) {
-            // Seen from outside, face i+1 lies to the right of face i (going round the back
-            // from the left side), so face i's NE corner is face i+1's NW corner.
-            let a = pair[0].corners().unwrap();
-            let b = pair[1].corners().unwrap();
-            assert!((a[1] - b[0]).norm() < 1e-12, "{:?} vs {:?}", a[1], b[0]);
-            assert!((a[2] - b[3]).norm() < 1e-12);
-        }
-        // Face 3 looks backwards, centred at the apothem behind the reference point.
-        let c = faces[2].centre;
-        assert!(
-            (c.x + octagon_apothem(0.18)).abs() < 1e-12
-                && c.y.abs() < 1e-12
-                && (c.z - 0.30).abs() < 1e-15
-        );
-        assert!((octagon_apothem(0.18) - 0.217_279).abs() < 1e-6);
-    }
-
-    #[test]
     fn degenerate_faces_are_errors() {
-        let mut p = reference_octagon_faces(0.16).unwrap()[0];
+        let mut p = FacePlacement {
+            centre: Point3::new(0.0, 0.2, 0.3),
+            normal: Vector3::y(),
+            up: Vector3::z(),
+            width: 0.18,
+            height: 0.16,
+        };
+        assert!(p.frame().is_ok());
         p.up = p.normal * 2.0;
         assert!(matches!(
             p.frame(),

@@ -2,10 +2,12 @@
 
 use nalgebra::{Isometry3, Point2, Point3};
 
-use crate::camera::{Camera, Intrinsics};
+use unicycle::Pose;
+
+use crate::camera::Camera;
 use crate::error::SynthError;
 use crate::raycast::Prepared;
-use crate::scene::{Pose2, Scene};
+use crate::scene::Scene;
 
 /// How far a corner is pulled towards the face centre before the occlusion test, as a fraction
 /// of the corner-to-centre distance (so faces that share an edge do not occlude each other).
@@ -60,7 +62,7 @@ pub struct RobotTruth {
     /// Index of the robot in `Scene::robots`.
     pub index: usize,
     /// Its planar world pose.
-    pub pose: Pose2,
+    pub pose: Pose,
     /// The rigid transform body frame -> camera frame (the robot's pose in the camera frame).
     pub body_to_camera: Isometry3<f64>,
     /// One entry per face, in the order of `Robot::faces`.
@@ -70,10 +72,8 @@ pub struct RobotTruth {
 /// Ground truth of a frame.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FrameTruth {
-    /// The camera's intrinsics (K and image size).
-    pub intrinsics: Intrinsics,
-    /// The camera's extrinsics, world -> camera.
-    pub world_to_camera: Isometry3<f64>,
+    /// The camera (intrinsics, image size, `world -> camera`).
+    pub camera: Camera,
     /// One entry per robot, in scene order.
     pub robots: Vec<RobotTruth>,
 }
@@ -111,11 +111,10 @@ pub(crate) fn ground_truth_prepared(
     prepared: &Prepared<'_>,
 ) -> Result<FrameTruth, SynthError> {
     let w2c = *camera.world_to_camera();
-    let intr = camera.intrinsics();
     let all: Vec<u32> = (0..prepared.prims.len() as u32).collect();
     let mut robots = Vec::with_capacity(scene.robots.len());
     for (ri, robot) in scene.robots.iter().enumerate() {
-        let b2c = w2c * robot.pose.body_to_world();
+        let b2c = w2c * crate::scene::body_to_world(&robot.pose);
         let mut faces = Vec::with_capacity(robot.faces.len());
         for (fi, face) in robot.faces.iter().enumerate() {
             let frame = face.placement.frame()?;
@@ -133,11 +132,11 @@ pub(crate) fn ground_truth_prepared(
             let front_facing = normal.dot(&to_camera) > 0.0;
             let projected: Vec<Point2<f64>> = corners_camera
                 .iter()
-                .filter_map(|p| intr.project(p))
+                .filter_map(|p| camera.project(p))
                 .collect();
             let in_front = projected.len() == 4;
             let corners_px = <[Point2<f64>; 4]>::try_from(projected).ok();
-            let inside_image = corners_px.is_some_and(|c| c.iter().all(|p| intr.contains(p)));
+            let inside_image = corners_px.is_some_and(|c| c.iter().all(|p| camera.contains(p)));
             let width_px = corners_px.map(|c| ((c[1] - c[0]).norm() + (c[2] - c[3]).norm()) / 2.0);
             let skip = prepared
                 .prims
@@ -173,8 +172,7 @@ pub(crate) fn ground_truth_prepared(
         });
     }
     Ok(FrameTruth {
-        intrinsics: *intr,
-        world_to_camera: w2c,
+        camera: *camera,
         robots,
     })
 }

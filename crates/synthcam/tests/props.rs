@@ -4,17 +4,17 @@
 use std::f64::consts::PI;
 use std::sync::Arc;
 
+use nalgebra::Isometry3;
 use proptest::prelude::*;
+mod common;
+
 use synthcam::*;
+use unicycle::Pose;
 
 /// One robot whose face `i` (label `i + 1`) is uniformly `(i + 1) * 40 / 255`.
-fn leader(pose: Pose2) -> Robot {
+fn leader(pose: Pose) -> Robot {
     let mut r = Robot::new(pose, Body::None);
-    for (i, p) in reference_octagon_faces(0.16)
-        .unwrap()
-        .into_iter()
-        .enumerate()
-    {
+    for (i, p) in common::octagon_faces(0.16).unwrap().into_iter().enumerate() {
         let tex = Arc::new(Uniform::new((i as f64 + 1.0) * 40.0 / 255.0).unwrap());
         r = r.with_face(Face::new(i as u32 + 1, p, tex));
     }
@@ -22,21 +22,23 @@ fn leader(pose: Pose2) -> Robot {
 }
 
 prop_compose! {
-    fn pose()(x in -3.0..3.0f64, y in -3.0..3.0f64, theta in -PI..PI) -> Pose2 { Pose2::new(x, y, theta) }
+    fn pose()(x in -3.0..3.0f64, y in -3.0..3.0f64, theta in -PI..PI) -> Pose { Pose::new(x, y, theta) }
 }
 
 prop_compose! {
-    fn mount()(d in 0.0..0.3f64, height in 0.1..0.6f64, pan in -1.0..1.0f64, tilt in -0.2..0.3f64) -> CameraMount {
-        CameraMount { d, height, pan, tilt }
+    /// A camera mount (camera -> body) and its pan.
+    fn mount()(d in 0.0..0.3f64, height in 0.1..0.6f64, pan in -1.0..1.0f64, tilt in -0.2..0.3f64) -> (Isometry3<f64>, f64) {
+        (common::mount(d, height, pan, tilt), pan)
     }
 }
 
 prop_compose! {
     /// A follower pose and a leader somewhere ahead of it, mostly within the field of view.
     fn ahead()(follower in pose(), m in mount(), dist in 0.8..4.0f64, bearing in -0.5..0.5f64, heading in -PI..PI)
-        -> (Pose2, CameraMount, Pose2) {
-        let a = follower.theta + m.pan + bearing;
-        let leader = Pose2::new(follower.x + dist * a.cos(), follower.y + dist * a.sin(), heading);
+        -> (Pose, Isometry3<f64>, Pose) {
+        let (m, pan) = m;
+        let a = follower.theta + pan + bearing;
+        let leader = Pose::new(follower.x + dist * a.cos(), follower.y + dist * a.sin(), heading);
         (follower, m, leader)
     }
 }
@@ -49,7 +51,7 @@ proptest! {
         let mut scene = Scene::new(0.9);
         scene.robots.push(leader(leader_pose));
         scene.ground = Some(Ground { texture: Arc::new(SoftChecker::new(0.4, 0.6).unwrap()), tile: 1.0 });
-        let cam = Camera::on_robot(Intrinsics::from_hfov(64, 48, hfov).unwrap(), &m, follower).unwrap();
+        let cam = common::camera(64, 48, hfov, &m.0, follower).unwrap();
         let truth = ground_truth(&scene, &cam).unwrap();
         for f in &truth.robots[0].faces {
             prop_assert!((0.0..=180.0).contains(&f.off_axis_deg));
@@ -61,13 +63,13 @@ proptest! {
             }
             if let Some(c) = f.corners_px {
                 for (p, q) in c.iter().zip(&f.corners_camera) {
-                    let r = cam.intrinsics().project(q).unwrap();
+                    let r = cam.project(q).unwrap();
                     prop_assert!((p - r).norm() < 1e-9);
                     prop_assert!(p.x.is_finite() && p.y.is_finite());
                 }
                 let w = f.width_px.unwrap();
                 prop_assert!(w.is_finite() && w > 0.0);
-                prop_assert_eq!(f.inside_image, c.iter().all(|p| cam.intrinsics().contains(p)));
+                prop_assert_eq!(f.inside_image, c.iter().all(|p| cam.contains(p)));
             } else {
                 prop_assert!(!f.in_front && !f.visible);
             }
@@ -79,7 +81,7 @@ proptest! {
         let mut checked = 0;
         let mut scene = Scene::new(1.0);
         scene.robots.push(leader(leader_pose));
-        let cam = Camera::on_robot(Intrinsics::from_hfov(96, 72, 70.0).unwrap(), &m, follower).unwrap();
+        let cam = common::camera(96, 72, 70.0, &m, follower).unwrap();
         let settings = RenderSettings { supersampling: 1, shading: None, ..RenderSettings::default() };
         let out = render(&scene, &cam, &settings).unwrap();
         for f in out.truth.robots[0].faces.iter().filter(|f| f.visible && f.width_px.unwrap() > 6.0) {
@@ -117,9 +119,9 @@ proptest! {
         let mut r = leader(leader_pose);
         r.body = Body::Box { length: 0.3, width: 0.25, height: 0.2, albedo: 0.3 };
         scene.robots.push(r);
-        scene.robots.push(Robot::new(Pose2::new(leader_pose.y, leader_pose.x, 0.3), Body::Cylinder { radius: 0.2, height: 0.3, albedo: 0.5 }));
+        scene.robots.push(Robot::new(Pose::new(leader_pose.y, leader_pose.x, 0.3), Body::Cylinder { radius: 0.2, height: 0.3, albedo: 0.5 }));
         scene.ground = Some(Ground { texture: Arc::new(SoftChecker::new(0.3, 0.7).unwrap()), tile: 0.7 });
-        let cam = Camera::on_robot(Intrinsics::from_hfov(w, h, 60.0).unwrap(), &m, follower).unwrap();
+        let cam = common::camera(w, h, 60.0, &m.0, follower).unwrap();
         let settings = RenderSettings { supersampling: n, blur_sigma: blur, noise_sigma: noise, seed, ..RenderSettings::default() };
         let out = render(&scene, &cam, &settings).unwrap();
         prop_assert_eq!(out.frame.data.len(), w * h);
@@ -143,9 +145,9 @@ proptest! {
         height in -MAX_MAGNITUDE..MAX_MAGNITUDE, tilt in -3.2..3.2f64,
     ) {
         let mut scene = Scene::new(0.5);
-        scene.robots.push(leader(Pose2::new(lx, ly, lt)));
-        let m = CameraMount { d: 0.1, height, pan: 0.0, tilt };
-        let cam = Camera::on_robot(Intrinsics::from_hfov(32, 24, 60.0).unwrap(), &m, Pose2::new(fx, fy, ft)).unwrap();
+        scene.robots.push(leader(Pose::new(lx, ly, lt)));
+        let m = common::mount(0.1, height, 0.0, tilt);
+        let cam = common::camera(32, 24, 60.0, &m, Pose::new(fx, fy, ft)).unwrap();
         let out = render(&scene, &cam, &RenderSettings { supersampling: 1, ..RenderSettings::default() }).unwrap();
         for f in &out.truth.robots[0].faces {
             prop_assert!(f.off_axis_deg.is_finite());

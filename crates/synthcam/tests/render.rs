@@ -3,8 +3,11 @@
 
 use std::sync::Arc;
 
-use nalgebra::{Matrix3, Point3, Vector3};
+use nalgebra::{Point3, Vector3};
+mod common;
+
 use synthcam::*;
+use unicycle::Pose;
 
 fn scene() -> Scene {
     let grid = Arc::new(
@@ -16,7 +19,7 @@ fn scene() -> Scene {
         .unwrap(),
     );
     let mut r = Robot::new(
-        Pose2::new(1.5, 0.1, 0.3),
+        Pose::new(1.5, 0.1, 0.3),
         Body::Box {
             length: 0.3,
             width: 0.3,
@@ -24,11 +27,7 @@ fn scene() -> Scene {
             albedo: 0.3,
         },
     );
-    for (i, p) in reference_octagon_faces(0.16)
-        .unwrap()
-        .into_iter()
-        .enumerate()
-    {
+    for (i, p) in common::octagon_faces(0.16).unwrap().into_iter().enumerate() {
         r = r.with_face(Face::new(i as u32 + 1, p, grid.clone()));
     }
     let mut s = Scene::new(0.8);
@@ -41,18 +40,8 @@ fn scene() -> Scene {
 }
 
 fn camera(w: usize, h: usize) -> Camera {
-    let mount = CameraMount {
-        d: 0.1,
-        height: 0.3,
-        pan: 0.05,
-        tilt: 0.05,
-    };
-    Camera::on_robot(
-        Intrinsics::from_hfov(w, h, 60.0).unwrap(),
-        &mount,
-        Pose2::default(),
-    )
-    .unwrap()
+    let mount = common::mount(0.1, 0.3, 0.05, 0.05);
+    common::camera(w, h, 60.0, &mount, Pose::default()).unwrap()
 }
 
 fn noisy(seed: u64) -> RenderSettings {
@@ -230,7 +219,7 @@ fn marker_faces_stay_unshaded_by_default_but_bodies_are_shaded() {
     let shaded = RenderSettings::default();
     let truth = ground_truth(&s, &c).unwrap();
     let f = truth.robots[0].faces.iter().find(|f| f.visible).unwrap();
-    let centre = c.intrinsics().project(&f.centre_camera).unwrap();
+    let centre = c.project(&f.centre_camera).unwrap();
     let (u, v) = (centre.x.round() as usize, centre.y.round() as usize);
     let a = render(&s, &c, &unshaded).unwrap().frame;
     let b = render(&s, &c, &shaded).unwrap().frame;
@@ -335,58 +324,45 @@ fn bad_input_is_a_typed_error() {
         render(&bad, &c, &ok),
         Err(SynthError::TooLarge { .. })
     ));
-    let huge_k = Matrix3::new(1e200, 0.0, 10.0, 0.0, 1e200, 10.0, 0.0, 0.0, 1.0);
+    let huge_k = pose::Intrinsics::square_pixels(1e200, 1e200, 10.0, 10.0).unwrap();
+    let id = nalgebra::Isometry3::identity();
     assert!(matches!(
-        Intrinsics::new(huge_k, 20, 20),
+        Camera::new(huge_k, 20, 20, id),
         Err(SynthError::TooLarge { .. })
     ));
-    let far = CameraMount {
-        d: -1e12,
-        height: 0.3,
-        pan: 0.0,
-        tilt: 0.0,
-    };
+    let far = common::mount(-1e12, 0.3, 0.0, 0.0);
+    let (w, h) = (c.width(), c.height());
     assert!(matches!(
-        Camera::on_robot(*c.intrinsics(), &far, Pose2::default()),
+        Camera::on_robot(*c.intrinsics(), w, h, &far, &Pose::default()),
         Err(SynthError::TooLarge { .. })
     ));
-
-    let singular = Matrix3::new(100.0, 0.0, 10.0, 0.0, 0.0, 10.0, 0.0, 0.0, 1.0);
     assert!(matches!(
-        Intrinsics::new(singular, 20, 20),
-        Err(SynthError::InvalidIntrinsics { .. })
-    ));
-    assert!(matches!(
-        Intrinsics::from_hfov(20, 0, 60.0),
+        Camera::new(*c.intrinsics(), 20, 0, id),
         Err(SynthError::ZeroImageSize { .. })
     ));
-    let k = *c.intrinsics().k();
     assert!(matches!(
-        Intrinsics::new(k, 0, 0),
+        Camera::new(*c.intrinsics(), 0, 0, id),
         Err(SynthError::ZeroImageSize { .. })
     ));
     let nan_pose = nalgebra::Isometry3::translation(f64::NAN, 0.0, 0.0);
     assert!(matches!(
-        Camera::new(*c.intrinsics(), nan_pose),
+        Camera::new(*c.intrinsics(), w, h, nan_pose),
         Err(SynthError::NonFinite { .. })
     ));
     assert!(
         Camera::look_at(
             *c.intrinsics(),
+            w,
+            h,
             Point3::origin(),
             Point3::new(f64::NAN, 0.0, 0.0),
             Vector3::z()
         )
         .is_err()
     );
-    let mount = CameraMount {
-        d: 0.1,
-        height: f64::NAN,
-        pan: 0.0,
-        tilt: 0.0,
-    };
+    let mount = common::mount(0.1, f64::NAN, 0.0, 0.0);
     assert!(matches!(
-        Camera::on_robot(*c.intrinsics(), &mount, Pose2::default()),
+        Camera::on_robot(*c.intrinsics(), w, h, &mount, &Pose::default()),
         Err(SynthError::NonFinite { .. })
     ));
 }
@@ -394,18 +370,8 @@ fn bad_input_is_a_typed_error() {
 #[test]
 fn camera_inside_nothing_and_looking_at_the_sky_renders_background() {
     let s = scene();
-    let mount = CameraMount {
-        d: 0.0,
-        height: 0.3,
-        pan: 0.0,
-        tilt: -1.4,
-    }; // looking almost straight up
-    let c = Camera::on_robot(
-        Intrinsics::from_hfov(40, 30, 30.0).unwrap(),
-        &mount,
-        Pose2::new(-5.0, 0.0, 0.0),
-    )
-    .unwrap();
+    let mount = common::mount(0.0, 0.3, 0.0, -1.4); // looking almost straight up
+    let c = common::camera(40, 30, 30.0, &mount, Pose::new(-5.0, 0.0, 0.0)).unwrap();
     let f = render(&s, &c, &RenderSettings::default()).unwrap().frame;
     assert!(f.data.iter().all(|&x| x == 204)); // 0.8 * 255
 }

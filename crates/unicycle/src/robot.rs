@@ -5,7 +5,14 @@ use crate::error::{UnicycleError, check_dt, check_finite};
 
 /// Planar pose of a unicycle: position `(x, y)` in metres and heading `theta` in radians
 /// (counter-clockwise from the world x axis).
+///
+/// With the `serde` feature it reads and writes as `{x, y, theta}` (unknown fields refused).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(deny_unknown_fields)
+)]
 pub struct Pose {
     /// World x of the robot's reference point, metres.
     pub x: f64,

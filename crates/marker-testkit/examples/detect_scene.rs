@@ -3,15 +3,24 @@
 //! marker drawn the code and index read, the bits corrected and the corner error against
 //! the exact ground truth, then the detection time.
 //!
-//! Run with `cargo run --release -p formation-fiducial --example detect_scene [SEED]` (seed 17 is a
-//! scene whose smallest marker needs the soft-decision correction).
+//! Run with `cargo run --release -p formation-marker-testkit --example detect_scene [SEED]`.
 
 use std::time::Instant;
 
-use fiducial::synth::{SceneConfig, marker_scene};
 use fiducial::{Detector, DetectorConfig, Dictionary, GrayView};
+use marker_testkit::{CellPattern, SceneConfig, marker_scene};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+
+/// Every entry of `dict` as a test pattern (index = dictionary index).
+fn entries(dict: &Dictionary) -> Vec<CellPattern> {
+    let f = dict.family();
+    CellPattern::from_codes(
+        f.rows() as usize,
+        f.cols() as usize,
+        (0..dict.len()).map(|i| dict.code(i).unwrap_or(0)),
+    )
+}
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let seed: u64 = std::env::args()
@@ -21,7 +30,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .unwrap_or(17);
     let dict = Dictionary::paper();
     let cfg = SceneConfig::default();
-    let scene = marker_scene(&cfg, dict, &mut ChaCha8Rng::seed_from_u64(seed))?;
+    let scene = marker_scene(&cfg, &entries(dict), &mut ChaCha8Rng::seed_from_u64(seed))?;
     let img = GrayView::new(&scene.pixels, scene.width, scene.height)?;
 
     let mut detector = Detector::new(DetectorConfig::default());

@@ -1,27 +1,33 @@
-//! Synthetic test scenes with exact ground truth: the generator behind the detector's
-//! property tests, accuracy tables (`cargo xtask detector-accuracy`) and benchmarks.
+//! Seeded synthetic marker scenes with exact ground truth, for the detector's tests,
+//! benchmarks and accuracy tables (`cargo xtask detector-accuracy`). Not published.
 //!
-//! A scene is rendered physically in floating point and quantised once at the end:
-//! reflectance (markers warped by a homography onto a background) times a lighting ramp, then
-//! an optical Gaussian blur, then Gaussian sensor noise. Warping samples the texture
-//! analytically: each pixel is probed at its corners, edge midpoints and centre, and a pixel
-//! whose probes disagree (it straddles an edge) is resampled with 12x12 samples, one per cell
-//! of a 12x12 grid and each in its own column and row of a 144x144 grid (so even an edge
-//! along a pixel axis is placed to 1/288 px), and the ground-truth corners (the homography
-//! applied to the marker's corners) are exact in the pixel-centre convention of spec 2.1. All randomness comes from the caller's seeded RNG.
+//! There is one renderer in the workspace, `synthcam`; this crate only builds its scenes.
+//! A marker (or any cell pattern) that should appear as the image quadrilateral `q` becomes
+//! a `synthcam` [`Panel`]: the homography `H` taking the unit square to `q` is the view,
+//! through a camera with intrinsics `K`, of the parallelogram `K^-1 H [u, v, 1]^T` (affine in
+//! `(u, v)`), so the panel projects exactly onto `q` and the ground-truth corners are the
+//! ones asked for, in the pixel-centre convention of spec 2.1. Supersampling (box filter,
+//! multi-jittered samples), lighting gradient, Gaussian blur and seeded Gaussian noise are
+//! `synthcam`'s.
+//!
+//! The crate knows nothing about dictionaries or families: a marker is a [`CellPattern`]
+//! built from data bits (`bit k = row * cols + col`, black = 1, spec 3.1), so the detector's
+//! own tests can use it without a dependency cycle. All randomness comes from the caller's
+//! seeded RNG.
+#![deny(missing_docs)]
 
-use nalgebra::{Matrix3, Point2, Vector3};
+use std::sync::Arc;
+
+use nalgebra::{Isometry3, Matrix3, Point2, Point3, Vector3};
 use rand::{Rng, RngExt};
-use rand_distr::{Distribution, StandardNormal};
+use synthcam::{
+    Camera, CellGrid, Filter, Gradient, ImageTexture, Panel, RenderSettings, Scene, Texture,
+};
 use thiserror::Error;
 
-use crate::dictionary::Dictionary;
-use crate::family::MarkerFamily;
-use crate::image::Corners;
-
 /// Why a scene cannot be generated.
-#[derive(Debug, Clone, PartialEq, Error)]
-pub enum SynthError {
+#[derive(Debug, Error)]
+pub enum TestkitError {
     /// The frame is empty or larger than the detector accepts.
     #[error("scene size {width}x{height} is not usable (1..=16384 per side)")]
     BadSize {
@@ -48,10 +54,13 @@ pub enum SynthError {
         /// Markers asked for.
         wanted: usize,
     },
+    /// The synthetic camera refused the scene.
+    #[error(transparent)]
+    Render(#[from] synthcam::SynthError),
 }
 
-/// A rectangle of black and white cells (the whole marker, border included), drawn on the
-/// unit square, with a white quiet zone around it.
+/// A rectangle of black and white cells (the whole marker, border included) with a white
+/// quiet zone of `quiet_cells` cells around it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CellPattern {
     /// Cells across.
@@ -61,7 +70,7 @@ pub struct CellPattern {
     /// Row-major, `true` = black.
     pub cells: Vec<bool>,
     /// Width of the white quiet zone, in cells.
-    pub quiet_cells: f64,
+    pub quiet_cells: usize,
 }
 
 impl CellPattern {
@@ -94,17 +103,41 @@ impl CellPattern {
             cols,
             rows,
             cells,
-            quiet_cells: 1.0,
+            quiet_cells: 1,
         }
     }
 
-    /// The real marker with `code` of `family` (bit `k = row * cols + col`, black = 1, spec
-    /// 3.1) in a one-cell black border and a one-cell quiet zone: the same cells
-    /// [`crate::render_marker`] draws, sampled analytically at any pose.
-    pub fn from_code(family: MarkerFamily, code: u64) -> Self {
-        let (rows, cols) = (family.rows() as usize, family.cols() as usize);
-        let bits: Vec<bool> = (0..rows * cols).map(|k| (code >> k) & 1 == 1).collect();
-        Self::from_bits(rows, cols, &bits)
+    /// The marker whose `data_rows x data_cols` data cells are the bits of `code` (bit
+    /// `k = row * data_cols + col`, black = 1, spec 3.1), in a one-cell black border and a
+    /// one-cell quiet zone: the cells a dictionary entry is drawn with.
+    pub fn from_code(data_rows: usize, data_cols: usize, code: u64) -> Self {
+        let bits: Vec<bool> = (0..data_rows * data_cols)
+            .map(|k| k < 64 && (code >> k) & 1 == 1)
+            .collect();
+        Self::from_bits(data_rows, data_cols, &bits)
+    }
+
+    /// [`CellPattern::from_code`] of every code, in order: a dictionary's entries, so that
+    /// an entry's index in the result is its index in the dictionary.
+    pub fn from_codes(
+        data_rows: usize,
+        data_cols: usize,
+        codes: impl IntoIterator<Item = u64>,
+    ) -> Vec<Self> {
+        codes
+            .into_iter()
+            .map(|code| Self::from_code(data_rows, data_cols, code))
+            .collect()
+    }
+
+    /// A pattern of `rows x cols` cells and no quiet zone.
+    pub fn plain(rows: usize, cols: usize, cells: Vec<bool>) -> Self {
+        Self {
+            cols,
+            rows,
+            cells,
+            quiet_cells: 0,
+        }
     }
 
     /// Width over height of the pattern (cells are square when drawn at this aspect).
@@ -112,24 +145,21 @@ impl CellPattern {
         self.cols as f64 / self.rows.max(1) as f64
     }
 
-    /// Reflectance at unit-square coordinates `(u, v)`: `Some(0.0)` black, `Some(1.0)`
-    /// white (cells or quiet zone), `None` outside the quiet zone.
-    fn sample(&self, u: f64, v: f64) -> Option<f32> {
-        let x = u * self.cols as f64;
-        let y = v * self.rows as f64;
+    /// The pattern with its quiet zone as a `synthcam` texture: black cells at grey level
+    /// `black`, white cells and the quiet zone at `white`.
+    fn texture(&self, black: u8, white: u8) -> Result<CellGrid, TestkitError> {
         let q = self.quiet_cells;
-        if x < -q || y < -q || x >= self.cols as f64 + q || y >= self.rows as f64 + q {
-            return None;
-        }
-        if x < 0.0 || y < 0.0 || x >= self.cols as f64 || y >= self.rows as f64 {
-            return Some(1.0);
-        }
-        let i = (y as usize) * self.cols + x as usize;
-        Some(if self.cells.get(i).copied().unwrap_or(false) {
-            0.0
-        } else {
-            1.0
-        })
+        let (rows, cols) = (self.rows + 2 * q, self.cols + 2 * q);
+        let values = (0..rows * cols)
+            .map(|i| {
+                let (r, c) = (i / cols, i % cols);
+                let inside = (q..q + self.rows).contains(&r) && (q..q + self.cols).contains(&c);
+                let is_black =
+                    inside && self.cells.get((r - q) * self.cols + (c - q)).copied() == Some(true);
+                if is_black { black } else { white }
+            })
+            .collect();
+        Ok(CellGrid::new(rows, cols, values)?)
     }
 }
 
@@ -159,196 +189,192 @@ pub fn homography_from_unit_square(corners: &[[f64; 2]; 4]) -> Option<Matrix3<f6
     m.iter().all(|v| v.is_finite()).then_some(m)
 }
 
-fn apply(h: &Matrix3<f64>, x: f64, y: f64) -> [f64; 2] {
-    let p = h * Vector3::new(x, y, 1.0);
-    [p.x / p.z, p.y / p.z]
+/// Optical and sensor effects of a frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Effects {
+    /// Lighting ratio across the frame, left to right (1 = uniform, 4 = 4:1).
+    pub lighting: f64,
+    /// Optical blur sigma, pixels.
+    pub blur: f64,
+    /// Sensor noise sigma, grey levels.
+    pub noise: f64,
+    /// Noise seed.
+    pub seed: u64,
+    /// Samples per pixel side (`n x n` samples, each in its own row and column: an edge
+    /// along a pixel axis lands within `1 / (2 n^2)` px).
+    pub supersampling: usize,
 }
 
-/// A floating-point frame being rendered (reflectance or radiance, 0-255 scale).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Canvas {
-    /// Width in pixels.
-    pub width: usize,
-    /// Height in pixels.
-    pub height: usize,
-    /// Row-major values.
-    pub data: Vec<f32>,
+impl Default for Effects {
+    /// No lighting ramp, blur or noise; 8 x 8 samples per pixel.
+    fn default() -> Self {
+        Self {
+            lighting: 1.0,
+            blur: 0.0,
+            noise: 0.0,
+            seed: 0,
+            supersampling: 8,
+        }
+    }
 }
+
+/// A frame being composed: a background and cell patterns drawn onto image quadrilaterals,
+/// later ones on top. [`Canvas::render`] renders it through `synthcam`.
+#[derive(Debug, Clone)]
+pub struct Canvas {
+    width: usize,
+    height: usize,
+    camera: Camera,
+    scene: Scene,
+}
+
+/// Focal length (px) of the canvas camera; any value works, since panels are placed to
+/// project exactly onto the quadrilaterals asked for.
+const CANVAS_FOCAL: f64 = 1000.0;
 
 impl Canvas {
-    /// A frame filled with `value`.
-    pub fn new(width: usize, height: usize, value: f32) -> Result<Self, SynthError> {
+    /// A frame filled with grey level `value` (0-255).
+    pub fn new(width: usize, height: usize, value: f64) -> Result<Self, TestkitError> {
         if width == 0 || height == 0 || width > 16_384 || height > 16_384 {
-            return Err(SynthError::BadSize { width, height });
+            return Err(TestkitError::BadSize { width, height });
         }
+        let k = pose::Intrinsics::square_pixels(
+            CANVAS_FOCAL,
+            CANVAS_FOCAL,
+            0.5 * (width as f64 - 1.0),
+            0.5 * (height as f64 - 1.0),
+        )
+        .map_err(|_| TestkitError::BadSize { width, height })?;
+        let camera = Camera::new(k, width, height, Isometry3::identity())?;
         Ok(Self {
             width,
             height,
-            data: vec![value; width * height],
+            camera,
+            scene: Scene::new((value / 255.0).clamp(0.0, 1.0)),
         })
     }
 
-    /// Draws `pattern` (white = `white`, black = `black`) warped onto the quadrilateral
-    /// `corners` (images of the unit square's corners, the quiet zone extends beyond). Returns
-    /// `false` (drawing nothing) if the quadrilateral is degenerate.
+    /// Width in pixels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+    /// Height in pixels.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// Places `texture` so that its unit square `[0, 1]^2` covers the image quadrilateral
+    /// `quad` (NW, NE, SE, SW), with the texture's extent being `[-mu, 1 + mu] x [-mv, 1 + mv]`
+    /// of that square. Returns `false` (drawing nothing) if the quadrilateral is degenerate
+    /// or the extent would reach the horizon.
+    fn place(&mut self, texture: Arc<dyn Texture>, quad: &[[f64; 2]; 4], mu: f64, mv: f64) -> bool {
+        let Some(h) = homography_from_unit_square(quad) else {
+            return false;
+        };
+        let k_inv = *self.camera.k_inv();
+        let m = k_inv * h;
+        let at = |u: f64, v: f64| m * Vector3::new(u, v, 1.0);
+        let ext = [
+            at(-mu, -mv),
+            at(1.0 + mu, -mv),
+            at(1.0 + mu, 1.0 + mv),
+            at(-mu, 1.0 + mv),
+        ];
+        let zmin = ext.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
+        if !(zmin > 1e-6 && ext.iter().all(|p| p.iter().all(|c| c.is_finite()))) {
+            return false;
+        }
+        // Later panels sit nearer the camera (scaling a panel about the camera centre does
+        // not change its image), so they cover earlier ones.
+        let n = self.scene.panels.len() as f64;
+        let scale = 1e3 / (1.0 + n) / zmin;
+        let p = |v: &Vector3<f64>| Point3::from(v * scale);
+        self.scene
+            .panels
+            .push(Panel::new([p(&ext[0]), p(&ext[1]), p(&ext[3])], texture));
+        true
+    }
+
+    /// Draws `pattern` (white cells and quiet zone at grey level `white`, black cells at
+    /// `black`) onto the quadrilateral `corners` (images of the pattern's outer corners NW,
+    /// NE, SE, SW; the quiet zone extends beyond). Returns `false` (drawing nothing) if the
+    /// quadrilateral is degenerate.
     pub fn draw_pattern(
         &mut self,
         pattern: &CellPattern,
         corners: &[[f64; 2]; 4],
-        black: f32,
-        white: f32,
+        black: f64,
+        white: f64,
     ) -> bool {
-        let Some(h) = homography_from_unit_square(corners) else {
+        let level = |v: f64| v.round().clamp(0.0, 255.0) as u8;
+        let Ok(texture) = pattern.texture(level(black), level(white)) else {
             return false;
         };
-        let Some(inv) = h.try_inverse() else {
-            return false;
-        };
-        // Bounding box of the quiet zone's image.
-        let qu = pattern.quiet_cells / pattern.cols as f64;
-        let qv = pattern.quiet_cells / pattern.rows as f64;
-        let outer = [
-            apply(&h, -qu, -qv),
-            apply(&h, 1.0 + qu, -qv),
-            apply(&h, 1.0 + qu, 1.0 + qv),
-            apply(&h, -qu, 1.0 + qv),
-        ];
-        let xs = outer.iter().map(|p| p[0]);
-        let ys = outer.iter().map(|p| p[1]);
-        let x0 = xs.clone().fold(f64::MAX, f64::min).floor().max(0.0) as usize;
-        let x1 = (xs.fold(f64::MIN, f64::max).ceil() + 1.0).clamp(0.0, self.width as f64) as usize;
-        let y0 = ys.clone().fold(f64::MAX, f64::min).floor().max(0.0) as usize;
-        let y1 = (ys.fold(f64::MIN, f64::max).ceil() + 1.0).clamp(0.0, self.height as f64) as usize;
-        let value = |x: f64, y: f64| -> Option<f32> {
-            let [u, v] = apply(&inv, x, y);
-            pattern.sample(u, v).map(|r| black + r * (white - black))
-        };
-        for y in y0..y1 {
-            for x in x0..x1 {
-                let (fx, fy) = (x as f64, y as f64);
-                // Probe the pixel's corners, edge midpoints and centre: a straight edge
-                // through the pixel separates some of them.
-                let mut probes = [None; 9];
-                for (k, p) in probes.iter_mut().enumerate() {
-                    let ox = (k % 3) as f64 * 0.5 - 0.5;
-                    let oy = (k / 3) as f64 * 0.5 - 0.5;
-                    *p = value(fx + ox, fy + oy);
-                }
-                let pix = &mut self.data[y * self.width + x];
-                if probes.iter().all(|p| p.is_some() && *p == probes[0]) {
-                    *pix = probes[0].unwrap_or(*pix);
-                    continue;
-                }
-                if probes.iter().all(Option::is_none) && !near_quad(&outer, fx, fy) {
-                    continue;
-                }
-                const S: usize = 12;
-                let mut sum = 0.0f32;
-                for j in 0..S {
-                    for i in 0..S {
-                        // One sample per cell of an S x S grid, each in its own column
-                        // and row of an S^2 x S^2 grid, so that an edge along a pixel axis
-                        // is seen at S^2 offsets rather than S.
-                        let sx = fx - 0.5 + (i as f64 + (j as f64 + 0.5) / S as f64) / S as f64;
-                        let sy = fy - 0.5 + (j as f64 + (i as f64 + 0.5) / S as f64) / S as f64;
-                        sum += value(sx, sy).unwrap_or(*pix);
-                    }
-                }
-                *pix = sum / (S * S) as f32;
-            }
-        }
-        true
+        let q = pattern.quiet_cells as f64;
+        let mu = q / pattern.cols.max(1) as f64;
+        let mv = q / pattern.rows.max(1) as f64;
+        self.place(Arc::new(texture), corners, mu, mv)
     }
 
-    /// Multiplies by a horizontal lighting ramp: 1 at the left edge falling linearly to
-    /// `1 / ratio` at the right edge (`ratio` 4 is a 4:1 gradient; 1 is uniform).
-    pub fn light_gradient(&mut self, ratio: f64) {
-        let ratio = if ratio.is_finite() && ratio >= 1.0 {
-            ratio
+    /// Draws a grey image (row-major, `width x height`) bilinearly interpolated between its
+    /// texel centres, which land `spacing` pixels apart with texel `(0, 0)` on pixel `(0, 0)`.
+    pub fn draw_bilinear(
+        &mut self,
+        width: usize,
+        height: usize,
+        data: Vec<u8>,
+        spacing: f64,
+    ) -> Result<bool, TestkitError> {
+        let texture = ImageTexture::new(width, height, data, Filter::Bilinear)?;
+        // Texel centres at (i + 0.5) / width of the texture's extent.
+        let (x0, y0) = (-0.5 * spacing, -0.5 * spacing);
+        let (x1, y1) = (x0 + width as f64 * spacing, y0 + height as f64 * spacing);
+        let quad = [[x0, y0], [x1, y0], [x1, y1], [x0, y1]];
+        Ok(self.place(Arc::new(texture), &quad, 0.0, 0.0))
+    }
+
+    /// Renders the frame: 8-bit grey, row-major.
+    pub fn render(&self, effects: &Effects) -> Result<Vec<u8>, TestkitError> {
+        let ratio = if effects.lighting.is_finite() && effects.lighting >= 1.0 {
+            effects.lighting
         } else {
             1.0
         };
-        let w = self.width;
-        for row in self.data.chunks_exact_mut(w) {
-            for (x, v) in row.iter_mut().enumerate() {
-                let t = if w > 1 {
-                    x as f64 / (w - 1) as f64
-                } else {
-                    0.0
-                };
-                *v *= (1.0 + t * (1.0 / ratio - 1.0)) as f32;
-            }
-        }
-    }
-
-    /// Separable Gaussian blur with standard deviation `sigma` pixels (borders replicated);
-    /// `sigma <= 0` does nothing.
-    pub fn blur(&mut self, sigma: f64) {
-        if !sigma.is_finite() || sigma <= 0.0 {
-            return;
-        }
-        let r = (3.0 * sigma).ceil() as isize;
-        let mut k: Vec<f32> = (-r..=r)
-            .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp() as f32)
-            .collect();
-        let s: f32 = k.iter().sum();
-        k.iter_mut().for_each(|v| *v /= s);
-        let (w, h) = (self.width as isize, self.height as isize);
-        let mut tmp = vec![0.0f32; self.data.len()];
-        for y in 0..h {
-            for x in 0..w {
-                let mut acc = 0.0;
-                for (i, kv) in k.iter().enumerate() {
-                    let xx = (x + i as isize - r).clamp(0, w - 1);
-                    acc += kv * self.data[(y * w + xx) as usize];
-                }
-                tmp[(y * w + x) as usize] = acc;
-            }
-        }
-        for y in 0..h {
-            for x in 0..w {
-                let mut acc = 0.0;
-                for (i, kv) in k.iter().enumerate() {
-                    let yy = (y + i as isize - r).clamp(0, h - 1);
-                    acc += kv * tmp[(yy * w + x) as usize];
-                }
-                self.data[(y * w + x) as usize] = acc;
-            }
-        }
-    }
-
-    /// Adds Gaussian noise of standard deviation `sigma` grey levels.
-    pub fn noise<R: Rng + ?Sized>(&mut self, sigma: f64, rng: &mut R) {
-        if !sigma.is_finite() || sigma <= 0.0 {
-            return;
-        }
-        for v in &mut self.data {
-            let n: f64 = StandardNormal.sample(rng);
-            *v += (n * sigma) as f32;
-        }
-    }
-
-    /// Rounds and clamps to 8-bit grey.
-    pub fn to_gray(&self) -> Vec<u8> {
-        self.data
-            .iter()
-            .map(|v| v.round().clamp(0.0, 255.0) as u8)
-            .collect()
+        let settings = RenderSettings {
+            supersampling: effects.supersampling,
+            gradient: (ratio > 1.0).then_some(Gradient {
+                from: 1.0,
+                to: 1.0 / ratio,
+                angle: 0.0,
+            }),
+            blur_sigma: effects.blur.max(0.0),
+            noise_sigma: effects.noise.max(0.0),
+            seed: effects.seed,
+            shading: None,
+            ..RenderSettings::default()
+        };
+        Ok(synthcam::render(&self.scene, &self.camera, &settings)?
+            .frame
+            .data)
     }
 }
 
-fn near_quad(q: &[[f64; 2]; 4], x: f64, y: f64) -> bool {
-    let xs = q.iter().map(|p| p[0]);
-    let ys = q.iter().map(|p| p[1]);
-    let (xmin, xmax) = (
-        xs.clone().fold(f64::MAX, f64::min),
-        xs.fold(f64::MIN, f64::max),
-    );
-    let (ymin, ymax) = (
-        ys.clone().fold(f64::MAX, f64::min),
-        ys.fold(f64::MIN, f64::max),
-    );
-    x >= xmin - 1.0 && x <= xmax + 1.0 && y >= ymin - 1.0 && y <= ymax + 1.0
+/// True when the four corners form a convex quadrilateral, clockwise in the image (v down),
+/// with every interior angle between `min_angle_deg` and `180 - min_angle_deg`.
+fn convex_clockwise(c: &[[f64; 2]; 4], min_angle_deg: f64) -> bool {
+    let max_cos = min_angle_deg.to_radians().cos();
+    (0..4).all(|i| {
+        let (a, b, d) = (c[(i + 3) % 4], c[i], c[(i + 1) % 4]);
+        let e1 = [b[0] - a[0], b[1] - a[1]];
+        let e2 = [d[0] - b[0], d[1] - b[1]];
+        let cross = e1[0] * e2[1] - e1[1] * e2[0];
+        let n1 = e1[0].hypot(e1[1]);
+        let n2 = e2[0].hypot(e2[1]);
+        cross > 0.0
+            && n1 > 0.0
+            && n2 > 0.0
+            && (-(e1[0] * e2[0] + e1[1] * e2[1]) / (n1 * n2)).abs() <= max_cos
+    })
 }
 
 /// Settings of a marker scene.
@@ -374,9 +400,9 @@ pub struct SceneConfig {
     /// Lighting ratio across the frame (1 = uniform, 4 = 4:1).
     pub lighting: f64,
     /// Grey level of black cells (before lighting).
-    pub black: f32,
+    pub black: f64,
     /// Grey level of white cells and background (before lighting).
-    pub white: f32,
+    pub white: f64,
 }
 
 impl Default for SceneConfig {
@@ -404,15 +430,15 @@ impl Default for SceneConfig {
 pub struct PlacedMarker {
     /// The drawn pattern.
     pub pattern: CellPattern,
-    /// Its dictionary index, for real markers ([`marker_scene`]).
+    /// Its index in the caller's list of entries, for [`marker_scene`].
     pub index: Option<usize>,
     /// Exact image corners NW, NE, SE, SW of the black border's outer edge (pixel centres).
-    pub corners: Corners,
+    pub corners: [Point2<f64>; 4],
 }
 
 /// A rendered scene: 8-bit grey pixels and ground truth.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Scene {
+pub struct MarkerScene {
     /// Width in pixels.
     pub width: usize,
     /// Height in pixels.
@@ -432,7 +458,7 @@ pub fn random_placements<R: Rng + ?Sized>(
     quiet: f64,
     aspect: f64,
     rng: &mut R,
-) -> Result<Vec<[[f64; 2]; 4]>, SynthError> {
+) -> Result<Vec<[[f64; 2]; 4]>, TestkitError> {
     let aspect = if aspect.is_finite() && aspect > 0.0 {
         aspect
     } else {
@@ -444,13 +470,13 @@ pub fn random_placements<R: Rng + ?Sized>(
         (aspect, 1.0)
     };
     if cfg.width == 0 || cfg.height == 0 || cfg.width > 16_384 || cfg.height > 16_384 {
-        return Err(SynthError::BadSize {
+        return Err(TestkitError::BadSize {
             width: cfg.width,
             height: cfg.height,
         });
     }
     if !(cfg.min_side > 0.0 && cfg.min_side <= cfg.max_side && cfg.max_side.is_finite()) {
-        return Err(SynthError::BadSides {
+        return Err(TestkitError::BadSides {
             min: cfg.min_side,
             max: cfg.max_side,
         });
@@ -487,13 +513,13 @@ pub fn random_placements<R: Rng + ?Sized>(
                 c[1] + s * x + co * y + rng.random_range(-jitter..=jitter),
             ]
         });
-        if !crate::quad::convex_clockwise(&corners, 45.0) {
+        if !convex_clockwise(&corners, 45.0) {
             continue;
         }
         placed.push((c, radius, corners));
     }
     if placed.len() < cfg.markers {
-        return Err(SynthError::NoRoom {
+        return Err(TestkitError::NoRoom {
             placed: placed.len(),
             wanted: cfg.markers,
         });
@@ -502,25 +528,25 @@ pub fn random_placements<R: Rng + ?Sized>(
 }
 
 /// Renders `patterns` (one per placement, cycled) onto a white frame at random placements,
-/// then applies lighting, blur and noise as configured.
+/// with lighting, blur and noise as configured.
 pub fn render_scene<R: Rng + ?Sized>(
     cfg: &SceneConfig,
     patterns: &[CellPattern],
     rng: &mut R,
-) -> Result<Scene, SynthError> {
+) -> Result<MarkerScene, TestkitError> {
     render_indexed(cfg, patterns, &[], rng)
 }
 
-/// [`render_scene`] recording a dictionary index per pattern.
+/// [`render_scene`] recording an index per pattern.
 fn render_indexed<R: Rng + ?Sized>(
     cfg: &SceneConfig,
     patterns: &[CellPattern],
     indices: &[usize],
     rng: &mut R,
-) -> Result<Scene, SynthError> {
+) -> Result<MarkerScene, TestkitError> {
     let quiet = patterns
         .iter()
-        .map(|p| p.quiet_cells / p.cols.min(p.rows).max(1) as f64)
+        .map(|p| p.quiet_cells as f64 / p.cols.min(p.rows).max(1) as f64)
         .fold(0.0, f64::max);
     let aspect = patterns.first().map_or(1.0, CellPattern::aspect);
     let places = random_placements(cfg, quiet, aspect, rng)?;
@@ -537,52 +563,42 @@ fn render_indexed<R: Rng + ?Sized>(
             corners: q.map(|[x, y]| Point2::new(x, y)),
         });
     }
-    canvas.light_gradient(cfg.lighting);
-    canvas.blur(cfg.blur);
-    canvas.noise(cfg.noise, rng);
-    Ok(Scene {
+    let pixels = canvas.render(&Effects {
+        lighting: cfg.lighting,
+        blur: cfg.blur,
+        noise: cfg.noise,
+        seed: rng.random(),
+        ..Effects::default()
+    })?;
+    Ok(MarkerScene {
         width: cfg.width,
         height: cfg.height,
-        pixels: canvas.to_gray(),
+        pixels,
         markers,
     })
 }
 
-/// A scene of `cfg.markers` real markers: distinct random entries of `dictionary` drawn
-/// with their true aspect (square cells). Each [`PlacedMarker`] records its index.
+/// A scene of `cfg.markers` real markers: distinct random entries of `entries` (e.g. every
+/// code of a dictionary as [`CellPattern::from_code`]) drawn with their true aspect (square
+/// cells). Each [`PlacedMarker`] records its index in `entries`.
 pub fn marker_scene<R: Rng + ?Sized>(
     cfg: &SceneConfig,
-    dictionary: &Dictionary,
+    entries: &[CellPattern],
     rng: &mut R,
-) -> Result<Scene, SynthError> {
+) -> Result<MarkerScene, TestkitError> {
     let n = cfg.markers.max(1);
     let mut indices: Vec<usize> = Vec::with_capacity(n);
     while indices.len() < n {
-        let i = rng.random_range(0..dictionary.len().max(1));
-        if !indices.contains(&i) || indices.len() >= dictionary.len() {
+        let i = rng.random_range(0..entries.len().max(1));
+        if !indices.contains(&i) || indices.len() >= entries.len() {
             indices.push(i);
         }
     }
     let patterns: Vec<CellPattern> = indices
         .iter()
-        .map(|&i| CellPattern::from_code(dictionary.family(), dictionary.code(i).unwrap_or(0)))
+        .filter_map(|&i| entries.get(i).cloned())
         .collect();
     render_indexed(cfg, &patterns, &indices, rng)
-}
-
-/// A foreign marker: a one-cell black border around a random `rows x cols` code that is
-/// *not* in `dictionary` (none of its entries in any orientation), with a one-cell quiet
-/// zone. A detector reading it as a dictionary entry has corrected bit errors that were
-/// never there; the rate of such reads is a property of the dictionary's distance and the
-/// correction allowed.
-pub fn foreign_marker<R: Rng + ?Sized>(dictionary: &Dictionary, rng: &mut R) -> CellPattern {
-    let family = dictionary.family();
-    loop {
-        let code = rng.random_range(0..=family.mask());
-        if dictionary.lookup_within(code, 0).is_none() {
-            return CellPattern::from_code(family, code);
-        }
-    }
 }
 
 /// A scene of `cfg.markers` random marker-like patterns (`data_rows x data_cols` random cells
@@ -592,7 +608,7 @@ pub fn random_marker_scene<R: Rng + ?Sized>(
     data_rows: usize,
     data_cols: usize,
     rng: &mut R,
-) -> Result<Scene, SynthError> {
+) -> Result<MarkerScene, TestkitError> {
     let patterns: Vec<CellPattern> = (0..cfg.markers.max(1))
         .map(|_| CellPattern::random_marker(data_rows, data_cols, rng))
         .collect();
@@ -601,33 +617,22 @@ pub fn random_marker_scene<R: Rng + ?Sized>(
 
 /// A marker-free clutter frame: smooth textured noise, random rectangles (some of them
 /// black-bordered squares with random insides of any grid size, the hardest impostors),
-/// checker patches and short dark strokes like text, then
-/// blur `blur` and noise `noise`.
+/// checker patches and short dark strokes like text, then blur `blur` and noise `noise`.
 pub fn clutter_frame<R: Rng + ?Sized>(
     width: usize,
     height: usize,
     blur: f64,
     noise: f64,
     rng: &mut R,
-) -> Result<Vec<u8>, SynthError> {
+) -> Result<Vec<u8>, TestkitError> {
     let mut canvas = Canvas::new(width, height, 128.0)?;
-    // Textured background: coarse random grid, bilinearly upsampled.
+    // Textured background: a coarse random grid, bilinearly upsampled.
     let g = 16usize;
     let (gw, gh) = (width / g + 2, height / g + 2);
-    let grid: Vec<f32> = (0..gw * gh)
-        .map(|_| rng.random_range(60.0..230.0))
+    let grid: Vec<u8> = (0..gw * gh)
+        .map(|_| rng.random_range(60.0f64..230.0).round() as u8)
         .collect();
-    for y in 0..height {
-        for x in 0..width {
-            let (fx, fy) = (x as f32 / g as f32, y as f32 / g as f32);
-            let (ix, iy) = (fx as usize, fy as usize);
-            let (tx, ty) = (fx - ix as f32, fy - iy as f32);
-            let at = |i: usize, j: usize| grid[j.min(gh - 1) * gw + i.min(gw - 1)];
-            canvas.data[y * width + x] = (at(ix, iy) * (1.0 - tx) + at(ix + 1, iy) * tx)
-                * (1.0 - ty)
-                + (at(ix, iy + 1) * (1.0 - tx) + at(ix + 1, iy + 1) * tx) * ty;
-        }
-    }
+    canvas.draw_bilinear(gw, gh, grid, g as f64)?;
     let (w, h) = (width as f64, height as f64);
     let shapes = rng.random_range(10..40usize);
     for _ in 0..shapes {
@@ -639,12 +644,7 @@ pub fn clutter_frame<R: Rng + ?Sized>(
         let (sw, sh, pattern) = match kind {
             // Plain rectangle, dark or light.
             0 => {
-                let p = CellPattern {
-                    cols: 1,
-                    rows: 1,
-                    cells: vec![rng.random_bool(0.6)],
-                    quiet_cells: 0.0,
-                };
+                let p = CellPattern::plain(1, 1, vec![rng.random_bool(0.6)]);
                 (
                     rng.random_range(8.0..150.0),
                     rng.random_range(8.0..150.0),
@@ -665,22 +665,13 @@ pub fn clutter_frame<R: Rng + ?Sized>(
             }
             // Text-like stroke.
             2 => {
-                let p = CellPattern {
-                    cols: 1,
-                    rows: 1,
-                    cells: vec![true],
-                    quiet_cells: 0.0,
-                };
+                let p = CellPattern::plain(1, 1, vec![true]);
                 (rng.random_range(2.0..6.0), rng.random_range(6.0..25.0), p)
             }
             // Checker patch.
             _ => {
-                let p = CellPattern {
-                    cols: 4,
-                    rows: 4,
-                    cells: (0..16).map(|i| (i / 4 + i % 4) % 2 == 0).collect(),
-                    quiet_cells: 0.0,
-                };
+                let p =
+                    CellPattern::plain(4, 4, (0..16).map(|i| (i / 4 + i % 4) % 2 == 0).collect());
                 let side = rng.random_range(20.0..100.0);
                 (side, side, p)
             }
@@ -693,13 +684,17 @@ pub fn clutter_frame<R: Rng + ?Sized>(
         let light = rng.random_range(150.0..250.0);
         canvas.draw_pattern(&pattern, &q, dark, light);
     }
-    canvas.blur(blur);
-    canvas.noise(noise, rng);
-    Ok(canvas.to_gray())
+    canvas.render(&Effects {
+        blur,
+        noise,
+        seed: rng.random(),
+        ..Effects::default()
+    })
 }
 
 #[cfg(test)]
 mod tests {
+    #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
     use super::*;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
@@ -712,8 +707,8 @@ mod tests {
             .iter()
             .zip(&q)
         {
-            let m = apply(&h, u[0], u[1]);
-            assert!((m[0] - p[0]).abs() < 1e-9 && (m[1] - p[1]).abs() < 1e-9);
+            let m = h * Vector3::new(u[0], u[1], 1.0);
+            assert!((m.x / m.z - p[0]).abs() < 1e-9 && (m.y / m.z - p[1]).abs() < 1e-9);
         }
         assert!(homography_from_unit_square(&[[0.0, 0.0]; 4]).is_none());
     }
@@ -721,21 +716,31 @@ mod tests {
     #[test]
     fn axis_aligned_square_has_exact_area_coverage() {
         let mut c = Canvas::new(20, 20, 255.0).unwrap();
-        let p = CellPattern {
-            cols: 1,
-            rows: 1,
-            cells: vec![true],
-            quiet_cells: 0.0,
-        };
+        let p = CellPattern::plain(1, 1, vec![true]);
         // Edges at x = 4.25 and 14.75: pixels 4 and 15 are a quarter black.
         let q = [[4.25, 4.5], [14.75, 4.5], [14.75, 14.5], [4.25, 14.5]];
         assert!(c.draw_pattern(&p, &q, 0.0, 255.0));
-        let g = c.to_gray();
+        let g = c.render(&Effects::default()).unwrap();
         assert_eq!(g[10 * 20 + 10], 0);
         assert_eq!(g[10 * 20 + 4], 191); // 1/4 covered by black
         assert_eq!(g[10 * 20 + 14], 0);
         assert_eq!(g[10 * 20 + 15], 191);
         assert_eq!(g[10 * 20 + 2], 255);
+    }
+
+    #[test]
+    fn later_patterns_cover_earlier_ones() {
+        let mut c = Canvas::new(20, 20, 255.0).unwrap();
+        let black = CellPattern::plain(1, 1, vec![true]);
+        let white = CellPattern::plain(1, 1, vec![false]);
+        let big = [[2.0, 2.0], [17.0, 2.0], [17.0, 17.0], [2.0, 17.0]];
+        let small = [[6.0, 6.0], [13.0, 6.0], [13.0, 13.0], [6.0, 13.0]];
+        assert!(c.draw_pattern(&black, &big, 10.0, 200.0));
+        assert!(c.draw_pattern(&white, &small, 10.0, 200.0));
+        let g = c.render(&Effects::default()).unwrap();
+        assert_eq!(g[4 * 20 + 4], 10);
+        assert_eq!(g[10 * 20 + 10], 200);
+        assert_eq!(g[0], 255);
     }
 
     #[test]
@@ -753,7 +758,7 @@ mod tests {
         };
         assert!(matches!(
             random_marker_scene(&bad, 4, 5, &mut ChaCha8Rng::seed_from_u64(1)),
-            Err(SynthError::BadSides { .. })
+            Err(TestkitError::BadSides { .. })
         ));
         let crowded = SceneConfig {
             markers: 200,
@@ -761,7 +766,7 @@ mod tests {
         };
         assert!(matches!(
             random_marker_scene(&crowded, 4, 5, &mut ChaCha8Rng::seed_from_u64(1)),
-            Err(SynthError::NoRoom { .. })
+            Err(TestkitError::NoRoom { .. })
         ));
     }
 }
