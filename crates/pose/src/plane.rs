@@ -16,7 +16,7 @@
 //! `p = R_plane (Rz(yaw) m + (x, y, 0)) + t_plane` in the camera frame.
 //!
 //! # Solver
-//! Levenberg-Marquardt of [`crate::lm`] (the loop and the covariance the 6-DOF solve uses) on
+//! Levenberg-Marquardt of `lm.rs` (the loop and the covariance the 6-DOF solve uses) on
 //! the three parameters, with the analytic Jacobian of each corner's pixel: with `A` the 2x3
 //! Jacobian of the projection at `p` times `R_plane`, and `q = Rz(yaw) m`, the columns are
 //! `A e_x`, `A e_y` and `A (e_z x q) = -q_y A e_x + q_x A e_y`. Points are accumulated straight
