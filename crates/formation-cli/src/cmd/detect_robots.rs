@@ -78,10 +78,7 @@ pub struct RobotStage {
 impl RobotStage {
     /// The rig of `args` (reference when none) whether or not a camera is given.
     pub fn rig(args: &RobotArgs, dictionary: &Dictionary) -> Result<RigModel, CliError> {
-        Ok(match &args.rig {
-            Some(path) => RigModel::load(path, dictionary)?,
-            None => RigModel::reference(),
-        })
+        super::load_rig(args.rig.as_deref(), dictionary)
     }
 
     /// The stage, or `None` without `--camera`.

@@ -11,7 +11,7 @@ use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
 use fiducial::{Dictionary, RenderOptions, render_marker, render_svg};
-use formation_tracker::rig::{RigError, RigModel};
+use formation_tracker::rig::RigError;
 use serde::Serialize;
 
 use super::CliError;
@@ -54,10 +54,7 @@ struct Entry {
 /// Writes the markers and `markers.json`.
 pub fn run(args: &Args) -> Result<(), CliError> {
     let dict = Dictionary::paper();
-    let rig = match &args.rig {
-        Some(path) => RigModel::load(path, dict)?,
-        None => RigModel::reference(),
-    };
+    let rig = super::load_rig(args.rig.as_deref(), dict)?;
     if args.robots == 0 {
         return Err("--robots must be at least 1".into());
     }

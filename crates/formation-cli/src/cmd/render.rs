@@ -7,7 +7,6 @@ use clap::Args as ClapArgs;
 use fiducial::Dictionary;
 use formation_sim::paper::paper_scene;
 use formation_sim::scene::{SceneSpec, render_scene};
-use formation_tracker::rig::RigModel;
 
 use super::CliError;
 
@@ -35,10 +34,7 @@ pub struct Args {
 /// Renders the scene and writes the image (and the truth).
 pub fn run(args: &Args) -> Result<(), CliError> {
     let dict = Dictionary::paper();
-    let rig = match &args.rig {
-        Some(path) => RigModel::load(path, dict)?,
-        None => RigModel::reference(),
-    };
+    let rig = super::load_rig(args.rig.as_deref(), dict)?;
     let spec = match (&args.paper_fig, &args.scene) {
         (Some(fig), _) => paper_scene(*fig)?,
         (None, Some(path)) => SceneSpec::load(path)?,

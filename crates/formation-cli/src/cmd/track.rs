@@ -84,10 +84,7 @@ struct TimingOut {
 pub fn run(args: &Args) -> Result<(), CliError> {
     let calibration = Calibration::from_file(&args.camera)?;
     let dict = Dictionary::paper();
-    let rig = match &args.rig {
-        Some(path) => RigModel::load(path, dict)?,
-        None => RigModel::reference(),
-    };
+    let rig = super::load_rig(args.rig.as_deref(), dict)?;
     let mut frames = FrameSource::open(&args.input)?;
     let fps = frame_rate(args, &frames)?;
     let inputs = match &args.inputs {
