@@ -8,20 +8,12 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use fiducial::{Detector, DetectorConfig, Dictionary, GrayView};
-use marker_testkit::{CellPattern, SceneConfig, clutter_frame, marker_scene};
+use marker_testkit::{SceneConfig, clutter_frame, marker_scene};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::hint::black_box;
-
-/// Every entry of `dict` as a test pattern (index = dictionary index).
-fn entries(dict: &Dictionary) -> Vec<CellPattern> {
-    let f = dict.family();
-    CellPattern::from_codes(
-        f.rows() as usize,
-        f.cols() as usize,
-        (0..dict.len()).map(|i| dict.code(i).unwrap_or(0)),
-    )
-}
+#[path = "../tests/common/mod.rs"]
+mod common;
 
 fn scene(width: usize, height: usize, noise: f64) -> Vec<u8> {
     let cfg = SceneConfig {
@@ -32,7 +24,7 @@ fn scene(width: usize, height: usize, noise: f64) -> Vec<u8> {
     };
     marker_scene(
         &cfg,
-        &entries(Dictionary::paper()),
+        &common::entries(Dictionary::paper()),
         &mut ChaCha8Rng::seed_from_u64(42),
     )
     .expect("the benchmark scene fits its frame")
@@ -82,8 +74,15 @@ fn benches(c: &mut Criterion) {
         640,
         480,
     );
-    let clutter = clutter_frame(640, 480, 1.0, 3.0, &mut ChaCha8Rng::seed_from_u64(43))
-        .expect("valid clutter size");
+    let clutter = clutter_frame(
+        640,
+        480,
+        1.0,
+        3.0,
+        common::not_markers(),
+        &mut ChaCha8Rng::seed_from_u64(43),
+    )
+    .expect("valid clutter size");
     bench_detect(c, "fiducial/detect_clutter_640x480", &clutter, 640, 480);
 
     let img = GrayView::new(&vga, 640, 480).expect("valid frame");

@@ -9,19 +9,10 @@
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
 use fiducial::{Detector, DetectorConfig, Dictionary, GrayView};
-use marker_testkit::{CellPattern, SceneConfig, marker_scene};
+use marker_testkit::{SceneConfig, marker_scene};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-
-/// Every entry of `dict` as a test pattern (index = dictionary index).
-fn entries(dict: &Dictionary) -> Vec<CellPattern> {
-    let f = dict.family();
-    CellPattern::from_codes(
-        f.rows() as usize,
-        f.cols() as usize,
-        (0..dict.len()).map(|i| dict.code(i).unwrap_or(0)),
-    )
-}
+mod common;
 
 /// Scenes of the accuracy run (seeds 0..200) that lose one marker each to hard decisions
 /// alone (found by scanning all 200).
@@ -35,7 +26,7 @@ fn found(seed: u64, cfg: DetectorConfig) -> (usize, usize, usize) {
     let dict = Dictionary::paper();
     let scene = marker_scene(
         &SceneConfig::default(),
-        &entries(dict),
+        &common::entries(dict),
         &mut ChaCha8Rng::seed_from_u64(seed),
     )
     .unwrap();

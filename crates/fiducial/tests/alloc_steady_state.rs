@@ -7,19 +7,10 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
 use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Threshold};
-use marker_testkit::{CellPattern, SceneConfig, clutter_frame, marker_scene};
+use marker_testkit::{SceneConfig, clutter_frame, marker_scene};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-
-/// Every entry of `dict` as a test pattern (index = dictionary index).
-fn entries(dict: &Dictionary) -> Vec<CellPattern> {
-    let f = dict.family();
-    CellPattern::from_codes(
-        f.rows() as usize,
-        f.cols() as usize,
-        (0..dict.len()).map(|i| dict.code(i).unwrap_or(0)),
-    )
-}
+mod common;
 
 struct Counting;
 
@@ -62,12 +53,12 @@ fn frames() -> Vec<Vec<u8>> {
     let cfg = SceneConfig::default();
     let mut frames: Vec<Vec<u8>> = (0..3)
         .map(|_| {
-            marker_scene(&cfg, &entries(Dictionary::paper()), &mut rng)
+            marker_scene(&cfg, &common::entries(Dictionary::paper()), &mut rng)
                 .unwrap()
                 .pixels
         })
         .collect();
-    frames.push(clutter_frame(640, 480, 1.0, 3.0, &mut rng).unwrap());
+    frames.push(clutter_frame(640, 480, 1.0, 3.0, common::not_markers(), &mut rng).unwrap());
     frames
 }
 

@@ -615,14 +615,59 @@ pub fn random_marker_scene<R: Rng + ?Sized>(
     render_scene(cfg, &patterns, rng)
 }
 
+/// The markers a clutter frame must not contain by chance: the data grid of the detector's
+/// family and a test for its codes.
+///
+/// Clutter draws black-bordered squares with random insides of every grid size, the
+/// family's own included; one in about `2^(rows cols) / (4 entries)` of those is, by
+/// chance, an exact dictionary entry, a real marker that any correct detector reads. Such
+/// a square is redrawn, so that every code read in a clutter frame is a false read.
+#[derive(Clone, Copy)]
+pub struct NotMarkers<'a> {
+    /// Data rows of the family's grid.
+    pub rows: usize,
+    /// Data columns of the family's grid.
+    pub cols: usize,
+    /// Whether a `rows x cols` code (`bit k = row * cols + col`, black = 1) is a marker in
+    /// some orientation (the detector's own lookup, e.g. `lookup_within(code, 0)`). Grids
+    /// drawn `cols x rows` are turned a quarter before the test.
+    pub is_marker: &'a dyn Fn(u64) -> bool,
+}
+
+impl NotMarkers<'_> {
+    /// Whether the bordered pattern `p` (one-cell border, as drawn by clutter) holds a
+    /// marker of the family.
+    fn rejects(&self, p: &CellPattern) -> bool {
+        let (dr, dc) = (p.rows.saturating_sub(2), p.cols.saturating_sub(2));
+        let bit = |r: usize, c: usize| p.cells.get((r + 1) * p.cols + c + 1) == Some(&true);
+        let code = if (dr, dc) == (self.rows, self.cols) {
+            (0..dr * dc)
+                .filter(|&k| bit(k / dc, k % dc))
+                .map(|k| 1u64 << k)
+                .sum()
+        } else if (dc, dr) == (self.rows, self.cols) {
+            // Turned a quarter clockwise: cell (r, c) of the result is cell (dr - 1 - c, r).
+            (0..dr * dc)
+                .filter(|&k| bit(dr - 1 - k % dr, k / dr))
+                .map(|k| 1u64 << k)
+                .sum()
+        } else {
+            return false;
+        };
+        self.rows * self.cols <= 64 && (self.is_marker)(code)
+    }
+}
+
 /// A marker-free clutter frame: smooth textured noise, random rectangles (some of them
 /// black-bordered squares with random insides of any grid size, the hardest impostors),
 /// checker patches and short dark strokes like text, then blur `blur` and noise `noise`.
+/// Bordered squares that happen to be markers of `not` are redrawn ([`NotMarkers`]).
 pub fn clutter_frame<R: Rng + ?Sized>(
     width: usize,
     height: usize,
     blur: f64,
     noise: f64,
+    not: NotMarkers<'_>,
     rng: &mut R,
 ) -> Result<Vec<u8>, TestkitError> {
     let mut canvas = Canvas::new(width, height, 128.0)?;
@@ -657,11 +702,11 @@ pub fn clutter_frame<R: Rng + ?Sized>(
                 let n = rng.random_range(1..8usize);
                 let m = rng.random_range(1..8usize);
                 let side = rng.random_range(15.0..130.0);
-                (
-                    side,
-                    side * rng.random_range(0.7..1.4),
-                    CellPattern::random_marker(n, m, rng),
-                )
+                let mut p = CellPattern::random_marker(n, m, rng);
+                while not.rejects(&p) {
+                    p = CellPattern::random_marker(n, m, rng);
+                }
+                (side, side * rng.random_range(0.7..1.4), p)
             }
             // Text-like stroke.
             2 => {
@@ -741,6 +786,43 @@ mod tests {
         assert_eq!(g[4 * 20 + 4], 10);
         assert_eq!(g[10 * 20 + 10], 200);
         assert_eq!(g[0], 255);
+    }
+
+    #[test]
+    fn clutter_redraws_chance_markers_in_either_aspect() {
+        // A 4 x 5 code, drawn as is and turned a quarter counter-clockwise (5 x 4).
+        let x: u64 = 0b1011_0010_1110_0101_0011;
+        let bit = |r: usize, c: usize| x >> (r * 5 + c) & 1 == 1;
+        let as_is: Vec<bool> = (0..20).map(|k| bit(k / 5, k % 5)).collect();
+        let turned: Vec<bool> = (0..20).map(|k| bit(k % 4, 4 - k / 4)).collect();
+        let is_x = |code: u64| code == x;
+        let not = NotMarkers {
+            rows: 4,
+            cols: 5,
+            is_marker: &is_x,
+        };
+        assert!(not.rejects(&CellPattern::from_bits(4, 5, &as_is)));
+        assert!(not.rejects(&CellPattern::from_bits(5, 4, &turned)));
+        let mut other = as_is.clone();
+        other[7] = !other[7];
+        assert!(!not.rejects(&CellPattern::from_bits(4, 5, &other)));
+        assert!(!not.rejects(&CellPattern::from_bits(4, 4, &as_is[..16])));
+        // A test that calls half of all codes markers only costs redraws.
+        let half = |code: u64| code & 1 == 1;
+        let frame = clutter_frame(
+            160,
+            120,
+            1.0,
+            3.0,
+            NotMarkers {
+                rows: 4,
+                cols: 5,
+                is_marker: &half,
+            },
+            &mut ChaCha8Rng::seed_from_u64(3),
+        )
+        .unwrap();
+        assert_eq!(frame.len(), 160 * 120);
     }
 
     #[test]
