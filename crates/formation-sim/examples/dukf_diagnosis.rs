@@ -13,6 +13,9 @@
 //!   formation given the follower's first inputs (instead of `[0, 0]`).
 //! - 5 numbers, the joint UKF: `Rr_v Rr_w Q_formation Pw0 ut_alpha`, with the same `w0` rule
 //!   when `Pw0 < 0.5`.
+//! - 1 number, the oracle: the joint UKF told the *true* leader inputs at every step (no
+//!   filter can know more), with `Q_formation` on `l12, alpha12, beta12`. It bounds what any
+//!   model-based filter can reach on the scenario.
 //!
 //! It prints the medians over the seeds of the MSEs of `l12, alpha12, beta12`, the RMS errors
 //! of `v1, w1` after 2 s, and the NIS / NEES averaged over the seeds per step.
@@ -70,10 +73,15 @@ fn main() {
     let stdin = std::io::stdin();
     for line in std::io::BufRead::lines(stdin.lock()) {
         let line = line.unwrap();
-        let v: Vec<f64> = line
+        let mut v: Vec<f64> = line
             .split_whitespace()
             .map(|x| x.parse().unwrap())
             .collect();
+        // The oracle: the joint filter told the true leader inputs at every step.
+        let oracle = v.len() == 1;
+        if oracle {
+            v = vec![0.0, 0.0, v[0], 1e-12, 1.0];
+        }
         if v.len() == 5 {
             // joint: rrv rrw qform pw0 alpha
             let model = unicycle::PolarModel::new(0.5).unwrap();
@@ -90,7 +98,10 @@ fn main() {
                 for i in 0..6 {
                     z0[i] = PAPER_X0[i];
                 }
-                if v[3] < 0.5 {
+                if oracle {
+                    z0[6] = sc.samples[0].leader_inputs.v;
+                    z0[7] = sc.samples[0].leader_inputs.w;
+                } else if v[3] < 0.5 {
                     let (w0v, w0w) = hold(&sc.samples[0]);
                     z0[6] = w0v;
                     z0[7] = w0w;
@@ -115,7 +126,11 @@ fn main() {
                     ukf.predict(
                         |z| {
                             let x = unicycle::PolarState::from_row_slice(&z.as_slice()[..6]);
-                            let w = Vector2::new(z[6], z[7]);
+                            let w = if oracle {
+                                prev.leader_inputs.into()
+                            } else {
+                                Vector2::new(z[6], z[7])
+                            };
                             let nx = model
                                 .f(&x, &u, &w, 1.0 / 30.0)
                                 .unwrap_or(unicycle::PolarState::repeat(f64::NAN));
@@ -172,7 +187,8 @@ fn main() {
             };
             let mean = |v: &Vec<f64>| v[60..].iter().sum::<f64>() / 180.0;
             println!(
-                "JOINT {line} | l {:.3e} a {:.3e} b {:.3e} | v {:.4} w {:.4} | late NIS {:.2} ({:.0}%) NEESx {:.2} ({:.0}%) NEESw {:.2} ({:.0}%)",
+                "{} {line} | l {:.3e} a {:.3e} b {:.3e} | v {:.4} w {:.4} | late NIS {:.2} ({:.0}%) NEESx {:.2} ({:.0}%) NEESw {:.2} ({:.0}%)",
+                if oracle { "ORACLE" } else { "JOINT" },
                 median(ls),
                 median(as_),
                 median(bs),
