@@ -168,36 +168,87 @@ pub fn run(args: &[String]) -> Result {
             .into());
         }
     }
-    let x0 = [PAPER_X0[3], PAPER_X0[4], PAPER_X0[5]];
-    let mut clean_runs = Vec::new();
-    let mut biased = Vec::new();
-    let mut rw = Vec::new();
-    let mut cv = Vec::new();
-    for seed in SEEDS {
-        eprintln!("dukf-table: seed {seed}");
-        let scenario = simulate(&ScenarioConfig::reference(seed))?;
-        rw.push(baseline(&scenario, &x0, Baseline::RANDOM_WALK));
-        cv.push(baseline(&scenario, &x0, Baseline::CONSTANT_VELOCITY));
-        clean_runs.push(reproduce(seed, false)?);
-        biased.push(reproduce(seed, true)?.summary);
+    let runs = ReferenceRuns::simulate()?;
+    let c = medians(&runs.clean);
+    let mut md = String::new();
+    write_header(&mut md, &runs);
+    write_targets(&mut md, &c);
+    write_baselines(&mut md, &runs, &c);
+    write_consistency(&mut md, &runs.clean_runs);
+    write_other_scenarios(&mut md)?;
+    write_per_seed_and_bias(&mut md, &runs);
+    let _ = writeln!(md, "\n{}", include_str!("dukf_table_notes.md").trim_end());
+
+    let path = workspace_root()?.join("docs").join("dukf-reproduction.md");
+    std::fs::write(&path, md)?;
+    println!(
+        "dukf-table: wrote {} (median MSE l12 {:.3e}, alpha12 {:.3e}; RMS v1 {:.4}, w1 {:.4})",
+        path.display(),
+        c.l12,
+        c.alpha12,
+        c.v1,
+        c.w1
+    );
+    Ok(())
+}
+
+/// Every run of the reference scenario the document reports: the dual UKF with and without
+/// bias over [`SEEDS`], the check seeds, and the two baselines on each.
+struct ReferenceRuns {
+    clean_runs: Vec<Reproduction>,
+    clean: Vec<Summary>,
+    biased: Vec<Summary>,
+    rw: Vec<[f64; 3]>,
+    cv: Vec<[f64; 3]>,
+    check: Vec<Summary>,
+    check_rw: Vec<[f64; 3]>,
+    check_cv: Vec<[f64; 3]>,
+}
+
+impl ReferenceRuns {
+    fn simulate() -> Result<Self> {
+        let x0 = [PAPER_X0[3], PAPER_X0[4], PAPER_X0[5]];
+        let mut clean_runs = Vec::new();
+        let mut biased = Vec::new();
+        let mut rw = Vec::new();
+        let mut cv = Vec::new();
+        for seed in SEEDS {
+            eprintln!("dukf-table: seed {seed}");
+            let scenario = simulate(&ScenarioConfig::reference(seed))?;
+            rw.push(baseline(&scenario, &x0, Baseline::RANDOM_WALK));
+            cv.push(baseline(&scenario, &x0, Baseline::CONSTANT_VELOCITY));
+            clean_runs.push(reproduce(seed, false)?);
+            biased.push(reproduce(seed, true)?.summary);
+        }
+        let clean: Vec<Summary> = clean_runs.iter().map(|r| r.summary.clone()).collect();
+        let mut check = Vec::new();
+        let mut check_rw = Vec::new();
+        let mut check_cv = Vec::new();
+        for seed in CHECK_SEEDS {
+            eprintln!("dukf-table: check seed {seed}");
+            let scenario = simulate(&ScenarioConfig::reference(seed))?;
+            check_rw.push(baseline(&scenario, &x0, Baseline::RANDOM_WALK));
+            check_cv.push(baseline(&scenario, &x0, Baseline::CONSTANT_VELOCITY));
+            check.push(reproduce(seed, false)?.summary);
+        }
+        Ok(Self {
+            clean_runs,
+            clean,
+            biased,
+            rw,
+            cv,
+            check,
+            check_rw,
+            check_cv,
+        })
     }
-    let clean: Vec<Summary> = clean_runs.iter().map(|r| r.summary.clone()).collect();
-    let mut check = Vec::new();
-    let mut check_rw = Vec::new();
-    let mut check_cv = Vec::new();
-    for seed in CHECK_SEEDS {
-        eprintln!("dukf-table: check seed {seed}");
-        let scenario = simulate(&ScenarioConfig::reference(seed))?;
-        check_rw.push(baseline(&scenario, &x0, Baseline::RANDOM_WALK));
-        check_cv.push(baseline(&scenario, &x0, Baseline::CONSTANT_VELOCITY));
-        check.push(reproduce(seed, false)?.summary);
-    }
-    let c = medians(&clean);
-    let b = medians(&biased);
+}
+
+/// Title, provenance and the filter's tuning.
+fn write_header(md: &mut String, runs: &ReferenceRuns) {
+    let clean = &runs.clean;
     let scenario = ScenarioConfig::reference(1);
     let filter = paper_filter_config(scenario.d, scenario.dt);
-
-    let mut md = String::new();
     let _ = writeln!(md, "# Dual-UKF reproduction (paper Figs. 12-13)\n");
     let _ = writeln!(
         md,
@@ -220,6 +271,10 @@ pub fn run(args: &[String]) -> Result {
         filter.tuning.ut.beta,
         filter.tuning.ut.kappa
     );
+}
+
+/// The medians over [`SEEDS`] against the paper's figures and the issue's bounds.
+fn write_targets(md: &mut String, c: &Medians) {
     let _ = writeln!(
         md,
         "## Without bias: medians over seeds 1..20 against the targets\n"
@@ -291,6 +346,12 @@ pub fn run(args: &[String]) -> Result {
         c.meas_l12 / c.l12,
         c.meas_alpha12 / c.alpha12
     );
+}
+
+/// The dual UKF beside the two single-measurement baselines, tuning and check seeds.
+fn write_baselines(md: &mut String, runs: &ReferenceRuns, c: &Medians) {
+    let (rw, cv) = (&runs.rw, &runs.cv);
+    let (check, check_rw, check_cv) = (&runs.check, &runs.check_rw, &runs.check_cv);
     let med3 = |v: &[[f64; 3]], i: usize| median(v.iter().map(|x| x[i]).collect());
     let _ = writeln!(
         md,
@@ -307,7 +368,7 @@ pub fn run(args: &[String]) -> Result {
         "| variable | seeds | dual UKF | RW | CV | target | result |\n|---|---|---:|---:|---:|---:|---|"
     );
     let paper = [PAPER_MSE_L12, PAPER_MSE_ALPHA12, f64::INFINITY];
-    let check_m = medians(&check);
+    let check_m = medians(check);
     for (seeds, dukf, rwv, cvv) in [
         ("1..20", [c.l12, c.alpha12, c.beta12], &rw, &cv),
         (
@@ -333,15 +394,19 @@ pub fn run(args: &[String]) -> Result {
         "\nSeeds 21..40: RMS error after 2 s v1 {:.4} m/s, w1 {:.4} rad/s (medians).\n",
         check_m.v1, check_m.w1
     );
+}
+
+/// NIS and NEES averaged over the runs, against their 95 % chi-square bounds.
+fn write_consistency(md: &mut String, clean_runs: &[Reproduction]) {
     let from_t = 2.0;
     let b3 = chi2_bounds(3.0, clean_runs.len());
     let b2 = chi2_bounds(2.0, clean_runs.len());
-    let nis_all = consistency(&clean_runs, |c| c.nis, b3, 0.0);
-    let nis = consistency(&clean_runs, |c| c.nis, b3, from_t);
-    let nx_all = consistency(&clean_runs, |c| c.nees_formation, b3, 0.0);
-    let nx = consistency(&clean_runs, |c| c.nees_formation, b3, from_t);
-    let nw_all = consistency(&clean_runs, |c| c.nees_velocity, b2, 0.0);
-    let nw = consistency(&clean_runs, |c| c.nees_velocity, b2, from_t);
+    let nis_all = consistency(clean_runs, |c| c.nis, b3, 0.0);
+    let nis = consistency(clean_runs, |c| c.nis, b3, from_t);
+    let nx_all = consistency(clean_runs, |c| c.nees_formation, b3, 0.0);
+    let nx = consistency(clean_runs, |c| c.nees_formation, b3, from_t);
+    let nw_all = consistency(clean_runs, |c| c.nees_velocity, b2, 0.0);
+    let nw = consistency(clean_runs, |c| c.nees_velocity, b2, from_t);
     let _ = writeln!(
         md,
         "## Consistency (seeds 1..20, without bias)\n\n\
@@ -376,6 +441,10 @@ pub fn run(args: &[String]) -> Result {
         );
     }
     let _ = writeln!(md);
+}
+
+/// The same tuning on the scenario files of `fixtures/scenarios/`.
+fn write_other_scenarios(md: &mut String) -> Result {
     let _ = writeln!(
         md,
         "## Other scenarios (seeds 1..20, without bias, same tuning)\n\n\
@@ -400,8 +469,14 @@ pub fn run(args: &[String]) -> Result {
         md.push_str(&scenario_table(&path)?);
         let _ = writeln!(md);
     }
+    Ok(())
+}
+
+/// The per-seed tables, without and with the paper's bias.
+fn write_per_seed_and_bias(md: &mut String, runs: &ReferenceRuns) {
+    let b = medians(&runs.biased);
     let _ = writeln!(md, "### Per seed, without bias\n");
-    per_seed_table(&mut md, &clean);
+    per_seed_table(md, &runs.clean);
     let _ = writeln!(
         md,
         "\n## With the paper's bias [-0.0702, 0.0248, 0.0236] (reported, no threshold)\n\n\
@@ -416,20 +491,7 @@ pub fn run(args: &[String]) -> Result {
         b.l12, b.meas_l12, b.alpha12, b.meas_alpha12, b.beta12, b.v1, b.w1
     );
     let _ = writeln!(md, "### Per seed, with bias\n");
-    per_seed_table(&mut md, &biased);
-    let _ = writeln!(md, "\n{}", include_str!("dukf_table_notes.md").trim_end());
-
-    let path = workspace_root()?.join("docs").join("dukf-reproduction.md");
-    std::fs::write(&path, md)?;
-    println!(
-        "dukf-table: wrote {} (median MSE l12 {:.3e}, alpha12 {:.3e}; RMS v1 {:.4}, w1 {:.4})",
-        path.display(),
-        c.l12,
-        c.alpha12,
-        c.v1,
-        c.w1
-    );
-    Ok(())
+    per_seed_table(md, &runs.biased);
 }
 
 /// `dukf-table --scenario FILE`: the dual UKF against the two baselines on a scenario file,
