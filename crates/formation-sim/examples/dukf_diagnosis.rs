@@ -6,6 +6,7 @@
 //! ```text
 //! cargo run -p formation-sim --example dukf_diagnosis < LINES
 //! LEADER=const|slow|ref SEEDS=1..20 (defaults: ref, 1..20)
+//! SCENARIO=fixtures/scenarios/NAME.yaml (a scenario file instead of LEADER)
 //! ```
 //! Each stdin line is one configuration:
 //! - 11 numbers, the dual UKF: `Rr_v Rr_w Q_l Q_alpha Q_beta Q_pose Pw0_v Pw0_w propagate
@@ -16,6 +17,10 @@
 //! - 1 number, the oracle: the joint UKF told the *true* leader inputs at every step (no
 //!   filter can know more), with `Q_formation` on `l12, alpha12, beta12`. It bounds what any
 //!   model-based filter can reach on the scenario.
+//! - 3 numbers, the formation-holding prior: `Rr_dv Rr_dw Pdelta0`; the leader velocity is the
+//!   one that holds the estimated `l12`, `alpha12` given the follower's inputs, plus a
+//!   random-walk deviation (measurement 5 of the document).
+//! - 4 numbers, the same for `v1` only, `w1` a free random walk: `Rr_dv Rr_w Pdelta0 0`.
 //!
 //! It prints the medians over the seeds of the MSEs of `l12, alpha12, beta12`, the RMS errors
 //! of `v1, w1` after 2 s, and the NIS / NEES averaged over the seeds per step.
@@ -42,11 +47,18 @@ fn main() {
             (a.parse().unwrap()..=b.parse().unwrap()).collect()
         })
         .unwrap_or((1..=20).collect());
-    let x0 = [PAPER_X0[3], PAPER_X0[4], PAPER_X0[5]];
+    let spec = std::env::var("SCENARIO").ok().map(|p| {
+        formation_sim::scenario_file::ScenarioSpec::load(std::path::Path::new(&p)).unwrap()
+    });
+    let full_x0 = spec.as_ref().map_or(PAPER_X0, |s| s.filter_x0());
+    let x0 = [full_x0[3], full_x0[4], full_x0[5]];
     let leader = std::env::var("LEADER").unwrap_or_default();
     let scen: Vec<_> = seeds
         .iter()
         .map(|&s| {
+            if let Some(spec) = &spec {
+                return spec.simulate(s, false).unwrap();
+            }
             let c = ScenarioConfig::reference(s);
             match leader.as_str() {
                 "const" => {
@@ -82,6 +94,19 @@ fn main() {
         if oracle {
             v = vec![0.0, 0.0, v[0], 1e-12, 1.0];
         }
+        // The formation-holding prior: the leader velocity is the one that holds the current
+        // formation given the follower's inputs, plus a random-walk deviation `[dv, dw]`
+        // (the last two state components), `Rr_dv Rr_dw Pdelta0`.
+        let held = v.len() == 3;
+        if held {
+            v = vec![v[0], v[1], 1e-9, v[2], 1.0];
+        }
+        // Only `v1` from the formation-holding prior (`l12` held), `w1` a free random walk:
+        // `Rr_dv Rr_w Pdelta0`, plus a dummy fourth number.
+        let held_v = v.len() == 4;
+        if held_v {
+            v = vec![v[0], v[1], 1e-9, v[2], 1.0];
+        }
         if v.len() == 5 {
             // joint: rrv rrw qform pw0 alpha
             let model = unicycle::PolarModel::new(0.5).unwrap();
@@ -90,17 +115,24 @@ fn main() {
             let mut bs = vec![];
             let mut vr = vec![];
             let mut wr = vec![];
-            let mut nis_sum = vec![0.0; 240];
-            let mut nees_sum = vec![0.0; 240];
-            let mut neesw_sum = vec![0.0; 240];
+            let steps = scen[0].samples.len() - 1;
+            let mut nis_sum = vec![0.0; steps];
+            let mut nees_sum = vec![0.0; steps];
+            let mut neesw_sum = vec![0.0; steps];
             for sc in &scen {
                 let mut z0 = SVector::<f64, 8>::zeros();
                 for i in 0..6 {
-                    z0[i] = PAPER_X0[i];
+                    z0[i] = full_x0[i];
                 }
                 if oracle {
                     z0[6] = sc.samples[0].leader_inputs.v;
                     z0[7] = sc.samples[0].leader_inputs.w;
+                } else if held {
+                    z0[6] = 0.0;
+                    z0[7] = 0.0;
+                } else if held_v {
+                    z0[6] = 0.0;
+                    z0[7] = hold(&sc.samples[0]).1;
                 } else if v[3] < 0.5 {
                     let (w0v, w0w) = hold(&sc.samples[0]);
                     z0[6] = w0v;
@@ -112,8 +144,8 @@ fn main() {
                     ]));
                 let space = dukf::AngleMask::<8>::from_indices(&[2, 4, 5]).unwrap();
                 let mspace = dukf::AngleMask::<3>::from_indices(&[1, 2]).unwrap();
-                let mut ukf =
-                    dukf::Ukf::new(z0, p0, space, dukf::UtParams::new(v[4], 2.0, 0.0)).unwrap();
+                let mut ukf = dukf::Ukf::new(z0, p0, space, dukf::UtParams::new(v[4], 2.0, 0.0))
+                    .unwrap_or_else(|e| panic!("z0 {z0:?}: {e}"));
                 let q = SMatrix::<f64, 8, 8>::from_diagonal(&SVector::<f64, 8>::from_row_slice(&[
                     1e-6, 1e-6, 1e-6, v[2], v[2], v[2], v[0], v[1],
                 ]));
@@ -128,6 +160,12 @@ fn main() {
                             let x = unicycle::PolarState::from_row_slice(&z.as_slice()[..6]);
                             let w = if oracle {
                                 prev.leader_inputs.into()
+                            } else if held {
+                                let (hv, hw) = hold_at(z[3], z[4], z[5], &u);
+                                Vector2::new(hv + z[6], hw + z[7])
+                            } else if held_v {
+                                let (hv, _) = hold_at(z[3], z[4], z[5], &u);
+                                Vector2::new(hv + z[6], z[7])
                             } else {
                                 Vector2::new(z[6], z[7])
                             };
@@ -161,8 +199,16 @@ fn main() {
                     el += e[0] * e[0];
                     ea += e[1] * e[1];
                     eb += e[2] * e[2];
-                    let dv = z[6] - prev.leader_inputs.v;
-                    let dw = z[7] - prev.leader_inputs.w;
+                    let (ev_, ew_) = if held {
+                        let (hv, hw) = hold_at(z[3], z[4], z[5], &u);
+                        (hv + z[6], hw + z[7])
+                    } else if held_v {
+                        (hold_at(z[3], z[4], z[5], &u).0 + z[6], z[7])
+                    } else {
+                        (z[6], z[7])
+                    };
+                    let dv = ev_ - prev.leader_inputs.v;
+                    let dw = ew_ - prev.leader_inputs.w;
                     if now.t > 2.0 {
                         ev += dv * dv;
                         ew += dw * dw;
@@ -176,19 +222,28 @@ fn main() {
                     nees_sum[k] += e.dot(&(px.try_inverse().unwrap() * e)) / scen.len() as f64;
                     neesw_sum[k] += ewv.dot(&(pw.try_inverse().unwrap() * ewv)) / scen.len() as f64;
                 }
-                ls.push(el / 240.0);
-                as_.push(ea / 240.0);
-                bs.push(eb / 240.0);
+                ls.push(el / steps as f64);
+                as_.push(ea / steps as f64);
+                bs.push(eb / steps as f64);
                 vr.push((ev / late).sqrt());
                 wr.push((ew / late).sqrt());
             }
             let inside = |v: &Vec<f64>, lo: f64, hi: f64| {
-                v[60..].iter().filter(|&&x| x >= lo && x <= hi).count() as f64 / 180.0
+                v[60..].iter().filter(|&&x| x >= lo && x <= hi).count() as f64
+                    / (v.len() - 60) as f64
             };
-            let mean = |v: &Vec<f64>| v[60..].iter().sum::<f64>() / 180.0;
+            let mean = |v: &Vec<f64>| v[60..].iter().sum::<f64>() / (v.len() - 60) as f64;
             println!(
                 "{} {line} | l {:.3e} a {:.3e} b {:.3e} | v {:.4} w {:.4} | late NIS {:.2} ({:.0}%) NEESx {:.2} ({:.0}%) NEESw {:.2} ({:.0}%)",
-                if oracle { "ORACLE" } else { "JOINT" },
+                if oracle {
+                    "ORACLE"
+                } else if held {
+                    "HELD"
+                } else if held_v {
+                    "HELD_V"
+                } else {
+                    "JOINT"
+                },
                 median(ls),
                 median(as_),
                 median(bs),
@@ -276,8 +331,14 @@ fn main() {
 
 /// Leader velocity that holds the formation given the follower's inputs and x0.
 fn hold(s0: &formation_sim::scenario::Sample) -> (f64, f64) {
-    let (l, a, b) = (PAPER_X0[3], PAPER_X0[4], PAPER_X0[5]);
-    let (v2, w2) = (s0.follower_inputs.v, s0.follower_inputs.w);
+    let u = Vector2::new(s0.follower_inputs.v, s0.follower_inputs.w);
+    hold_at(PAPER_X0[3], PAPER_X0[4], PAPER_X0[5], &u)
+}
+
+/// Leader velocity `[v1, w1]` that keeps `l12` and `alpha12` constant at `(l, a, b)` given
+/// the follower's inputs `u`.
+fn hold_at(l: f64, a: f64, b: f64, u: &Vector2<f64>) -> (f64, f64) {
+    let (v2, w2) = (u[0], u[1]);
     let d = 0.5;
     let v1 = (v2 * b.cos() + d * w2 * b.sin()) / a.cos();
     let w1 = (-v1 * a.sin() + v2 * b.sin()) / l - d * w2 * b.cos() / l;
