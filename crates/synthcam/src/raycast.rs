@@ -5,11 +5,11 @@
 //! `t d` and parameters of different objects compare directly. Each object keeps a
 //! conservative screen-space bounding box so most rays skip it with two comparisons.
 
-use nalgebra::{Matrix3, Point3, Vector3};
+use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
 
 use crate::camera::Camera;
 use crate::error::SynthError;
-use crate::scene::{Body, Scene};
+use crate::scene::{Body, Face, Ground, Panel, Robot, Scene};
 use crate::texture::Texture;
 
 /// Rays must travel at least this parameter (camera-frame z, since `d.z = 1` for pixel rays)
@@ -176,6 +176,220 @@ fn screen_box(camera: &Camera, pts: &[Point3<f64>]) -> Option<ScreenBox> {
     })
 }
 
+/// Brightness factor of a surface with world normal `n` under `light` (1 without light).
+fn world_factor(light: Option<&Light>, n: &Vector3<f64>) -> f32 {
+    light.map_or(1.0, |l| l.factor(n))
+}
+
+/// A robot's transforms as its primitives need them.
+struct RobotFrame {
+    b2w: Isometry3<f64>,
+    b2c: Isometry3<f64>,
+    /// Body-to-camera rotation and its inverse.
+    rot_bc: Matrix3<f64>,
+    rot_cb: Matrix3<f64>,
+    /// The camera centre in the body frame.
+    origin_body: Vector3<f64>,
+}
+
+impl RobotFrame {
+    fn new(w2c: &Isometry3<f64>, robot: &Robot) -> Self {
+        let b2w = crate::scene::body_to_world(&robot.pose);
+        let b2c = w2c * b2w;
+        let rot_bc = *b2c.rotation.to_rotation_matrix().matrix();
+        Self {
+            b2w,
+            b2c,
+            rot_bc,
+            rot_cb: rot_bc.transpose(),
+            origin_body: b2c.inverse_transform_point(&Point3::origin()).coords,
+        }
+    }
+
+    /// A body-frame direction in the world frame.
+    fn world_dir(&self, n: Vector3<f64>) -> Vector3<f64> {
+        self.b2w.rotation * n
+    }
+}
+
+/// The primitive of a robot's body (none for [`Body::None`] or a body off screen).
+fn body_prim<'a>(
+    camera: &Camera,
+    light: Option<&Light>,
+    f: &RobotFrame,
+    body: &Body,
+    robot: usize,
+) -> Option<Prim<'a>> {
+    match *body {
+        Body::None => None,
+        Body::Box {
+            length,
+            width,
+            height,
+            albedo,
+        } => {
+            let half = Vector3::new(length / 2.0, width / 2.0, height / 2.0);
+            let centre = Vector3::new(0.0, 0.0, height / 2.0);
+            let mut shade = [0f32; 6];
+            for (i, s) in shade.iter_mut().enumerate() {
+                let mut n = Vector3::zeros();
+                n[i / 2] = if i % 2 == 0 { -1.0 } else { 1.0 };
+                *s = albedo as f32 * world_factor(light, &f.world_dir(n));
+            }
+            let corners: Vec<Point3<f64>> = (0..8)
+                .map(|i| {
+                    let c = Vector3::new(
+                        if i & 1 == 0 { -half.x } else { half.x },
+                        if i & 2 == 0 { -half.y } else { half.y },
+                        if i & 4 == 0 { -half.z } else { half.z },
+                    );
+                    f.b2c * Point3::from(centre + c)
+                })
+                .collect();
+            let bbox = screen_box(camera, &corners)?;
+            Some(Prim {
+                shape: Shape::Box(BoxBody {
+                    rot: f.rot_cb,
+                    origin: f.origin_body - centre,
+                    half,
+                    shade,
+                }),
+                bbox,
+                owner: (robot, None),
+            })
+        }
+        Body::Cylinder {
+            radius,
+            height,
+            albedo,
+        } => {
+            let corners: Vec<Point3<f64>> = (0..8)
+                .map(|i| {
+                    let x = if i & 1 == 0 { -radius } else { radius };
+                    let y = if i & 2 == 0 { -radius } else { radius };
+                    let z = if i & 4 == 0 { 0.0 } else { height };
+                    f.b2c * Point3::new(x, y, z)
+                })
+                .collect();
+            let light_body = light.map(|l| f.b2w.rotation.inverse() * l.dir);
+            let cap_shade = [
+                albedo as f32 * world_factor(light, &f.world_dir(-Vector3::z())),
+                albedo as f32 * world_factor(light, &f.world_dir(Vector3::z())),
+            ];
+            let bbox = screen_box(camera, &corners)?;
+            Some(Prim {
+                shape: Shape::Cyl(CylBody {
+                    rot: f.rot_cb,
+                    origin: f.origin_body,
+                    radius,
+                    height,
+                    albedo: albedo as f32,
+                    ambient: light.map_or(1.0, |l| l.ambient as f32),
+                    light_body,
+                    cap_shade,
+                }),
+                bbox,
+                owner: (robot, None),
+            })
+        }
+    }
+}
+
+/// The primitive of rig face `face` of robot `robot` (none if it is off screen).
+fn face_prim<'a>(
+    camera: &Camera,
+    light: Option<&Light>,
+    f: &RobotFrame,
+    face: &'a Face,
+    owner: (usize, usize),
+) -> Result<Option<Prim<'a>>, SynthError> {
+    let frame = face.placement.frame()?;
+    let corners_body = face.placement.corners()?;
+    let corners: Vec<Point3<f64>> = corners_body.iter().map(|p| f.b2c * p).collect();
+    let Some(bbox) = screen_box(camera, &corners) else {
+        return Ok(None);
+    };
+    let normal = f.rot_bc * frame.normal;
+    let right = f.rot_bc * frame.right;
+    let down = -(f.rot_bc * frame.up);
+    let nw = corners[0].coords;
+    let offset = normal.dot(&nw);
+    let s_dir = right / face.placement.width;
+    let t_dir = down / face.placement.height;
+    let front_shade = match light {
+        Some(l) if l.shade_faces => l.factor(&f.world_dir(frame.normal)),
+        _ => 1.0,
+    };
+    Ok(Some(Prim {
+        shape: Shape::Rect(Rect {
+            normal,
+            offset,
+            s_dir,
+            s0: s_dir.dot(&nw),
+            t_dir,
+            t0: t_dir.dot(&nw),
+            front: offset < 0.0,
+            texture: face.texture.as_ref(),
+            front_shade,
+            back_albedo: face.back_albedo as f32 * world_factor(light, &f.world_dir(-frame.normal)),
+        }),
+        bbox,
+        owner: (owner.0, Some(owner.1)),
+    }))
+}
+
+/// The primitive of a free-standing panel (none if it is off screen).
+fn panel_prim<'a>(camera: &Camera, w2c: &Isometry3<f64>, panel: &'a Panel) -> Option<Prim<'a>> {
+    let [nw, ne, sw] = panel.corners.map(|p| w2c * p);
+    let se = ne + (sw - nw);
+    let bbox = screen_box(camera, &[nw, ne, se, sw])?;
+    let (a, b) = (ne - nw, sw - nw);
+    // Outward normal, and the dual basis giving s and t from a point's offset to NW.
+    let normal = b.cross(&a);
+    let s_dir = b.cross(&normal) / a.dot(&b.cross(&normal));
+    let t_dir = normal.cross(&a) / b.dot(&normal.cross(&a));
+    let offset = normal.dot(&nw.coords);
+    Some(Prim {
+        shape: Shape::Rect(Rect {
+            normal,
+            offset,
+            s_dir,
+            s0: s_dir.dot(&nw.coords),
+            t_dir,
+            t0: t_dir.dot(&nw.coords),
+            front: offset < 0.0,
+            texture: panel.texture.as_ref(),
+            front_shade: 1.0,
+            back_albedo: panel.back_albedo as f32,
+        }),
+        bbox,
+        owner: (usize::MAX, None),
+    })
+}
+
+/// The ground plane in the camera frame, with its texture mapping.
+fn prepared_ground<'a>(
+    w2c: &Isometry3<f64>,
+    g: &'a Ground,
+    light: Option<&Light>,
+) -> PreparedGround<'a> {
+    let c2w = w2c.inverse();
+    let normal = w2c.rotation * Vector3::z();
+    let origin = w2c.translation.vector;
+    let rot_wc = *c2w.rotation.to_rotation_matrix().matrix();
+    let inv = 1.0 / g.tile;
+    PreparedGround {
+        normal,
+        offset: normal.dot(&origin),
+        eye_s: c2w.translation.vector.x * inv,
+        eye_t: -c2w.translation.vector.y * inv,
+        row_s: rot_wc.row(0).transpose() * inv,
+        row_t: -rot_wc.row(1).transpose() * inv,
+        texture: g.texture.as_ref(),
+        shade: world_factor(light, &Vector3::z()),
+    }
+}
+
 impl<'a> Prepared<'a> {
     /// Transform the (validated) scene into the camera frame.
     pub fn new(
@@ -185,175 +399,25 @@ impl<'a> Prepared<'a> {
     ) -> Result<Self, SynthError> {
         let w2c = camera.world_to_camera();
         let mut prims = Vec::new();
-        let world_factor = |n: &Vector3<f64>| light.map_or(1.0, |l| l.factor(n));
         for (ri, robot) in scene.robots.iter().enumerate() {
-            let b2w = crate::scene::body_to_world(&robot.pose);
-            let b2c = w2c * b2w;
-            let rot_bc = *b2c.rotation.to_rotation_matrix().matrix();
-            let rot_cb = rot_bc.transpose();
-            let origin_body = b2c.inverse_transform_point(&Point3::origin()).coords;
-            let body_to_world_dir = |n: Vector3<f64>| b2w.rotation * n;
-            match robot.body {
-                Body::None => {}
-                Body::Box {
-                    length,
-                    width,
-                    height,
-                    albedo,
-                } => {
-                    let half = Vector3::new(length / 2.0, width / 2.0, height / 2.0);
-                    let centre = Vector3::new(0.0, 0.0, height / 2.0);
-                    let mut shade = [0f32; 6];
-                    for (i, s) in shade.iter_mut().enumerate() {
-                        let mut n = Vector3::zeros();
-                        n[i / 2] = if i % 2 == 0 { -1.0 } else { 1.0 };
-                        *s = albedo as f32 * world_factor(&body_to_world_dir(n));
-                    }
-                    let corners: Vec<Point3<f64>> = (0..8)
-                        .map(|i| {
-                            let c = Vector3::new(
-                                if i & 1 == 0 { -half.x } else { half.x },
-                                if i & 2 == 0 { -half.y } else { half.y },
-                                if i & 4 == 0 { -half.z } else { half.z },
-                            );
-                            b2c * Point3::from(centre + c)
-                        })
-                        .collect();
-                    if let Some(bbox) = screen_box(camera, &corners) {
-                        prims.push(Prim {
-                            shape: Shape::Box(BoxBody {
-                                rot: rot_cb,
-                                origin: origin_body - centre,
-                                half,
-                                shade,
-                            }),
-                            bbox,
-                            owner: (ri, None),
-                        });
-                    }
-                }
-                Body::Cylinder {
-                    radius,
-                    height,
-                    albedo,
-                } => {
-                    let corners: Vec<Point3<f64>> = (0..8)
-                        .map(|i| {
-                            let x = if i & 1 == 0 { -radius } else { radius };
-                            let y = if i & 2 == 0 { -radius } else { radius };
-                            let z = if i & 4 == 0 { 0.0 } else { height };
-                            b2c * Point3::new(x, y, z)
-                        })
-                        .collect();
-                    let light_body = light.map(|l| b2w.rotation.inverse() * l.dir);
-                    let cap_shade = [
-                        albedo as f32 * world_factor(&body_to_world_dir(-Vector3::z())),
-                        albedo as f32 * world_factor(&body_to_world_dir(Vector3::z())),
-                    ];
-                    if let Some(bbox) = screen_box(camera, &corners) {
-                        prims.push(Prim {
-                            shape: Shape::Cyl(CylBody {
-                                rot: rot_cb,
-                                origin: origin_body,
-                                radius,
-                                height,
-                                albedo: albedo as f32,
-                                ambient: light.map_or(1.0, |l| l.ambient as f32),
-                                light_body,
-                                cap_shade,
-                            }),
-                            bbox,
-                            owner: (ri, None),
-                        });
-                    }
-                }
-            }
+            let frame = RobotFrame::new(w2c, robot);
+            prims.extend(body_prim(camera, light, &frame, &robot.body, ri));
             for (fi, face) in robot.faces.iter().enumerate() {
-                let frame = face.placement.frame()?;
-                let corners_body = face.placement.corners()?;
-                let corners: Vec<Point3<f64>> = corners_body.iter().map(|p| b2c * p).collect();
-                let Some(bbox) = screen_box(camera, &corners) else {
-                    continue;
-                };
-                let normal = rot_bc * frame.normal;
-                let right = rot_bc * frame.right;
-                let down = -(rot_bc * frame.up);
-                let nw = corners[0].coords;
-                let offset = normal.dot(&nw);
-                let s_dir = right / face.placement.width;
-                let t_dir = down / face.placement.height;
-                let front_shade = match light {
-                    Some(l) if l.shade_faces => l.factor(&body_to_world_dir(frame.normal)),
-                    _ => 1.0,
-                };
-                prims.push(Prim {
-                    shape: Shape::Rect(Rect {
-                        normal,
-                        offset,
-                        s_dir,
-                        s0: s_dir.dot(&nw),
-                        t_dir,
-                        t0: t_dir.dot(&nw),
-                        front: offset < 0.0,
-                        texture: face.texture.as_ref(),
-                        front_shade,
-                        back_albedo: face.back_albedo as f32
-                            * world_factor(&body_to_world_dir(-frame.normal)),
-                    }),
-                    bbox,
-                    owner: (ri, Some(fi)),
-                });
+                prims.extend(face_prim(camera, light, &frame, face, (ri, fi))?);
             }
         }
-        for panel in &scene.panels {
-            let [nw, ne, sw] = panel.corners.map(|p| w2c * p);
-            let se = ne + (sw - nw);
-            let Some(bbox) = screen_box(camera, &[nw, ne, se, sw]) else {
-                continue;
-            };
-            let (a, b) = (ne - nw, sw - nw);
-            // Outward normal, and the dual basis giving s and t from a point's offset to NW.
-            let normal = b.cross(&a);
-            let s_dir = b.cross(&normal) / a.dot(&b.cross(&normal));
-            let t_dir = normal.cross(&a) / b.dot(&normal.cross(&a));
-            let offset = normal.dot(&nw.coords);
-            prims.push(Prim {
-                shape: Shape::Rect(Rect {
-                    normal,
-                    offset,
-                    s_dir,
-                    s0: s_dir.dot(&nw.coords),
-                    t_dir,
-                    t0: t_dir.dot(&nw.coords),
-                    front: offset < 0.0,
-                    texture: panel.texture.as_ref(),
-                    front_shade: 1.0,
-                    back_albedo: panel.back_albedo as f32,
-                }),
-                bbox,
-                owner: (usize::MAX, None),
-            });
-        }
-        let ground = scene.ground.as_ref().map(|g| {
-            let c2w = w2c.inverse();
-            let normal = w2c.rotation * Vector3::z();
-            let origin = w2c.translation.vector;
-            let rot_wc = *c2w.rotation.to_rotation_matrix().matrix();
-            let inv = 1.0 / g.tile;
-            PreparedGround {
-                normal,
-                offset: normal.dot(&origin),
-                eye_s: c2w.translation.vector.x * inv,
-                eye_t: -c2w.translation.vector.y * inv,
-                row_s: rot_wc.row(0).transpose() * inv,
-                row_t: -rot_wc.row(1).transpose() * inv,
-                texture: g.texture.as_ref(),
-                shade: world_factor(&Vector3::z()),
-            }
-        });
+        prims.extend(
+            scene
+                .panels
+                .iter()
+                .filter_map(|panel| panel_prim(camera, w2c, panel)),
+        );
         Ok(Self {
             prims,
-            ground,
+            ground: scene
+                .ground
+                .as_ref()
+                .map(|g| prepared_ground(w2c, g, light)),
             background: scene.background as f32,
         })
     }
