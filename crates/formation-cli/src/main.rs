@@ -53,6 +53,14 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        // The reader closed the pipe: nothing more is wanted, which is not a failure.
+        Err(err)
+            if err
+                .downcast_ref::<cmd::StdoutError>()
+                .is_some_and(cmd::StdoutError::is_closed_pipe) =>
+        {
+            ExitCode::SUCCESS
+        }
         Err(err) => {
             eprintln!("formation-tracker: error: {}", one_line(&err.to_string()));
             ExitCode::FAILURE

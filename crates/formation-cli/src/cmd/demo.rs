@@ -80,10 +80,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
     std::fs::create_dir_all(args.out.join("frames"))
         .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
     write_outputs(&args.out, &run)?;
-    print!(
+    super::write_stdout(format_args!(
         "{}",
         summary_text(&run.summary, started.elapsed().as_secs_f64())
-    );
+    ))?;
     eprintln!("demo: wrote {}", args.out.display());
     Ok(())
 }

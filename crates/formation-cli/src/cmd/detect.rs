@@ -180,19 +180,19 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             },
         };
         if args.json {
-            println!("{}", serde_json::to_string(&out)?);
+            super::outln!("{}", serde_json::to_string(&out)?)?;
         } else {
-            println!(
+            super::outln!(
                 "{}: {}x{}, {} marker(s), detect {:.2} ms",
                 out.image,
                 w,
                 h,
                 out.markers.len(),
                 out.timing.detect_ms
-            );
+            )?;
             for m in &out.markers {
                 let c = m.corners;
-                println!(
+                super::outln!(
                     "  robot {} face {} (code {}, index {}, {} bit(s) corrected) NW ({:.2}, {:.2}) NE ({:.2}, {:.2}) SE ({:.2}, {:.2}) SW ({:.2}, {:.2})",
                     m.robot,
                     m.face,
@@ -207,10 +207,10 @@ pub fn run(args: &Args) -> Result<(), CliError> {
                     c[2][1],
                     c[3][0],
                     c[3][1]
-                );
+                )?;
             }
             for r in &out.robots {
-                println!(
+                super::outln!(
                     "  robot {} pose from faces {:?}: l12 {:.3} m, alpha12 {:.2} deg, beta12 {:.2} deg, reprojection {:.2} px{}",
                     r.robot,
                     r.faces,
@@ -219,7 +219,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
                     r.beta12.to_degrees(),
                     r.reprojection_rms_px,
                     if r.ambiguous { " (ambiguous)" } else { "" }
-                );
+                )?;
             }
         }
     }

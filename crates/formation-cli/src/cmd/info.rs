@@ -4,9 +4,9 @@ use super::CliError;
 
 /// Prints the package version; the library crates share the workspace version.
 pub fn run() -> Result<(), CliError> {
-    println!(
+    super::outln!(
         "formation-tracker {} (crates: fiducial, pose, unicycle, dukf, synthcam)",
         env!("CARGO_PKG_VERSION")
-    );
+    )?;
     Ok(())
 }

@@ -77,7 +77,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 None => run_dukf(&a.out, a.seed, a.bias)?,
                 Some(file) => run_dukf_scenario(&a.out, a.seed, a.bias, file)?,
             };
-            print!("{}", summary_table(&summary));
+            super::write_stdout(format_args!("{}", summary_table(&summary)))?;
             Ok(())
         }
         What::PaperScenes(a) => super::reproduce_scenes::run(&a),

@@ -112,7 +112,7 @@ pub fn scenes_markdown(reports: &[SceneReport]) -> String {
 /// Runs `reproduce paper-scenes` and prints the table.
 pub fn run(args: &Args) -> Result<(), CliError> {
     let reports = run_paper_scenes(&args.out)?;
-    print!("{}", markdown_summary(&summarize(&reports)));
+    super::write_stdout(format_args!("{}", markdown_summary(&summarize(&reports))))?;
     eprintln!(
         "reproduce paper-scenes: wrote fig7..fig11 (.png, -raw.png), scenes.md, scenes.json to {}",
         args.out.display()

@@ -149,7 +149,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             }
         }
     }
-    out.flush()?;
+    out.flush().map_err(super::StdoutError)?;
     if let Some(bar) = progress {
         bar.finish_and_clear();
     }
@@ -222,6 +222,8 @@ fn write_frame(
     t: f64,
     done: &PipelineFrame,
 ) -> Result<(), CliError> {
+    use std::fmt::Write as _;
+    let mut text = String::new();
     let timing = TimingOut {
         detect_ms: done.timing.detect_ms,
         pose_ms: done.timing.pose_ms,
@@ -237,21 +239,23 @@ fn write_frame(
             failures: &done.failures,
             timing,
         };
-        writeln!(out, "{}", serde_json::to_string(&line)?)?;
+        out.write_all(format!("{}\n", serde_json::to_string(&line)?).as_bytes())
+            .map_err(super::StdoutError)?;
         return Ok(());
     }
-    write!(out, "frame {index} t {t:.3}:")?;
+    write!(text, "frame {index} t {t:.3}:")?;
     if done.report.leaders.is_empty() {
-        write!(out, " no leader")?;
+        write!(text, " no leader")?;
     }
     for l in &done.report.leaders {
         write!(
-            out,
+            text,
             " robot {} {:?} l12 {:.3} alpha12 {:.3} beta12 {:.3} v1 {:.2} w1 {:.2};",
             l.robot, l.status, l.l12, l.alpha12, l.beta12, l.v1, l.w1
         )?;
     }
-    writeln!(out, " ({:.1} ms)", timing.total_ms)?;
+    writeln!(text, " ({:.1} ms)", timing.total_ms)?;
+    out.write_all(text.as_bytes()).map_err(super::StdoutError)?;
     Ok(())
 }
 
