@@ -4,40 +4,10 @@
 //! (`println!` used to panic with exit code 101).
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use std::path::Path;
 use std::process::{Command, Output, Stdio};
-
-const CAMERA: &str = "%YAML:1.0
----
-image_width: 640
-image_height: 480
-camera_matrix: !!opencv-matrix
-   rows: 3
-   cols: 3
-   dt: d
-   data: [ 554.2562584220408, 0., 319.5, 0., 554.2562584220408, 239.5, 0., 0., 1. ]
-distortion_coefficients: !!opencv-matrix
-   rows: 5
-   cols: 1
-   dt: d
-   data: [ 0., 0., 0., 0., 0. ]
-";
-
-/// A folder with a calibration and three blank 640x480 frames (nothing to find, but every
-/// frame still prints a line).
-fn workdir(name: &str) -> PathBuf {
-    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
-        .join(format!("stdout-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(d.join("frames")).unwrap();
-    std::fs::write(d.join("camera.yaml"), CAMERA).unwrap();
-    for k in 0..3 {
-        image::GrayImage::from_pixel(640, 480, image::Luma([128]))
-            .save(d.join("frames").join(format!("f{k}.png")))
-            .unwrap();
-    }
-    d
-}
 
 /// Every command that prints its results on stdout, with arguments that make it print.
 /// (`demo` and `reproduce paper-scenes` print through the same function as `reproduce dukf`
@@ -75,7 +45,7 @@ fn run(d: &Path, args: &[String], stdout: Stdio, close_stdout: bool) -> Output {
 
 #[test]
 fn a_closed_pipe_ends_every_command_quietly() {
-    let d = workdir("pipe");
+    let d = common::blank_frames("stdout-pipe");
     for args in commands(&d) {
         let out = run(&d, &args, Stdio::piped(), true);
         let stderr = String::from_utf8_lossy(&out.stderr);
@@ -93,7 +63,7 @@ fn a_full_disk_is_one_error_line_and_exit_code_1() {
     let Ok(full) = std::fs::OpenOptions::new().write(true).open("/dev/full") else {
         return; // not Linux: no /dev/full to write to
     };
-    let d = workdir("full");
+    let d = common::blank_frames("stdout-full");
     for args in commands(&d) {
         let out = run(&d, &args, Stdio::from(full.try_clone().unwrap()), false);
         let stderr = String::from_utf8_lossy(&out.stderr);

@@ -14,24 +14,9 @@ use formation_tracker::mount::CameraMount;
 use formation_tracker::rig::RigModel;
 use unicycle::{PolarModel, Pose, wrap_angle};
 
-const FRAMES: usize = 12;
+mod common;
 
-/// 640x480, 60 degrees, no distortion: the synthetic camera's calibration.
-const CAMERA: &str = "%YAML:1.0
----
-image_width: 640
-image_height: 480
-camera_matrix: !!opencv-matrix
-   rows: 3
-   cols: 3
-   dt: d
-   data: [ 554.2562584220408, 0., 319.5, 0., 554.2562584220408, 239.5, 0., 0., 1. ]
-distortion_coefficients: !!opencv-matrix
-   rows: 5
-   cols: 1
-   dt: d
-   data: [ 0., 0., 0., 0., 0. ]
-";
+const FRAMES: usize = 12;
 
 struct Clip {
     dir: PathBuf,
@@ -88,7 +73,7 @@ fn clip(name: &str) -> Clip {
         );
     }
     std::fs::write(dir.join("inputs.csv"), csv).unwrap();
-    std::fs::write(dir.join("camera.yaml"), CAMERA).unwrap();
+    std::fs::write(dir.join("camera.yaml"), common::CAMERA).unwrap();
     Clip { dir, images, truth }
 }
 

@@ -29,7 +29,8 @@ pub struct RobotArgs {
     #[arg(long, value_name = "FILE")]
     pub rig: Option<PathBuf>,
     /// Camera pan about the follower's vertical axis, radians, left positive.
-    #[arg(long, value_name = "RAD", allow_hyphen_values = true)]
+    #[arg(long, value_name = "RAD", value_parser = super::numbers::finite,
+          allow_hyphen_values = true)]
     pub pan: Option<f64>,
     /// Camera mount as `OFFSET,HEIGHT[,TILT]`: metres ahead of the follower's reference
     /// point, metres above the ground, radians down. Default `0.5,0.30,0` (the reference
@@ -84,9 +85,6 @@ impl RobotStage {
     /// The stage, or `None` without `--camera`.
     pub fn from_args(args: &RobotArgs, dictionary: &Dictionary) -> Result<Option<Self>, CliError> {
         let pan = args.pan.unwrap_or(0.0);
-        if !pan.is_finite() {
-            return Err(format!("--pan {pan}: must be a finite angle in radians").into());
-        }
         let mount = match &args.mount {
             Some(text) => parse_mount(text, pan)?,
             None => CameraMount {

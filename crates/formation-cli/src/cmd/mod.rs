@@ -49,6 +49,70 @@ pub fn load_rig(
     })
 }
 
+/// Value parsers for numeric options, shared by every command so that `nan`, `inf` and
+/// out-of-range values are refused before any work starts, with the same message (clap
+/// prints it as `invalid value 'nan' for '--pan <RAD>': ...` and exits with code 2).
+pub mod numbers {
+    /// Frame rates accepted from `--fps` or a y4m header, frames per second: outside this
+    /// range time stops (1e300 frames/s) or stretches (one frame per 30 years).
+    pub const FPS_RANGE: std::ops::RangeInclusive<f64> = 1e-3..=1e4;
+
+    fn number(s: &str) -> Result<f64, String> {
+        s.trim()
+            .parse::<f64>()
+            .map_err(|_| format!("`{s}` is not a number"))
+    }
+
+    /// Any finite number (negative ones included).
+    pub fn finite(s: &str) -> Result<f64, String> {
+        let x = number(s)?;
+        if x.is_finite() {
+            Ok(x)
+        } else {
+            Err("must be a finite number".into())
+        }
+    }
+
+    /// A finite number at or above zero.
+    pub fn non_negative(s: &str) -> Result<f64, String> {
+        let x = finite(s)?;
+        if x >= 0.0 {
+            Ok(x)
+        } else {
+            Err("must be zero or more".into())
+        }
+    }
+
+    /// A finite number above zero.
+    pub fn positive(s: &str) -> Result<f64, String> {
+        let x = finite(s)?;
+        if x > 0.0 {
+            Ok(x)
+        } else {
+            Err("must be above zero".into())
+        }
+    }
+
+    /// A frame rate inside [`FPS_RANGE`].
+    pub fn fps(s: &str) -> Result<f64, String> {
+        let x = number(s)?;
+        check_fps(x)
+    }
+
+    /// `fps` if it lies inside [`FPS_RANGE`], else the message naming the range.
+    pub fn check_fps(fps: f64) -> Result<f64, String> {
+        if FPS_RANGE.contains(&fps) {
+            Ok(fps)
+        } else {
+            Err(format!(
+                "{fps} frames/s is outside the valid range {} to {} frames/s",
+                FPS_RANGE.start(),
+                FPS_RANGE.end()
+            ))
+        }
+    }
+}
+
 pub mod demo;
 pub mod detect;
 pub mod detect_robots;

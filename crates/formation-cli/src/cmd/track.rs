@@ -39,26 +39,30 @@ pub struct Args {
     /// Follower inputs per frame: CSV with `frame` or `t`, `v2`, `w2`, optional `pan`.
     #[arg(long, value_name = "CSV")]
     inputs: Option<PathBuf>,
-    /// Frame rate; default: the y4m header's, else 30.
-    #[arg(long, value_name = "F")]
+    /// Frame rate, 0.001 to 10000 frames/s; default: the y4m header's, else 30.
+    #[arg(long, value_name = "F", value_parser = super::numbers::fps)]
     fps: Option<f64>,
     /// One JSON object per frame instead of a text line.
     #[arg(long)]
     json: bool,
     /// Camera offset ahead of the follower's axle, metres (the paper's d).
-    #[arg(long, value_name = "M", default_value_t = CameraMount::default().offset)]
+    #[arg(long, value_name = "M", default_value_t = CameraMount::default().offset,
+          value_parser = super::numbers::non_negative, allow_hyphen_values = true)]
     mount_offset: f64,
     /// Camera height above the ground, metres.
-    #[arg(long, value_name = "M", default_value_t = CameraMount::default().height)]
+    #[arg(long, value_name = "M", default_value_t = CameraMount::default().height,
+          value_parser = super::numbers::finite, allow_hyphen_values = true)]
     mount_height: f64,
     /// Camera tilt below the horizontal, radians.
-    #[arg(long, value_name = "RAD", default_value_t = 0.0)]
+    #[arg(long, value_name = "RAD", default_value_t = 0.0,
+          value_parser = super::numbers::finite, allow_hyphen_values = true)]
     mount_tilt: f64,
     /// Camera pan (left positive), radians, when the inputs CSV has no `pan` column.
-    #[arg(long, value_name = "RAD", default_value_t = 0.0)]
+    #[arg(long, value_name = "RAD", default_value_t = 0.0,
+          value_parser = super::numbers::finite, allow_hyphen_values = true)]
     pan: f64,
     /// Seconds without a measurement before a track is dropped.
-    #[arg(long, value_name = "S", default_value_t = 2.0)]
+    #[arg(long, value_name = "S", default_value_t = 2.0, value_parser = super::numbers::positive)]
     lost_after: f64,
 }
 
@@ -174,10 +178,7 @@ fn frame_rate(args: &Args, frames: &FrameSource) -> Result<f64, CliError> {
             30.0
         }
     };
-    if !(fps.is_finite() && fps > 0.0) {
-        return Err(format!("--fps {fps} must be finite and positive").into());
-    }
-    Ok(fps)
+    Ok(super::numbers::check_fps(fps).map_err(|e| format!("the input's frame rate: {e}"))?)
 }
 
 /// The detector, the calibrated solver, the rig and the tracker, in one pipeline.
