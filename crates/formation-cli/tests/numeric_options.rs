@@ -93,3 +93,31 @@ fn negative_values_need_no_equals_sign() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+#[test]
+fn y4m_frame_rates_outside_the_valid_range_are_errors() {
+    use std::io::Write as _;
+    let d = common::blank_frames("numeric-y4m");
+    for rate in ["F1000000000:1", "F1:1000000000"] {
+        let mut y4m = format!("YUV4MPEG2 W64 H48 {rate} Ip A1:1 Cmono\nFRAME\n").into_bytes();
+        y4m.extend(std::iter::repeat_n(128u8, 64 * 48));
+        let mut child = Command::new(env!("CARGO_BIN_EXE_formation-tracker"))
+            .args(["track", "--camera", "camera.yaml", "-"])
+            .current_dir(&d)
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // The command may stop reading once it has seen the header.
+        let _ = child.stdin.take().unwrap().write_all(&y4m);
+        let out = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{rate}: {stderr}");
+        assert!(
+            stderr.contains("frame rate") && stderr.contains("valid range"),
+            "{rate}: {stderr}"
+        );
+        assert!(out.stdout.is_empty(), "{rate}: frames were tracked");
+    }
+}
