@@ -15,7 +15,16 @@ mod cmd;
 /// estimates the formation variables (l12, alpha12, beta12) and the leaders' velocities with
 /// a dual unscented Kalman filter.
 #[derive(Debug, Parser)]
-#[command(name = "formation-tracker", version, about, long_about = None)]
+#[command(
+    name = "formation-tracker",
+    version,
+    about,
+    long_about = None,
+    after_help = "Exit codes: 0 everything asked for was done; 1 error, nothing usable (one line on \
+                  stderr); 2 bad usage (an unknown option, a value out of range); 3 partial, some \
+                  images or frames could not be used (the others were reported). A reader that \
+                  closes the pipe (`| head`) ends a command quietly with 0. See docs/reliability.md."
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -60,6 +69,10 @@ fn main() -> ExitCode {
                 .is_some_and(cmd::StdoutError::is_closed_pipe) =>
         {
             ExitCode::SUCCESS
+        }
+        Err(err) if err.downcast_ref::<cmd::Partial>().is_some() => {
+            eprintln!("formation-tracker: warning: {}", one_line(&err.to_string()));
+            ExitCode::from(cmd::EXIT_PARTIAL)
         }
         Err(err) => {
             eprintln!("formation-tracker: error: {}", one_line(&err.to_string()));

@@ -77,7 +77,7 @@ fn clip(name: &str) -> Clip {
     Clip { dir, images, truth }
 }
 
-fn track(args: &[&str], dir: &Path, stdin: Option<Vec<u8>>) -> (String, String, bool) {
+fn track(args: &[&str], dir: &Path, stdin: Option<Vec<u8>>) -> (String, String, Option<i32>) {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_formation-tracker"));
     cmd.arg("track")
         .args(args)
@@ -95,7 +95,7 @@ fn track(args: &[&str], dir: &Path, stdin: Option<Vec<u8>>) -> (String, String, 
     (
         String::from_utf8(out.stdout).unwrap(),
         String::from_utf8(out.stderr).unwrap(),
-        out.status.success(),
+        out.status.code(),
     )
 }
 
@@ -110,7 +110,7 @@ fn lines(stdout: &str) -> Vec<serde_json::Value> {
 fn folder_with_a_broken_frame() {
     let clip = clip("folder");
     std::fs::write(clip.dir.join("frames").join("f005.png"), b"broken").unwrap();
-    let (stdout, stderr, ok) = track(
+    let (stdout, stderr, code) = track(
         &[
             "frames",
             "--camera",
@@ -124,7 +124,12 @@ fn folder_with_a_broken_frame() {
         &clip.dir,
         None,
     );
-    assert!(ok, "{stderr}");
+    // Exit code 3: partial, one frame could not be used (docs/reliability.md).
+    assert_eq!(code, Some(3), "{stderr}");
+    assert!(
+        stderr.contains("warning: 11 frames tracked, 1 broken"),
+        "{stderr}"
+    );
     assert!(
         stderr.contains("frame 5") && stderr.contains("f005.png"),
         "{stderr}"
@@ -171,8 +176,9 @@ fn truncated_y4m_on_stdin_without_inputs() {
         y4m.extend_from_slice(image.as_raw());
     }
     y4m.truncate(y4m.len() - 1000);
-    let (stdout, stderr, ok) = track(&["-", "--camera", "camera.yaml"], &clip.dir, Some(y4m));
-    assert!(ok, "{stderr}");
+    let (stdout, stderr, code) = track(&["-", "--camera", "camera.yaml"], &clip.dir, Some(y4m));
+    // Exit code 3: partial, the last frame was cut off.
+    assert_eq!(code, Some(3), "{stderr}");
     assert!(stderr.contains("stands still"), "{stderr}");
     assert!(stderr.contains("truncated"), "{stderr}");
     assert!(
@@ -192,11 +198,11 @@ fn truncated_y4m_on_stdin_without_inputs() {
 #[test]
 fn bad_arguments_are_one_line_errors() {
     let dir = std::env::temp_dir();
-    let (_, stderr, ok) = track(
+    let (_, stderr, code) = track(
         &["/nonexistent/frames", "--camera", "/nonexistent/cam.yaml"],
         &dir,
         None,
     );
-    assert!(!ok);
+    assert_eq!(code, Some(1), "{stderr}");
     assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
 }

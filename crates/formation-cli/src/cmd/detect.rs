@@ -131,7 +131,8 @@ fn marker_out(d: &Decoded, rig: &RigModel) -> MarkerOut {
     }
 }
 
-/// Reads every image; reports unreadable ones on stderr and fails at the end if any were.
+/// Reads every image; reports unreadable ones on stderr and, at the end, ends with a partial
+/// result (exit code 3) if some were, or an error if all were.
 pub fn run(args: &Args) -> Result<(), CliError> {
     let dict = fiducial::Dictionary::paper();
     let stage = super::detect_robots::RobotStage::from_args(&args.robots, dict)?;
@@ -223,12 +224,10 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             }
         }
     }
-    if failed > 0 {
-        return Err(format!(
-            "{failed} of {} image(s) could not be read",
-            args.images.len()
-        )
-        .into());
+    let total = args.images.len();
+    match failed {
+        0 => Ok(()),
+        f if f == total => Err(format!("none of the {total} image(s) could be read").into()),
+        f => Err(super::Partial(format!("{f} of {total} image(s) could not be read")).into()),
     }
-    Ok(())
 }

@@ -3,6 +3,16 @@
 /// Any error a subcommand reports; printed as one line by `main`.
 pub type CliError = Box<dyn std::error::Error + Send + Sync + 'static>;
 
+/// Exit code of a command that used some of its inputs and not others (`docs/reliability.md`).
+pub const EXIT_PARTIAL: u8 = 3;
+
+/// Some inputs (images, frames) could not be used while others were: what was printed is
+/// valid but incomplete. `main` prints the message as one warning line and exits with
+/// [`EXIT_PARTIAL`]; when *no* input was usable a command returns an ordinary error (exit 1).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct Partial(pub String);
+
 /// Writing to standard output failed. `main` ends quietly with exit code 0 when the reader
 /// closed the pipe (`formation-tracker detect *.png | head -n 1`), as command-line tools do,
 /// and reports anything else (a full disk, `> /dev/full`) as one error line with exit code 1.

@@ -157,14 +157,19 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     if let Some(bar) = progress {
         bar.finish_and_clear();
     }
-    eprintln!(
-        "track: {processed} frames tracked, {broken} broken{}",
-        if frames.truncated() {
-            "; the stream ended inside a frame (truncated), which was dropped"
-        } else {
-            ""
-        }
-    );
+    let truncated = if frames.truncated() {
+        "; the stream ended inside a frame (truncated), which was dropped"
+    } else {
+        ""
+    };
+    let summary = format!("{processed} frames tracked, {broken} broken{truncated}");
+    if processed == 0 {
+        return Err(format!("nothing tracked: {summary}").into());
+    }
+    if broken > 0 || frames.truncated() {
+        return Err(super::Partial(summary).into());
+    }
+    eprintln!("track: {summary}");
     Ok(())
 }
 
