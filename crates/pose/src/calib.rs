@@ -59,6 +59,37 @@ pub enum CalibrationError {
         /// What is wrong with it.
         reason: String,
     },
+    /// An image's size is not the calibration's. A pose solved with the wrong intrinsics is
+    /// wrong by hundreds of pixels, so this is refused unless the caller asks to rescale
+    /// ([`Calibration::scaled_to`]).
+    #[error(
+        "the image is {width}x{height} but the calibration is for {calibrated_width}x{calibrated_height}"
+    )]
+    SizeMismatch {
+        /// Image width, pixels.
+        width: u32,
+        /// Image height, pixels.
+        height: u32,
+        /// The calibration's width, pixels.
+        calibrated_width: u32,
+        /// The calibration's height, pixels.
+        calibrated_height: u32,
+    },
+    /// The image cannot be a resized copy of the calibrated one: its aspect ratio differs
+    /// (a crop or another sensor mode needs its own calibration), or it is empty.
+    #[error(
+        "a {width}x{height} image is not a resize of the calibrated {calibrated_width}x{calibrated_height} (aspect ratios differ by more than 1 %); calibrate that camera mode"
+    )]
+    NotAResize {
+        /// Image width, pixels.
+        width: u32,
+        /// Image height, pixels.
+        height: u32,
+        /// The calibration's width, pixels.
+        calibrated_width: u32,
+        /// The calibration's height, pixels.
+        calibrated_height: u32,
+    },
 }
 
 /// Which file format a calibration came from.
@@ -103,6 +134,63 @@ struct RawFile {
 }
 
 impl Calibration {
+    /// `Ok` if an image of `width x height` is the size this calibration was made for,
+    /// else [`CalibrationError::SizeMismatch`].
+    pub fn check_size(&self, width: u32, height: u32) -> Result<(), CalibrationError> {
+        if (width, height) == (self.width, self.height) {
+            Ok(())
+        } else {
+            Err(CalibrationError::SizeMismatch {
+                width,
+                height,
+                calibrated_width: self.width,
+                calibrated_height: self.height,
+            })
+        }
+    }
+
+    /// The same camera for its images resized to `width x height`: focal lengths scale with
+    /// the size, and the principal point too, in the pixel-centre convention (`u0' = (u0 +
+    /// 1/2) s - 1/2`). Distortion is in normalised coordinates and does not change. The
+    /// aspect ratio must be kept to within 1 % ([`CalibrationError::NotAResize`]).
+    pub fn scaled_to(&self, width: u32, height: u32) -> Result<Self, CalibrationError> {
+        let not_a_resize = CalibrationError::NotAResize {
+            width,
+            height,
+            calibrated_width: self.width,
+            calibrated_height: self.height,
+        };
+        if (width, height) == (self.width, self.height) {
+            return Ok(*self);
+        }
+        if width == 0 || height == 0 || self.width == 0 || self.height == 0 {
+            return Err(not_a_resize);
+        }
+        let sx = f64::from(width) / f64::from(self.width);
+        let sy = f64::from(height) / f64::from(self.height);
+        if (sx / sy - 1.0).abs() > 0.01 {
+            return Err(not_a_resize);
+        }
+        let k = &self.intrinsics;
+        let intrinsics = Intrinsics::new(
+            k.alpha() * sx,
+            k.beta() * sy,
+            k.theta(),
+            (k.u0() + 0.5) * sx - 0.5,
+            (k.v0() + 0.5) * sy - 0.5,
+        )
+        .map_err(|e| CalibrationError::BadField {
+            field: "camera_matrix",
+            reason: format!("scaled to {width}x{height}: {e}"),
+        })?;
+        Ok(Self {
+            intrinsics,
+            width,
+            height,
+            ..*self
+        })
+    }
+
     /// Reads a calibration file (OpenCV or ROS YAML).
     pub fn from_file(path: impl AsRef<Path>) -> Result<Self, CalibrationError> {
         let path = path.as_ref();

@@ -130,3 +130,40 @@ fn wrong_type_in_a_field_is_reported_with_its_name() {
         "{e}"
     );
 }
+
+#[test]
+fn a_resized_image_gets_scaled_intrinsics_and_a_crop_is_refused() {
+    let c = Calibration::from_file(fixture("opencv_640x480.yaml")).unwrap();
+    assert!(c.check_size(640, 480).is_ok());
+    assert!(matches!(
+        c.check_size(1280, 960),
+        Err(CalibrationError::SizeMismatch {
+            width: 1280,
+            height: 960,
+            calibrated_width: 640,
+            calibrated_height: 480
+        })
+    ));
+    // Twice the size: a point's pixel (pixel-centre convention) is (u + 1/2) 2 - 1/2.
+    let big = c.scaled_to(1280, 960).unwrap();
+    assert_eq!((big.width, big.height), (1280, 960));
+    assert_eq!(big.distortion, c.distortion);
+    let p = nalgebra::Point3::new(0.3, -0.2, 2.0);
+    let (a, b) = (
+        c.intrinsics.project(&p).unwrap(),
+        big.intrinsics.project(&p).unwrap(),
+    );
+    assert!((b.x - ((a.x + 0.5) * 2.0 - 0.5)).abs() < 1e-9);
+    assert!((b.y - ((a.y + 0.5) * 2.0 - 0.5)).abs() < 1e-9);
+    // The identity scale changes nothing.
+    assert_eq!(c.scaled_to(640, 480).unwrap(), c);
+    // Another aspect ratio is a crop or another sensor mode, not a resize.
+    for (w, h) in [(1280, 720), (0, 480), (640, 0)] {
+        let e = c.scaled_to(w, h).unwrap_err();
+        assert!(
+            matches!(e, CalibrationError::NotAResize { .. }),
+            "{w}x{h}: {e}"
+        );
+        assert!(e.to_string().contains(&format!("{w}x{h}")), "{e}");
+    }
+}

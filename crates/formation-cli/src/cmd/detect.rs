@@ -166,15 +166,23 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         let t1 = Instant::now();
         detector.decode_quads(&view, &mut found);
         let t2 = Instant::now();
+        let robots = match &stage {
+            None => Vec::new(),
+            Some(stage) => match stage.measure(&found, grey.width(), grey.height()) {
+                Ok(robots) => robots.iter().map(RobotOut::from).collect(),
+                Err(err) => {
+                    eprintln!("formation-tracker: error: {}: {err}", path.display());
+                    failed += 1;
+                    continue;
+                }
+            },
+        };
         let out = ImageOut {
             image: path.display().to_string(),
             width: w,
             height: h,
             markers: found.iter().map(|d| marker_out(d, &rig)).collect(),
-            robots: stage
-                .as_ref()
-                .map(|stage| stage.measure(&found).iter().map(RobotOut::from).collect())
-                .unwrap_or_default(),
+            robots,
             timing: Timing {
                 detect_ms: (t1 - t0).as_secs_f64() * 1e3,
                 decode_ms: (t2 - t1).as_secs_f64() * 1e3,

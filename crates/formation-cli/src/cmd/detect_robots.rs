@@ -12,8 +12,8 @@ use fiducial::{Decoded, Dictionary};
 use formation_tracker::mount::CameraMount;
 use formation_tracker::rig::RigModel;
 use formation_tracker::robots::{MarkerObservation, RobotConfig, RobotMeasurement, measure_robots};
+use pose::PoseSolver;
 use pose::calib::Calibration;
-use pose::{Distortion, Intrinsics, PoseSolver};
 
 use super::CliError;
 
@@ -40,6 +40,11 @@ pub struct RobotArgs {
     /// Report the free 6-DOF pose instead of refining it on the ground plane.
     #[arg(long = "free-pose")]
     pub free_pose: bool,
+    /// Accept images whose size differs from the calibration's by scaling the intrinsics,
+    /// for images resized from the calibrated camera's (same aspect ratio). Without it such
+    /// an image is an error: its poses would be wrong by the scale.
+    #[arg(long = "scale-calibration")]
+    pub scale_calibration: bool,
 }
 
 /// Parses `OFFSET,HEIGHT[,TILT]`.
@@ -69,9 +74,8 @@ fn parse_mount(text: &str, pan: f64) -> Result<CameraMount, CliError> {
 pub struct RobotStage {
     /// The rig.
     pub rig: RigModel,
-    solver: PoseSolver,
-    intrinsics: Intrinsics,
-    distortion: Distortion,
+    calibration: Calibration,
+    scale_calibration: bool,
     mount: CameraMount,
     config: RobotConfig,
 }
@@ -102,9 +106,8 @@ impl RobotStage {
             .map_err(|e| format!("--camera {}: {e}", path.display()))?;
         Ok(Some(Self {
             rig: Self::rig(args, dictionary)?,
-            solver: PoseSolver::new(calib.intrinsics),
-            intrinsics: calib.intrinsics,
-            distortion: calib.distortion,
+            calibration: calib,
+            scale_calibration: args.scale_calibration,
             mount,
             config: RobotConfig {
                 ground_plane: !args.free_pose,
@@ -113,15 +116,31 @@ impl RobotStage {
         }))
     }
 
-    /// The robots seen in an image from its markers (corners undistorted first). Robots
-    /// whose pose fails are reported on stderr and left out.
-    pub fn measure(&self, markers: &[Decoded]) -> Vec<RobotMeasurement> {
+    /// The robots seen in a `width x height` image from its markers (corners undistorted
+    /// first). Robots whose pose fails are reported on stderr and left out. An image whose
+    /// size is not the calibration's is an error, unless `--scale-calibration` was given.
+    pub fn measure(
+        &self,
+        markers: &[Decoded],
+        width: u32,
+        height: u32,
+    ) -> Result<Vec<RobotMeasurement>, CliError> {
+        let calibration = if self.scale_calibration {
+            self.calibration.scaled_to(width, height)?
+        } else {
+            self.calibration.check_size(width, height).map_err(|e| {
+                format!("{e} (pass --scale-calibration if the image was resized from the calibrated camera's)")
+            })?;
+            self.calibration
+        };
+        let (intrinsics, distortion) = (calibration.intrinsics, calibration.distortion);
+        let solver = PoseSolver::new(intrinsics);
         let observations: Vec<MarkerObservation> = markers
             .iter()
             .filter_map(|d| {
                 let mut corners = d.corners;
                 for c in &mut corners {
-                    *c = self.distortion.undistort_pixel(&self.intrinsics, c).ok()?;
+                    *c = distortion.undistort_pixel(&intrinsics, c).ok()?;
                 }
                 Some(MarkerObservation {
                     index: d.index,
@@ -129,16 +148,10 @@ impl RobotStage {
                 })
             })
             .collect();
-        let found = measure_robots(
-            &observations,
-            &self.rig,
-            &self.solver,
-            &self.mount,
-            &self.config,
-        );
+        let found = measure_robots(&observations, &self.rig, &solver, &self.mount, &self.config);
         for f in &found.failures {
             eprintln!("formation-tracker: warning: {f}");
         }
-        found.robots
+        Ok(found.robots)
     }
 }

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use clap::Args as ClapArgs;
 use fiducial::{Detector, DetectorConfig, Dictionary};
 use formation_tracker::mount::CameraMount;
-use formation_tracker::pipeline::{Pipeline, PipelineFrame};
+use formation_tracker::pipeline::{Pipeline, PipelineError, PipelineFrame};
 use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotConfig;
 use formation_tracker::tracker::{LeaderReport, Tracker, TrackerConfig};
@@ -61,6 +61,11 @@ pub struct Args {
     #[arg(long, value_name = "RAD", default_value_t = 0.0,
           value_parser = super::numbers::finite, allow_hyphen_values = true)]
     pan: f64,
+    /// Accept frames whose size differs from the calibration's by scaling the intrinsics
+    /// (frames resized from the calibrated camera's, same aspect ratio). Without it such
+    /// frames are errors: their poses would be wrong by the scale.
+    #[arg(long = "scale-calibration")]
+    scale_calibration: bool,
     /// Seconds without a measurement before a track is dropped.
     #[arg(long, value_name = "S", default_value_t = 2.0, value_parser = super::numbers::positive)]
     lost_after: f64,
@@ -107,7 +112,9 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         pan: args.pan,
         tilt: args.mount_tilt,
     };
-    let mut pipeline = build_pipeline(args, calibration, rig, mount, fps)?;
+    // Built at the first frame, whose size the calibration is scaled to with
+    // --scale-calibration.
+    let mut pipeline: Option<Pipeline> = None;
     let progress = std::io::stderr()
         .is_terminal()
         .then(|| progress_bar(frames.len_hint()));
@@ -134,6 +141,17 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             None => (Inputs::new(0.0, 0.0), args.pan),
         };
         let image = frame.image;
+        let pipeline = match &mut pipeline {
+            Some(pipeline) => pipeline,
+            None => {
+                let calibration = if args.scale_calibration {
+                    calibration.scaled_to(image.width as u32, image.height as u32)?
+                } else {
+                    calibration
+                };
+                pipeline.insert(build_pipeline(args, calibration, rig.clone(), mount, fps)?)
+            }
+        };
         let result = pipeline.process(
             &image.data,
             image.width,
@@ -149,7 +167,15 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             }
             Err(e) => {
                 broken += 1;
-                report_error(progress.as_ref(), &format!("track: frame {index}: {e}"));
+                let hint = if matches!(e, PipelineError::SizeMismatch { .. }) {
+                    " (pass --scale-calibration if the frames were resized from the calibrated camera's)"
+                } else {
+                    ""
+                };
+                report_error(
+                    progress.as_ref(),
+                    &format!("track: frame {index}: {e}{hint}"),
+                );
             }
         }
     }
