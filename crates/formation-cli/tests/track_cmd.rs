@@ -206,3 +206,36 @@ fn bad_arguments_are_one_line_errors() {
     assert_eq!(code, Some(1), "{stderr}");
     assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
 }
+
+/// Regression (#11): with a mount tilt of the wrong sign, poses 170 px off their corners
+/// reached the tracker (l12 of thousands of metres, status "tracking"). They are rejected
+/// with their reason in `failures`, and no leader is tracked.
+#[test]
+fn poses_from_a_wrong_mount_are_rejected_not_tracked() {
+    let clip = clip("wrong-mount");
+    let (stdout, stderr, code) = track(
+        &[
+            "frames",
+            "--camera",
+            "camera.yaml",
+            "--mount-tilt",
+            "0.3",
+            "--json",
+        ],
+        &clip.dir,
+        None,
+    );
+    assert_eq!(code, Some(0), "{stderr}");
+    let frames = lines(&stdout);
+    assert_eq!(frames.len(), FRAMES);
+    for f in &frames {
+        assert!(f["leaders"].as_array().unwrap().is_empty(), "{f}");
+        let failures = f["failures"].as_array().unwrap();
+        assert!(
+            failures
+                .iter()
+                .any(|r| r.as_str().unwrap().contains("pose rejected: reprojection")),
+            "{f}"
+        );
+    }
+}

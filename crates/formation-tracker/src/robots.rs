@@ -69,15 +69,30 @@ pub struct RobotConfig {
     /// stands on and the camera mount is known, so only `(x, y, theta)` of the leader are
     /// free (see the module docs). Off: the 6-DOF pose of `pose` is reported as is.
     pub ground_plane: bool,
+    /// A pose whose reprojection RMS exceeds this (pixels) cannot be right (the detector's
+    /// corners are good to about 0.1 px) and is rejected ([`RobotError::Implausible`]).
+    pub max_reprojection_px: f64,
+    /// Farthest plausible leader, metres of `l12`: beyond it a marker is a few pixels wide
+    /// at most, and a larger `l12` comes from a wrong mount or calibration.
+    pub max_range_m: f64,
+    /// With the free 6-DOF pose: how far the rig's origin (on the leader's floor) may lie
+    /// below or above the follower's floor, metres. A leader underground is rejected.
+    pub max_floor_offset_m: f64,
 }
 
 impl Default for RobotConfig {
+    /// Outliers above 1 px (factor 3), ambiguity below 1.5, ground-plane refinement on;
+    /// poses rejected above 3 px reprojection RMS, beyond 20 m, or (free pose) more than
+    /// 0.2 m off the floor.
     fn default() -> Self {
         Self {
             outlier_px: 1.0,
             outlier_factor: 3.0,
             ambiguity_ratio: 1.5,
             ground_plane: true,
+            max_reprojection_px: 3.0,
+            max_range_m: 20.0,
+            max_floor_offset_m: 0.2,
         }
     }
 }
@@ -104,6 +119,64 @@ pub enum RobotError {
     /// The rig has no geometry for a face the table maps to.
     #[error(transparent)]
     Rig(#[from] RigError),
+    /// A pose was found but cannot be right (see [`RobotConfig::max_reprojection_px`],
+    /// [`RobotConfig::max_range_m`], [`RobotConfig::max_floor_offset_m`]); it is not
+    /// reported as a measurement.
+    #[error("robot {robot}: pose rejected: {reason}")]
+    Implausible {
+        /// The robot.
+        robot: u32,
+        /// Why, with the value and the limit (e.g. `reprojection 49.0 px above 3 px`).
+        reason: String,
+    },
+}
+
+impl RobotError {
+    /// The robot the error is about, if any.
+    pub fn robot(&self) -> Option<u32> {
+        match self {
+            Self::Pose { robot, .. }
+            | Self::Measurement { robot, .. }
+            | Self::Implausible { robot, .. } => Some(*robot),
+            Self::Rig(_) => None,
+        }
+    }
+}
+
+/// Why `m` cannot be right, if it cannot: the checks of [`RobotError::Implausible`].
+fn implausibility(
+    m: &RobotMeasurement,
+    mount: &CameraMount,
+    config: &RobotConfig,
+) -> Option<String> {
+    // Written so that NaN fails every check.
+    if m.reprojection_rms_px.is_nan() || m.reprojection_rms_px > config.max_reprojection_px {
+        return Some(format!(
+            "reprojection {:.1} px above {} px",
+            m.reprojection_rms_px, config.max_reprojection_px
+        ));
+    }
+    if !(m.l12.is_finite() && m.l12 <= config.max_range_m) {
+        return Some(format!(
+            "l12 = {:.3e} m beyond the maximum range {} m",
+            m.l12, config.max_range_m
+        ));
+    }
+    if m.translation[2] <= 0.0 {
+        return Some("the rig is behind the camera".into());
+    }
+    if !m.ground_plane {
+        let t = Vector3::from(m.translation);
+        let floor = (mount.camera_to_body_rotation() * t + mount.camera_position()).z;
+        if floor.is_nan() || floor.abs() > config.max_floor_offset_m {
+            return Some(format!(
+                "the rig stands {floor:.2} m {} the floor (at most {} m)",
+                if floor < 0.0 { "below" } else { "above" },
+                config.max_floor_offset_m
+            ));
+        }
+    }
+    None
 }
 
 /// One robot measured in a frame.
@@ -221,7 +294,10 @@ pub fn measure_robots(
     groups.sort_by_key(|(r, _)| *r);
     for (robot, faces) in groups {
         match measure_robot(robot, faces, solver, mount, config) {
-            Ok(m) => out.robots.push(m),
+            Ok(m) => match implausibility(&m, mount, config) {
+                None => out.robots.push(m),
+                Some(reason) => out.failures.push(RobotError::Implausible { robot, reason }),
+            },
             Err(e) => out.failures.push(e),
         }
     }
@@ -493,4 +569,63 @@ fn measure_robot(
         ground_plane: config.ground_plane,
         candidates,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A leader 1.5 m ahead and 0.2 m left on the floor, measured with the free pose.
+    fn plausible(mount: &CameraMount) -> RobotMeasurement {
+        let (rotation, translation) = mount.leader_to_camera(1.5, 0.2, 0.1);
+        RobotMeasurement {
+            robot: 1,
+            faces: vec![0],
+            rejected_faces: Vec::new(),
+            rotation: rotation.scaled_axis().into(),
+            translation: translation.into(),
+            reprojection_rms_px: 0.2,
+            l12: 1.0,
+            alpha12: 0.2,
+            beta12: 0.3,
+            covariance: [[0.0; 3]; 3],
+            ambiguous: false,
+            ambiguity_ratio: None,
+            ground_plane: false,
+            candidates: None,
+        }
+    }
+
+    #[test]
+    fn poses_that_cannot_be_right_are_named() {
+        let mount = CameraMount::default();
+        let config = RobotConfig::default();
+        assert_eq!(implausibility(&plausible(&mount), &mount, &config), None);
+        let check = |edit: &dyn Fn(&mut RobotMeasurement), says: &str| {
+            let mut m = plausible(&mount);
+            edit(&mut m);
+            let reason = implausibility(&m, &mount, &config).unwrap();
+            assert!(reason.contains(says), "{reason}");
+        };
+        check(
+            &|m| m.reprojection_rms_px = 49.0,
+            "reprojection 49.0 px above 3 px",
+        );
+        check(&|m| m.reprojection_rms_px = f64::NAN, "reprojection");
+        check(&|m| m.l12 = 185_047_483.0, "beyond the maximum range 20 m");
+        check(&|m| m.l12 = f64::INFINITY, "beyond the maximum range");
+        check(&|m| m.translation[2] = -1.0, "behind the camera");
+        // The leader 0.5 m under the floor: its rig origin moved down in the camera frame.
+        let below = {
+            let (_, t) = mount.leader_to_camera(1.5, 0.2, 0.1);
+            let down = mount.camera_to_body_rotation().inverse() * Vector3::new(0.0, 0.0, -0.5);
+            t + down
+        };
+        check(&|m| m.translation = below.into(), "0.50 m below the floor");
+        // The ground-plane fit puts the rig on the floor by construction: no floor check.
+        let mut m = plausible(&mount);
+        m.translation = below.into();
+        m.ground_plane = true;
+        assert_eq!(implausibility(&m, &mount, &config), None);
+    }
 }

@@ -114,7 +114,18 @@ struct ImageOut {
     markers: Vec<MarkerOut>,
     /// Robots seen (rig pose per robot), with `--camera`; empty otherwise.
     robots: Vec<RobotOut>,
+    /// Robots whose markers were read but whose pose failed or cannot be right
+    /// (reprojection, range, floor), with the reason; they are not in `robots`.
+    rejected: Vec<RejectedOut>,
     timing: Timing,
+}
+
+#[derive(Debug, Serialize)]
+struct RejectedOut {
+    /// The robot, when the failure is about one.
+    robot: Option<u32>,
+    /// Why, e.g. `robot 1: pose rejected: reprojection 49.0 px above 3 px`.
+    reason: String,
 }
 
 fn marker_out(d: &Decoded, rig: &RigModel) -> MarkerOut {
@@ -166,10 +177,19 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         let t1 = Instant::now();
         detector.decode_quads(&view, &mut found);
         let t2 = Instant::now();
-        let robots = match &stage {
-            None => Vec::new(),
+        let (robots, rejected) = match &stage {
+            None => (Vec::new(), Vec::new()),
             Some(stage) => match stage.measure(&found, grey.width(), grey.height()) {
-                Ok(robots) => robots.iter().map(RobotOut::from).collect(),
+                Ok((robots, failures)) => (
+                    robots.iter().map(RobotOut::from).collect(),
+                    failures
+                        .iter()
+                        .map(|f| RejectedOut {
+                            robot: f.robot(),
+                            reason: f.to_string(),
+                        })
+                        .collect(),
+                ),
                 Err(err) => {
                     eprintln!("formation-tracker: error: {}: {err}", path.display());
                     failed += 1;
@@ -183,6 +203,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             height: h,
             markers: found.iter().map(|d| marker_out(d, &rig)).collect(),
             robots,
+            rejected,
             timing: Timing {
                 detect_ms: (t1 - t0).as_secs_f64() * 1e3,
                 decode_ms: (t2 - t1).as_secs_f64() * 1e3,

@@ -11,7 +11,9 @@ use clap::Args as ClapArgs;
 use fiducial::{Decoded, Dictionary};
 use formation_tracker::mount::CameraMount;
 use formation_tracker::rig::RigModel;
-use formation_tracker::robots::{MarkerObservation, RobotConfig, RobotMeasurement, measure_robots};
+use formation_tracker::robots::{
+    MarkerObservation, RobotConfig, RobotError, RobotMeasurement, measure_robots,
+};
 use pose::PoseSolver;
 use pose::calib::Calibration;
 
@@ -117,14 +119,15 @@ impl RobotStage {
     }
 
     /// The robots seen in a `width x height` image from its markers (corners undistorted
-    /// first). Robots whose pose fails are reported on stderr and left out. An image whose
-    /// size is not the calibration's is an error, unless `--scale-calibration` was given.
+    /// first), and the robots whose pose failed or was rejected as implausible (also
+    /// reported on stderr). An image whose size is not the calibration's is an error, unless
+    /// `--scale-calibration` was given.
     pub fn measure(
         &self,
         markers: &[Decoded],
         width: u32,
         height: u32,
-    ) -> Result<Vec<RobotMeasurement>, CliError> {
+    ) -> Result<(Vec<RobotMeasurement>, Vec<RobotError>), CliError> {
         let calibration = if self.scale_calibration {
             self.calibration.scaled_to(width, height)?
         } else {
@@ -152,6 +155,6 @@ impl RobotStage {
         for f in &found.failures {
             eprintln!("formation-tracker: warning: {f}");
         }
-        Ok(found.robots)
+        Ok((found.robots, found.failures))
     }
 }
