@@ -383,6 +383,33 @@ fn check_header(header: &[u8]) -> Result<(), FrameError> {
     Ok(())
 }
 
+/// Reads an image file as 8-bit grey, the way every command does: the format is taken from
+/// the file's content (not its extension), the size from its header before decoding (at
+/// most [`MAX_SIDE`] a side), a JPEG that ends before its end-of-image marker is an error
+/// (decoders would return a partly grey image), and colour is converted with the BT.601
+/// weights.
+///
+/// # Errors
+/// One line saying why the file cannot be used.
+pub fn read_grey(path: &Path) -> Result<GreyImage, String> {
+    let mut grey = GreyImage {
+        width: 0,
+        height: 0,
+        data: Vec::new(),
+    };
+    load_image(path, &mut grey)?;
+    Ok(grey)
+}
+
+/// Whether a JPEG's last scan is followed by its end-of-image marker (`FF D9`). Entropy-coded
+/// data escapes `FF` bytes, so the last `FF DA` (start of scan) is the real last scan, and a
+/// complete file has an `FF D9` after it (thumbnails and their markers come earlier).
+fn jpeg_is_complete(bytes: &[u8]) -> bool {
+    let last_scan = bytes.windows(2).rposition(|w| w == [0xFF, 0xDA]);
+    let last_end = bytes.windows(2).rposition(|w| w == [0xFF, 0xD9]);
+    matches!((last_scan, last_end), (Some(s), Some(e)) if e > s)
+}
+
 /// Copies a luma plane into the grey buffer; 10/12-bit little-endian samples keep their
 /// high 8 bits.
 fn copy_luma(y: &[u8], bit_depth: usize, out: &mut [u8]) {
@@ -397,19 +424,32 @@ fn copy_luma(y: &[u8], bit_depth: usize, out: &mut [u8]) {
     }
 }
 
-/// Decodes an image file into the grey buffer.
+/// Decodes an image file into the grey buffer (see [`read_grey`]).
 fn load_image(path: &Path, grey: &mut GreyImage) -> Result<(), String> {
-    let img = image::ImageReader::open(path)
-        .map_err(|e| e.to_string())?
+    let bytes = std::fs::read(path).map_err(|e| e.to_string())?;
+    let reader = image::ImageReader::new(std::io::Cursor::new(&bytes[..]))
         .with_guessed_format()
-        .map_err(|e| e.to_string())?
-        .decode()
         .map_err(|e| e.to_string())?;
-    let (w, h) = (img.width() as usize, img.height() as usize);
+    let format = reader.format().ok_or(
+        "not an image format we read (the content is neither PNG nor JPEG nor another format \
+         the `image` crate knows)",
+    )?;
+    // The size from the header, before anything is decoded.
+    let (w, h) = image::ImageReader::with_format(std::io::Cursor::new(&bytes[..]), format)
+        .into_dimensions()
+        .map_err(|e| e.to_string())?;
+    let (w, h) = (w as usize, h as usize);
     if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
         return Err(format!(
             "image size {w}x{h} is outside 1..={MAX_SIDE} pixels a side"
         ));
+    }
+    if format == image::ImageFormat::Jpeg && !jpeg_is_complete(&bytes) {
+        return Err("truncated JPEG: the file ends before its end-of-image marker".into());
+    }
+    let img = reader.decode().map_err(|e| e.to_string())?;
+    if (img.width() as usize, img.height() as usize) != (w, h) {
+        return Err("the decoded size differs from the header's".into());
     }
     let out = grey.reshape(w, h);
     let luma = |r: u8, g: u8, b: u8| {

@@ -155,16 +155,16 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     let mut found = Vec::new();
     let mut failed = 0usize;
     for path in &args.images {
-        let grey = match image::open(path) {
-            Ok(img) => img.into_luma8(),
+        let grey = match formation_tracker_cli::frames::read_grey(path) {
+            Ok(grey) => grey,
             Err(err) => {
                 eprintln!("formation-tracker: error: {}: {err}", path.display());
                 failed += 1;
                 continue;
             }
         };
-        let (w, h) = (grey.width() as usize, grey.height() as usize);
-        let view = match GrayView::new(grey.as_raw(), w, h) {
+        let (w, h) = (grey.width, grey.height);
+        let view = match GrayView::new(&grey.data, w, h) {
             Ok(v) => v,
             Err(err) => {
                 eprintln!("formation-tracker: error: {}: {err}", path.display());
@@ -179,7 +179,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         let t2 = Instant::now();
         let (robots, rejected) = match &stage {
             None => (Vec::new(), Vec::new()),
-            Some(stage) => match stage.measure(&found, grey.width(), grey.height()) {
+            Some(stage) => match stage.measure(&found, w as u32, h as u32) {
                 Ok((robots, failures)) => (
                     robots.iter().map(RobotOut::from).collect(),
                     failures
