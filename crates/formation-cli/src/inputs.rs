@@ -56,8 +56,26 @@ pub enum InputsError {
         /// The text found.
         value: String,
     },
-    /// A row has fewer fields than the header.
-    #[error("follower inputs line {line}: {found} fields, the header has {expected}")]
+    /// A column name appears twice in the header.
+    #[error("follower inputs: column `{column}` appears twice in the header")]
+    DuplicateColumn {
+        /// The name.
+        column: String,
+    },
+    /// The frame key is not a whole number of frames.
+    #[error(
+        "follower inputs line {line}, column frame: {value:?} is not a frame number (a whole number >= 0)"
+    )]
+    BadFrame {
+        /// 1-based line number.
+        line: usize,
+        /// The field as written.
+        value: String,
+    },
+    /// A row has fewer or more fields than the header.
+    #[error(
+        "follower inputs line {line}: {found} fields, the header has {expected} (every row has one field per column)"
+    )]
     ShortRow {
         /// Line number.
         line: usize,
@@ -130,7 +148,16 @@ impl FollowerInputs {
             .map(|(i, l)| (i + 1, l.trim()))
             .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
         let (_, header) = lines.next().ok_or(InputsError::Empty)?;
+        // A UTF-8 byte-order mark (spreadsheets write one) is not part of the first name.
+        let header = header.trim_start_matches('\u{feff}').trim();
         let names: Vec<&str> = header.split(',').map(str::trim).collect();
+        for (k, name) in names.iter().enumerate() {
+            if names[..k].iter().any(|n| n.eq_ignore_ascii_case(name)) {
+                return Err(InputsError::DuplicateColumn {
+                    column: (*name).to_string(),
+                });
+            }
+        }
         let find = |n: &str| names.iter().position(|c| c.eq_ignore_ascii_case(n));
         let (key, key_col) = match (find("frame"), find("t")) {
             (Some(c), None) => (Key::Frame, c),
@@ -155,7 +182,7 @@ impl FollowerInputs {
         let mut rows: Vec<(f64, InputSample)> = Vec::new();
         for (line, l) in lines {
             let fields: Vec<&str> = l.split(',').map(str::trim).collect();
-            if fields.len() < names.len() {
+            if fields.len() != names.len() {
                 return Err(InputsError::ShortRow {
                     line,
                     found: fields.len(),
@@ -173,14 +200,16 @@ impl FollowerInputs {
                         value: fields[col].to_string(),
                     })
             };
-            let k = value(key_col)?;
-            if key == Key::Frame && (k < 0.0 || k.fract() != 0.0) {
-                return Err(InputsError::BadValue {
-                    line,
-                    column: names[key_col].to_string(),
-                    value: fields[key_col].to_string(),
-                });
-            }
+            let k = match key {
+                Key::Frame => fields[key_col]
+                    .parse::<u64>()
+                    .map(|f| f as f64)
+                    .map_err(|_| InputsError::BadFrame {
+                        line,
+                        value: fields[key_col].to_string(),
+                    })?,
+                Key::Time => value(key_col)?,
+            };
             if let Some((prev, _)) = rows.last()
                 && k <= *prev
             {

@@ -30,6 +30,13 @@ fn time_keyed_rows_without_pan() {
 }
 
 #[test]
+fn a_byte_order_mark_is_not_part_of_the_first_column() {
+    let f = FollowerInputs::parse("\u{feff}frame,v2,w2\n0,0.5,0.1\n").unwrap();
+    assert_eq!(f.key(), Key::Frame);
+    assert_eq!(f.at(0, 0.0).unwrap().inputs.v, 0.5);
+}
+
+#[test]
 fn bad_files_are_typed_errors() {
     let e = |s: &str| FollowerInputs::parse(s).unwrap_err();
     assert!(matches!(e(""), InputsError::Empty));
@@ -41,10 +48,28 @@ fn bad_files_are_typed_errors() {
         e("frame,v2,w2\n0,1,nan\n"),
         InputsError::BadValue { line: 2, .. }
     ));
+    // A frame number is a whole number, and the message says so.
+    for bad in ["0.5", "-1", "x", "1e3"] {
+        let err = e(&format!("frame,v2,w2\n{bad},1,1\n"));
+        assert!(
+            matches!(err, InputsError::BadFrame { line: 2, .. }),
+            "{bad}: {err}"
+        );
+        assert!(err.to_string().contains("whole number"), "{err}");
+    }
+    // Extra fields are an error, like missing ones (a stray comma shifts every column).
     assert!(matches!(
-        e("frame,v2,w2\n0.5,1,1\n"),
-        InputsError::BadValue { .. }
+        e("frame,v2,w2\n0,1,2,3\n"),
+        InputsError::ShortRow {
+            line: 2,
+            found: 4,
+            expected: 3
+        }
     ));
+    // A column named twice is ambiguous.
+    let dup = e("frame,v2,w2,V2\n0,1,2,3\n");
+    assert!(matches!(dup, InputsError::DuplicateColumn { .. }), "{dup}");
+    assert!(dup.to_string().contains("`V2` appears twice"), "{dup}");
     assert!(matches!(
         e("frame,v2,w2\n0,1\n"),
         InputsError::ShortRow { line: 2, .. }
