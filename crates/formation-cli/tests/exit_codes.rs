@@ -62,3 +62,37 @@ fn every_outcome_has_its_exit_code() {
         assert!(stderr.contains(says), "{args:?}: {stderr}");
     }
 }
+
+/// Commands that write files check their output directory before the long work: `demo
+/// --out /proc/x` used to render for 11 s and then fail.
+#[test]
+fn an_unwritable_output_directory_fails_before_any_work() {
+    let d = common::blank_frames("exit-codes-out");
+    let blocker = d.join("a-file");
+    std::fs::write(&blocker, b"").unwrap();
+    let inside = blocker.join("out");
+    let inside = inside.to_str().unwrap();
+    let png = blocker.join("x.png");
+    let png = png.to_str().unwrap();
+    for args in [
+        vec!["demo", "--out", inside],
+        vec!["reproduce", "dukf", "--out", inside],
+        vec!["reproduce", "paper-scenes", "--out", inside],
+        vec!["markers", "--out", inside],
+        vec!["render", "--paper-fig", "7", "--out", png],
+    ] {
+        let (got, stderr) = code(&d, &args);
+        assert_eq!(got, Some(1), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains("cannot write to output directory"),
+            "{args:?}: {stderr}"
+        );
+        assert!(
+            !stderr.contains("rendering and tracking"),
+            "{args:?} started: {stderr}"
+        );
+    }
+    let (got, stderr) = code(&d, &["demo", "--robots", "9"]);
+    assert_eq!(got, Some(2), "{stderr}");
+    assert!(stderr.contains("from 2 to 6"), "{stderr}");
+}

@@ -34,7 +34,7 @@ pub struct Args {
     closed_loop: bool,
     /// Robots in the chain (2 to 6), each following the one ahead with its own camera and
     /// tracker.
-    #[arg(long, value_name = "N", default_value_t = 2)]
+    #[arg(long, value_name = "N", default_value_t = 2, value_parser = super::numbers::chain_robots)]
     robots: usize,
     /// Seed of the sensor noise.
     #[arg(long, value_name = "N", default_value_t = 1)]
@@ -49,6 +49,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         ..DemoConfig::default()
     };
     config.render.seed = args.seed;
+    super::prepare_out_dir(&args.out)?;
     let started = std::time::Instant::now();
     eprintln!(
         "demo: rendering and tracking {} s at 30 frames/s, {} robot(s){}...",
@@ -77,8 +78,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
-    std::fs::create_dir_all(args.out.join("frames"))
-        .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
+    super::prepare_out_dir(&args.out.join("frames"))?;
     write_outputs(&args.out, &run)?;
     super::write_stdout(format_args!(
         "{}",

@@ -73,8 +73,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         px_per_cell: args.px_per_cell,
         quiet_cells: 1,
     };
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
+    super::prepare_out_dir(&args.out)?;
     let family = rig.geometry.family()?;
     let size_m = rig.geometry.marker_size_m()?;
     let mut entries = Vec::new();

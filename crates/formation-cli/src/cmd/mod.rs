@@ -59,6 +59,27 @@ pub fn load_rig(
     })
 }
 
+/// Creates the output directory `dir` if needed and checks that a file can be written into
+/// it, before any long work starts (a demo that renders for 11 s and then cannot write
+/// is a wasted run).
+pub fn prepare_out_dir(dir: &std::path::Path) -> Result<(), CliError> {
+    let fail =
+        |e: std::io::Error| format!("cannot write to output directory {}: {e}", dir.display());
+    std::fs::create_dir_all(dir).map_err(fail)?;
+    let probe = dir.join(format!(".formation-tracker-probe-{}", std::process::id()));
+    std::fs::write(&probe, b"").map_err(fail)?;
+    std::fs::remove_file(&probe).map_err(fail)?;
+    Ok(())
+}
+
+/// [`prepare_out_dir`] for the directory an output file goes into.
+pub fn prepare_out_file(file: &std::path::Path) -> Result<(), CliError> {
+    match file.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => prepare_out_dir(dir),
+        _ => prepare_out_dir(std::path::Path::new(".")),
+    }
+}
+
 /// Value parsers for numeric options, shared by every command so that `nan`, `inf` and
 /// out-of-range values are refused before any work starts, with the same message (clap
 /// prints it as `invalid value 'nan' for '--pan <RAD>': ...` and exits with code 2).
@@ -100,6 +121,14 @@ pub mod numbers {
             Ok(x)
         } else {
             Err("must be above zero".into())
+        }
+    }
+
+    /// The number of robots in the demo's chain, 2 to 6.
+    pub fn chain_robots(s: &str) -> Result<usize, String> {
+        match s.trim().parse::<usize>() {
+            Ok(n) if (2..=6).contains(&n) => Ok(n),
+            _ => Err(format!("`{s}` is not a number of robots from 2 to 6")),
         }
     }
 

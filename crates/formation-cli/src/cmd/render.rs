@@ -40,6 +40,10 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         (None, Some(path)) => SceneSpec::load(path)?,
         (None, None) => return Err("give --paper-fig N or --scene FILE".into()),
     };
+    super::prepare_out_file(&args.out)?;
+    if let Some(truth) = &args.truth {
+        super::prepare_out_file(truth)?;
+    }
     let rendered = render_scene(&spec, &rig, dict)?;
     rendered
         .image

@@ -92,8 +92,7 @@ pub fn run_dukf(out: &Path, seed: u64, bias: bool) -> Result<Summary, CliError> 
         if bias { ", with the paper's bias" } else { "" },
         out.display()
     );
-    std::fs::create_dir_all(out)
-        .map_err(|e| format!("cannot create output directory {}: {e}", out.display()))?;
+    super::prepare_out_dir(out)?;
     let run = reproduce(seed, bias)?;
     write_outputs(out, &run)
 }
@@ -107,8 +106,7 @@ fn run_dukf_scenario(out: &Path, seed: u64, bias: bool, file: &Path) -> Result<S
         if bias { ", with the paper's bias" } else { "" },
         out.display()
     );
-    std::fs::create_dir_all(out)
-        .map_err(|e| format!("cannot create output directory {}: {e}", out.display()))?;
+    super::prepare_out_dir(out)?;
     let run = spec.reproduce(seed, bias)?;
     write_outputs(out, &run)
 }

@@ -51,8 +51,7 @@ pub fn annotated(eval: &Evaluation, rig: &RigModel) -> Result<image::RgbImage, C
 
 /// Runs the five scenes and writes the outputs into `out`; returns the reports.
 pub fn run_paper_scenes(out: &Path) -> Result<Vec<SceneReport>, CliError> {
-    std::fs::create_dir_all(out)
-        .map_err(|e| format!("cannot create output directory {}: {e}", out.display()))?;
+    super::prepare_out_dir(out)?;
     let dict = Dictionary::paper();
     let rig = RigModel::reference();
     let mut detector = default_detector(dict);
