@@ -117,6 +117,9 @@
 //! ```
 #![deny(missing_docs)]
 
+/// This crate's version (`CARGO_PKG_VERSION`), for tools that report what they were built from.
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");
+
 mod dual;
 mod error;
 mod jitter;

@@ -116,6 +116,9 @@
 //! ```
 #![deny(missing_docs)]
 
+/// This crate's version (`CARGO_PKG_VERSION`), for tools that report what they were built from.
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");
+
 pub mod contour;
 pub mod cross_ratio;
 pub mod decode;

@@ -32,7 +32,7 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Print the versions of the library crates this binary was built from.
+    /// Print the name and version of every package this binary was built from, one per line.
     Info,
     /// Find and read the markers in images (PNG/JPEG); --json for one JSON line per image.
     Detect(cmd::detect::Args),

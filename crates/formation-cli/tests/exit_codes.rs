@@ -96,3 +96,46 @@ fn an_unwritable_output_directory_fails_before_any_work() {
     assert_eq!(got, Some(2), "{stderr}");
     assert!(stderr.contains("from 2 to 6"), "{stderr}");
 }
+
+/// `info` prints what its help says: every package the binary was built from, with its
+/// version, one per line.
+#[test]
+fn info_lists_every_package_with_its_version() {
+    let out = Command::new(env!("CARGO_BIN_EXE_formation-tracker"))
+        .arg("info")
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    let names: Vec<&str> = text.lines().map(|l| l.split(' ').next().unwrap()).collect();
+    assert_eq!(
+        names,
+        [
+            "formation-tracker-cli",
+            "formation-tracker",
+            "formation-sim",
+            "formation-fiducial",
+            "formation-pose",
+            "formation-unicycle",
+            "formation-dukf",
+            "formation-synthcam"
+        ]
+    );
+    for line in text.lines() {
+        let version = line.split(' ').nth(1).unwrap();
+        assert_eq!(version.split('.').count(), 3, "{line}");
+        assert!(
+            version.split('.').all(|p| p.parse::<u32>().is_ok()),
+            "{line}"
+        );
+    }
+    let help = Command::new(env!("CARGO_BIN_EXE_formation-tracker"))
+        .arg("--help")
+        .output()
+        .unwrap();
+    assert!(
+        String::from_utf8(help.stdout)
+            .unwrap()
+            .contains("name and version of every package")
+    );
+}

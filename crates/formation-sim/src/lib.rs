@@ -19,6 +19,9 @@
 //! (`formation-tracker-cli`) writes what they return.
 #![deny(missing_docs)]
 
+/// This crate's version (`CARGO_PKG_VERSION`), for tools that report what they were built from.
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");
+
 pub mod annotate;
 pub mod demo;
 pub mod evaluate;

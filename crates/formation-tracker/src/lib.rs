@@ -29,6 +29,9 @@
 //! Library modules never print, exit or unwrap on user data; every failure is a typed error.
 #![deny(missing_docs)]
 
+/// This crate's version (`CARGO_PKG_VERSION`), for tools that report what they were built from.
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");
+
 pub mod filter;
 pub mod mount;
 pub mod pipeline;

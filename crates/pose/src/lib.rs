@@ -61,6 +61,9 @@
 //! ```
 #![deny(missing_docs)]
 
+/// This crate's version (`CARGO_PKG_VERSION`), for tools that report what they were built from.
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");
+
 #[cfg(feature = "calib")]
 pub mod calib;
 mod camera;

@@ -111,6 +111,9 @@
 //! ```
 #![deny(missing_docs)]
 
+/// This crate's version (`CARGO_PKG_VERSION`), for tools that report what they were built from.
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");
+
 mod camera;
 mod error;
 mod raycast;

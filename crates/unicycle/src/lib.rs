@@ -44,6 +44,9 @@
 //! ```
 #![deny(missing_docs)]
 
+/// This crate's version (`CARGO_PKG_VERSION`), for tools that report what they were built from.
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");
+
 mod angle;
 mod controller;
 mod error;

@@ -2,11 +2,24 @@
 
 use super::CliError;
 
-/// Prints the package version; the library crates share the workspace version.
+/// The packages this binary links, with the version each was built at.
+pub fn packages() -> [(&'static str, &'static str); 8] {
+    [
+        ("formation-tracker-cli", env!("CARGO_PKG_VERSION")),
+        ("formation-tracker", formation_tracker::VERSION),
+        ("formation-sim", formation_sim::VERSION),
+        ("formation-fiducial", fiducial::VERSION),
+        ("formation-pose", pose::VERSION),
+        ("formation-unicycle", unicycle::VERSION),
+        ("formation-dukf", dukf::VERSION),
+        ("formation-synthcam", synthcam::VERSION),
+    ]
+}
+
+/// Prints one line per package: its name and version.
 pub fn run() -> Result<(), CliError> {
-    super::outln!(
-        "formation-tracker {} (crates: fiducial, pose, unicycle, dukf, synthcam)",
-        env!("CARGO_PKG_VERSION")
-    )?;
+    for (name, version) in packages() {
+        super::outln!("{name} {version}")?;
+    }
     Ok(())
 }
