@@ -47,10 +47,11 @@ pub enum FrameError {
         /// The folder.
         path: PathBuf,
     },
-    /// One image file could not be read or decoded (the folder source goes on).
-    #[error("frame {index} ({path}): {message}")]
+    /// One image file could not be read or decoded (the folder source goes on; the file's
+    /// time slot stays empty).
+    #[error("{path}: {message} (skipped)")]
     Image {
-        /// Frame number (position in the sorted folder).
+        /// Position of the file in the sorted folder (its time slot).
         index: u64,
         /// The file.
         path: PathBuf,
@@ -109,6 +110,9 @@ impl GreyImage {
 pub struct Frame<'a> {
     /// Frame number from 0 (for a folder: position in the sorted list).
     pub index: u64,
+    /// The image file the frame came from; `None` for a y4m stream (whose frames are
+    /// named by `index`).
+    pub file: Option<&'a Path>,
     /// The grey image.
     pub image: &'a GreyImage,
 }
@@ -276,7 +280,7 @@ impl FrameSource {
     /// A broken frame: [`FrameError::Image`] (a folder; call again for the next file) or
     /// [`FrameError::Y4m`] (the stream then ends).
     pub fn next_frame(&mut self) -> Result<Option<Frame<'_>>, FrameError> {
-        let index = match &mut self.kind {
+        let (index, file) = match &mut self.kind {
             Kind::Folder { files, next } => {
                 let Some(path) = files.get(*next) else {
                     return Ok(None);
@@ -288,7 +292,7 @@ impl FrameSource {
                     path: path.clone(),
                     message,
                 })?;
-                index
+                (index, Some(path.as_path()))
             }
             Kind::Y4m {
                 decoder,
@@ -309,7 +313,7 @@ impl FrameSource {
                         copy_luma(frame.get_y_plane(), *bit_depth, self.grey.reshape(w, h));
                         *next += 1;
                         *frame_end = consumed.get();
-                        index
+                        (index, None)
                     }
                     Err(y4m::Error::EOF) => {
                         // `y4m` reports every end of input as EOF; bytes consumed since
@@ -331,6 +335,7 @@ impl FrameSource {
         self.read += 1;
         Ok(Some(Frame {
             index,
+            file,
             image: &self.grey,
         }))
     }

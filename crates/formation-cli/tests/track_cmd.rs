@@ -130,8 +130,11 @@ fn folder_with_a_broken_frame() {
         stderr.contains("warning: 11 frames tracked, 1 broken"),
         "{stderr}"
     );
+    // The broken file is named, not numbered as a frame.
     assert!(
-        stderr.contains("frame 5") && stderr.contains("f005.png"),
+        stderr.contains("f005.png: ")
+            && stderr.contains("(skipped)")
+            && !stderr.contains("frame 5"),
         "{stderr}"
     );
     assert!(!stderr.contains("stands still"), "{stderr}");
@@ -140,6 +143,7 @@ fn folder_with_a_broken_frame() {
     for f in &frames {
         let k = f["frame"].as_u64().unwrap() as usize;
         assert_ne!(k, 5);
+        assert_eq!(f["source"], format!("frames/f{k:03}.png"));
         assert!((f["t"].as_f64().unwrap() - k as f64 / 30.0).abs() < 1e-12);
         assert!(f["timing"]["detect_ms"].as_f64().unwrap() >= 0.0);
         let leaders = f["leaders"].as_array().unwrap();
@@ -238,4 +242,29 @@ fn poses_from_a_wrong_mount_are_rejected_not_tracked() {
             "{f}"
         );
     }
+}
+
+/// Each JSON line names its source: the image file, or `INPUT#N` for a y4m stream.
+#[test]
+fn json_lines_name_the_source_of_each_frame() {
+    let d = common::blank_frames("track-source");
+    let mut y4m = b"YUV4MPEG2 W640 H480 F30:1 Ip A1:1 Cmono\n".to_vec();
+    for _ in 0..2 {
+        y4m.extend_from_slice(b"FRAME\n");
+        y4m.extend(std::iter::repeat_n(128u8, 640 * 480));
+    }
+    let (stdout, stderr, code) = track(&["-", "--camera", "camera.yaml", "--json"], &d, Some(y4m));
+    assert_eq!(code, Some(0), "{stderr}");
+    let sources: Vec<String> = lines(&stdout)
+        .iter()
+        .map(|l| l["source"].as_str().unwrap().to_string())
+        .collect();
+    assert_eq!(sources, ["-#0", "-#1"]);
+    let (stdout, _, code) = track(&["frames", "--camera", "camera.yaml", "--json"], &d, None);
+    assert_eq!(code, Some(0));
+    let sources: Vec<String> = lines(&stdout)
+        .iter()
+        .map(|l| l["source"].as_str().unwrap().to_string())
+        .collect();
+    assert_eq!(sources, ["frames/f0.png", "frames/f1.png", "frames/f2.png"]);
 }

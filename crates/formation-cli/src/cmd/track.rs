@@ -74,6 +74,8 @@ pub struct Args {
 #[derive(Serialize)]
 struct Line<'a> {
     frame: u64,
+    /// Where the frame came from: the image file, or `INPUT#N` for frame N of a y4m stream.
+    source: &'a str,
     t: f64,
     leaders: &'a [LeaderReport],
     markers: usize,
@@ -135,6 +137,10 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             bar.inc(1);
         }
         let index = frame.index;
+        let source = frame.file.map_or_else(
+            || format!("{}#{index}", args.input.display()),
+            |file| file.display().to_string(),
+        );
         let t = index as f64 / fps;
         let (follower, pan) = match inputs.as_ref().and_then(|i| i.at(index, t)) {
             Some(s) => (s.inputs, s.pan.unwrap_or(args.pan)),
@@ -163,7 +169,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         match result {
             Ok(done) => {
                 processed += 1;
-                write_frame(&mut out, args.json, index, t, &done)?;
+                write_frame(&mut out, args.json, index, &source, t, &done)?;
             }
             Err(e) => {
                 broken += 1;
@@ -251,6 +257,7 @@ fn write_frame(
     out: &mut impl Write,
     json: bool,
     index: u64,
+    source: &str,
     t: f64,
     done: &PipelineFrame,
 ) -> Result<(), CliError> {
@@ -265,6 +272,7 @@ fn write_frame(
     if json {
         let line = Line {
             frame: index,
+            source,
             t,
             leaders: &done.report.leaders,
             markers: done.markers,
