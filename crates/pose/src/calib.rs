@@ -267,6 +267,7 @@ impl Calibration {
         } else {
             CalibrationFormat::Ros
         };
+        check_lens(&intrinsics, &distortion, width, height)?;
         Ok(Self {
             intrinsics,
             distortion,
@@ -275,6 +276,92 @@ impl Calibration {
             format,
         })
     }
+}
+
+/// Focal lengths, in multiples of the image side, that a camera can have: below, the field
+/// of view would exceed 179.9 degrees; above, it would be under 0.06 degrees.
+const FOCAL_RANGE: std::ops::RangeInclusive<f64> = 1e-3..=1e3;
+
+/// Whether the intrinsics and distortion can describe a real camera for a `width x
+/// height` image: focal lengths in [`FOCAL_RANGE`] times the image side, the principal
+/// point within one image size of the image, and a radial distortion that is monotonic
+/// (so invertible) out to the image's farthest corner.
+fn check_lens(
+    k: &Intrinsics,
+    d: &Distortion,
+    width: u32,
+    height: u32,
+) -> Result<(), CalibrationError> {
+    let (w, h) = (f64::from(width), f64::from(height));
+    for (name, f, side) in [("fx", k.alpha(), w), ("fy", k.beta(), h)] {
+        if !FOCAL_RANGE.contains(&(f / side)) {
+            return Err(CalibrationError::BadField {
+                field: "camera_matrix",
+                reason: format!(
+                    "{name} = {f:e} px is not a focal length for a {side}-pixel image side (expected {:e} to {:e} px)",
+                    FOCAL_RANGE.start() * side,
+                    FOCAL_RANGE.end() * side
+                ),
+            });
+        }
+    }
+    for (name, c, side) in [("cx", k.u0(), w), ("cy", k.v0(), h)] {
+        if !(-side..=2.0 * side).contains(&c) {
+            return Err(CalibrationError::BadField {
+                field: "camera_matrix",
+                reason: format!(
+                    "{name} = {c} px puts the principal point more than an image size outside the {width}x{height} image"
+                ),
+            });
+        }
+    }
+    // The farthest image corner, in normalised (distorted) coordinates.
+    let corner_radius = [
+        (-0.5, -0.5),
+        (w - 0.5, -0.5),
+        (-0.5, h - 0.5),
+        (w - 0.5, h - 0.5),
+    ]
+    .iter()
+    .map(|&(u, v)| {
+        let m = k.matrix();
+        let y = (v - k.v0()) / m[(1, 1)];
+        let x = (u - k.u0() - m[(0, 1)] * y) / m[(0, 0)];
+        x.hypot(y)
+    })
+    .fold(0.0, f64::max);
+    // March the undistorted radius r until its distorted image r_d(r) passes the corner;
+    // d r_d / d r must stay positive on the way.
+    let slope = |r: f64| {
+        let r2 = r * r;
+        1.0 + r2 * (3.0 * d.k1 + r2 * (5.0 * d.k2 + r2 * 7.0 * d.k3))
+    };
+    let distorted = |r: f64| {
+        let r2 = r * r;
+        r * (1.0 + r2 * (d.k1 + r2 * (d.k2 + r2 * d.k3)))
+    };
+    let step = corner_radius / 1000.0;
+    let mut r = 0.0;
+    for _ in 0..100_000 {
+        if distorted(r) >= corner_radius {
+            return Ok(());
+        }
+        if slope(r) <= 0.0 {
+            return Err(CalibrationError::BadField {
+                field: "distortion_coefficients",
+                reason: format!(
+                    "the radial distortion folds back at normalised radius {r:.3}, inside the image (its corner is at {corner_radius:.3}): not a lens"
+                ),
+            });
+        }
+        r += step;
+    }
+    Err(CalibrationError::BadField {
+        field: "distortion_coefficients",
+        reason: format!(
+            "the radial distortion never reaches the image corner (normalised radius {corner_radius:.3}): not a lens"
+        ),
+    })
 }
 
 fn size(v: Option<i64>, field: &'static str) -> Result<u32, CalibrationError> {

@@ -52,14 +52,11 @@ impl Distortion {
     pub fn from_slice(c: &[f64]) -> Result<Self, PoseError> {
         let get = |i: usize| c.get(i).copied().unwrap_or(0.0);
         if c.len() < 4 {
-            return Err(PoseError::InvalidDistortion {
-                name: "coefficient count (need 4 or 5)",
-                value: c.len() as f64,
-            });
+            return Err(PoseError::DistortionCount { count: c.len() });
         }
-        if let Some(extra) = c.iter().skip(5).find(|v| **v != 0.0) {
-            return Err(PoseError::InvalidDistortion {
-                name: "higher-order coefficient (only k1, k2, p1, p2, k3 are supported)",
+        if let Some((i, extra)) = c.iter().enumerate().skip(5).find(|(_, v)| **v != 0.0) {
+            return Err(PoseError::UnsupportedDistortion {
+                index: i,
                 value: *extra,
             });
         }

@@ -61,6 +61,25 @@ pub enum PoseError {
         /// Image height.
         height: u32,
     },
+    /// A distortion coefficient vector has too few values.
+    #[error(
+        "distortion needs 4 or 5 coefficients (k1, k2, p1, p2[, k3]), or more with the extra ones zero; got {count}"
+    )]
+    DistortionCount {
+        /// Values given.
+        count: usize,
+    },
+    /// A coefficient beyond k3 (the rational or thin-prism terms) is not zero: that is
+    /// another distortion model.
+    #[error(
+        "distortion coefficient {index} is {value}: only k1, k2, p1, p2, k3 (plumb_bob) are supported, coefficients 5 and beyond must be zero"
+    )]
+    UnsupportedDistortion {
+        /// Position in the coefficient vector (0-based).
+        index: usize,
+        /// Its value.
+        value: f64,
+    },
     /// A distortion coefficient is NaN or infinite.
     #[error("distortion coefficient {name} is not finite ({value})")]
     InvalidDistortion {

@@ -167,3 +167,65 @@ fn a_resized_image_gets_scaled_intrinsics_and_a_crop_is_refused() {
         assert!(e.to_string().contains(&format!("{w}x{h}")), "{e}");
     }
 }
+
+/// An OpenCV calibration of a 640x480 camera with the given matrix and distortion.
+fn opencv_yaml(k: [f64; 9], d: &[f64]) -> String {
+    let join = |v: &[f64]| {
+        v.iter()
+            .map(|x| format!("{x:e}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    format!(
+        "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ {} ]\ndistortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: {}\n   dt: d\n   data: [ {} ]\n",
+        join(&k),
+        d.len(),
+        join(d)
+    )
+}
+
+#[test]
+fn calibrations_no_camera_can_have_are_refused_with_the_field_named() {
+    let k = |fx: f64, fy: f64, cx: f64, cy: f64| [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0];
+    let ok = opencv_yaml(k(554.0, 554.0, 319.5, 239.5), &[-0.3, 0.1, 0.0, 0.0, -0.02]);
+    assert!(Calibration::from_yaml_str(&ok).is_ok());
+    for (text, field, says) in [
+        (
+            opencv_yaml(k(1e-300, 554.0, 319.5, 239.5), &[0.0; 5]),
+            "camera_matrix",
+            "fx = 1e-300 px is not a focal length",
+        ),
+        (
+            opencv_yaml(k(554.0, 1e9, 319.5, 239.5), &[0.0; 5]),
+            "camera_matrix",
+            "fy = 1e9 px",
+        ),
+        (
+            opencv_yaml(k(554.0, 554.0, 5000.0, 239.5), &[0.0; 5]),
+            "camera_matrix",
+            "cx = 5000 px",
+        ),
+        (
+            opencv_yaml(k(554.0, 554.0, 319.5, 239.5), &[-1e10, 0.0, 0.0, 0.0, 0.0]),
+            "distortion_coefficients",
+            "folds back",
+        ),
+        (
+            opencv_yaml(k(554.0, 554.0, 319.5, 239.5), &[0.0, -1e10, 0.0, 0.0, 0.0]),
+            "distortion_coefficients",
+            "folds back",
+        ),
+        (
+            opencv_yaml(k(554.0, 554.0, 319.5, 239.5), &[0.1, 0.2, 0.0]),
+            "distortion_coefficients",
+            "4 or 5 coefficients",
+        ),
+    ] {
+        let e = Calibration::from_yaml_str(&text).unwrap_err();
+        match &e {
+            CalibrationError::BadField { field: f, .. } => assert_eq!(*f, field, "{e}"),
+            other => panic!("{other}"),
+        }
+        assert!(e.to_string().contains(says), "{e}");
+    }
+}

@@ -60,14 +60,16 @@ fn bad_coefficients_are_rejected() {
         Distortion::new(0.0, 0.0, f64::INFINITY, 0.0, 0.0),
         Err(PoseError::InvalidDistortion { name: "p1", .. })
     ));
-    assert!(matches!(
-        Distortion::from_slice(&[0.1, 0.2]),
-        Err(PoseError::InvalidDistortion { .. })
-    ));
-    assert!(matches!(
-        Distortion::from_slice(&[0.1, 0.2, 0.0, 0.0, 0.0, 0.5, 0.0, 0.0]),
-        Err(PoseError::InvalidDistortion { .. })
-    ));
+    // Regression (#11): the count error read "coefficient count (need 4 or 5) is not
+    // finite (3)".
+    let e = Distortion::from_slice(&[0.1, 0.2, 0.0]).unwrap_err();
+    assert!(matches!(e, PoseError::DistortionCount { count: 3 }), "{e}");
+    assert!(e.to_string().contains("4 or 5 coefficients") && e.to_string().contains("got 3"));
+    let e = Distortion::from_slice(&[0.1, 0.2, 0.0, 0.0, 0.0, 0.5, 0.0, 0.0]).unwrap_err();
+    assert!(
+        matches!(e, PoseError::UnsupportedDistortion { index: 5, .. }),
+        "{e}"
+    );
     let d = Distortion::from_slice(&[0.1, 0.2, 0.01, 0.02]).unwrap();
     assert_eq!(d.k3, 0.0);
     assert!(matches!(
