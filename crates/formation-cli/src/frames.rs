@@ -7,8 +7,8 @@
 //!   A file that cannot be read or decoded is a [`FrameError::Image`] for that frame; the
 //!   next call goes on with the next file, and frame numbers keep counting the broken file so
 //!   that they stay equal to the position in the sorted folder.
-//! - **y4m** (YUV4MPEG2, crate `y4m`): any colour space; the luma plane *is* the grey image
-//!   (high bits of 10/12-bit samples). `-` reads the stream from stdin, so any video `ffmpeg`
+//! - **y4m** (YUV4MPEG2, [`crate::y4m`]): every colour space `ffmpeg` writes, 8 to 16 bits;
+//!   the luma plane *is* the grey image (high bits of deeper samples). `-` reads the stream from stdin, so any video `ffmpeg`
 //!   can decode works as a source:
 //!   `ffmpeg -i video.mp4 -f yuv4mpegpipe -pix_fmt yuv420p - | formation-tracker track - ...`.
 //!   The header's frame rate is reported by [`FrameSource::frame_rate`]. A stream that ends
@@ -20,11 +20,9 @@
 //! Frame sizes are limited to [`MAX_SIDE`] pixels a side (checked from the y4m header
 //! before any buffer is allocated), so a corrupt header cannot ask for gigabytes.
 
-use std::cell::Cell;
 use std::fs;
-use std::io::{self, BufRead, BufReader, Cursor, Read};
+use std::io::{self, BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
-use std::rc::Rc;
 
 /// Largest accepted image side, pixels.
 pub const MAX_SIDE: usize = 16_384;
@@ -123,12 +121,7 @@ enum Kind {
         next: usize,
     },
     Y4m {
-        decoder: Box<y4m::Decoder<Counting>>,
-        consumed: Rc<Cell<u64>>,
-        /// Bytes the decoder had consumed after the last complete frame.
-        frame_end: u64,
-        rate: Option<f64>,
-        bit_depth: usize,
+        reader: Box<crate::y4m::Reader>,
         next: u64,
         done: bool,
     },
@@ -208,32 +201,33 @@ impl FrameSource {
     /// [`MAX_SIDE`].
     pub fn from_y4m_reader(reader: Box<dyn Read>) -> Result<Self, FrameError> {
         let mut reader = BufReader::new(reader);
-        // Check the header's size fields before `y4m` allocates a frame buffer for them.
-        let mut header = Vec::with_capacity(128);
+        let bad = |message: String| FrameError::Y4mHeader { message };
+        let mut line = Vec::with_capacity(128);
         (&mut reader)
             .take(1024)
-            .read_until(b'\n', &mut header)
-            .map_err(|e| FrameError::Y4mHeader {
-                message: e.to_string(),
-            })?;
-        check_header(&header)?;
-        let counting = Counting {
-            inner: Box::new(Cursor::new(header).chain(reader)),
-            consumed: Rc::new(Cell::new(0)),
-        };
-        let consumed = Rc::clone(&counting.consumed);
-        let decoder = y4m::Decoder::new(counting).map_err(|e| FrameError::Y4mHeader {
-            message: e.to_string(),
-        })?;
-        let rate = decoder.get_framerate();
-        let rate = (rate.num > 0 && rate.den > 0).then(|| rate.num as f64 / rate.den as f64);
-        let bit_depth = decoder.get_bit_depth();
+            .read_until(b'\n', &mut line)
+            .map_err(|e| bad(e.to_string()))?;
+        if line.last() != Some(&b'\n') {
+            return Err(bad(if line.len() >= 1024 {
+                "no end of header line within 1024 bytes: not a y4m stream".into()
+            } else if line.starts_with(b"YUV4MPEG2") {
+                "the stream ended inside its header".into()
+            } else {
+                "the stream does not start with YUV4MPEG2: not a y4m stream".into()
+            }));
+        }
+        // The size is checked before any frame buffer is allocated.
+        let header = crate::y4m::parse_header(&line).map_err(bad)?;
+        let (width, height) = (header.width, header.height);
+        if width == 0 || height == 0 || width > MAX_SIDE || height > MAX_SIDE {
+            return Err(FrameError::Size {
+                width,
+                height,
+                max: MAX_SIDE,
+            });
+        }
         Ok(Self::new(Kind::Y4m {
-            decoder: Box::new(decoder),
-            frame_end: consumed.get(),
-            consumed,
-            rate,
-            bit_depth,
+            reader: Box::new(crate::y4m::Reader::new(reader, header)),
             next: 0,
             done: false,
         }))
@@ -251,7 +245,10 @@ impl FrameSource {
     /// The stream's frame rate (y4m header), frames per second.
     pub fn frame_rate(&self) -> Option<f64> {
         match &self.kind {
-            Kind::Y4m { rate, .. } => *rate,
+            Kind::Y4m { reader, .. } => reader
+                .header()
+                .rate
+                .map(|(num, den)| num as f64 / den as f64),
             Kind::Folder { .. } => None,
         }
     }
@@ -294,40 +291,29 @@ impl FrameSource {
                 })?;
                 (index, Some(path.as_path()))
             }
-            Kind::Y4m {
-                decoder,
-                consumed,
-                frame_end,
-                bit_depth,
-                next,
-                done,
-                ..
-            } => {
+            Kind::Y4m { reader, next, done } => {
                 if *done {
                     return Ok(None);
                 }
                 let index = *next;
-                let (w, h) = (decoder.get_width(), decoder.get_height());
-                match decoder.read_frame() {
-                    Ok(frame) => {
-                        copy_luma(frame.get_y_plane(), *bit_depth, self.grey.reshape(w, h));
+                let (w, h) = (reader.header().width, reader.header().height);
+                match reader.read_frame(self.grey.reshape(w, h)) {
+                    Ok(crate::y4m::Next::Frame) => {
                         *next += 1;
-                        *frame_end = consumed.get();
                         (index, None)
                     }
-                    Err(y4m::Error::EOF) => {
-                        // `y4m` reports every end of input as EOF; bytes consumed since
-                        // the last complete frame mean the stream stopped inside a frame.
+                    Ok(crate::y4m::Next::End) => {
                         *done = true;
-                        self.truncated = consumed.get() > *frame_end;
                         return Ok(None);
                     }
-                    Err(e) => {
+                    Ok(crate::y4m::Next::Truncated) => {
                         *done = true;
-                        return Err(FrameError::Y4m {
-                            index,
-                            message: e.to_string(),
-                        });
+                        self.truncated = true;
+                        return Ok(None);
+                    }
+                    Err(message) => {
+                        *done = true;
+                        return Err(FrameError::Y4m { index, message });
                     }
                 }
             }
@@ -339,53 +325,6 @@ impl FrameSource {
             image: &self.grey,
         }))
     }
-}
-
-/// A reader that counts the bytes handed to the decoder.
-struct Counting {
-    inner: Box<dyn Read>,
-    consumed: Rc<Cell<u64>>,
-}
-
-impl Read for Counting {
-    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
-        let n = self.inner.read(buf)?;
-        self.consumed.set(self.consumed.get() + n as u64);
-        Ok(n)
-    }
-}
-
-/// Checks `W` and `H` of a y4m header line.
-fn check_header(header: &[u8]) -> Result<(), FrameError> {
-    let bad = |message: &str| FrameError::Y4mHeader {
-        message: message.to_string(),
-    };
-    if !header.starts_with(b"YUV4MPEG2 ") {
-        return Err(bad("missing YUV4MPEG2 signature"));
-    }
-    if header.last() != Some(&b'\n') {
-        return Err(bad("header line not terminated within 1024 bytes"));
-    }
-    let (mut w, mut h) = (None, None);
-    for field in header[10..header.len() - 1].split(|&b| b == b' ') {
-        let parse = |v: &[u8]| std::str::from_utf8(v).ok()?.parse::<usize>().ok();
-        match field.first() {
-            Some(b'W') => w = parse(&field[1..]),
-            Some(b'H') => h = parse(&field[1..]),
-            _ => {}
-        }
-    }
-    let (Some(width), Some(height)) = (w, h) else {
-        return Err(bad("width (W) or height (H) missing or not a number"));
-    };
-    if width == 0 || height == 0 || width > MAX_SIDE || height > MAX_SIDE {
-        return Err(FrameError::Size {
-            width,
-            height,
-            max: MAX_SIDE,
-        });
-    }
-    Ok(())
 }
 
 /// Reads an image file as 8-bit grey, the way every command does: the format is taken from
@@ -413,20 +352,6 @@ fn jpeg_is_complete(bytes: &[u8]) -> bool {
     let last_scan = bytes.windows(2).rposition(|w| w == [0xFF, 0xDA]);
     let last_end = bytes.windows(2).rposition(|w| w == [0xFF, 0xD9]);
     matches!((last_scan, last_end), (Some(s), Some(e)) if e > s)
-}
-
-/// Copies a luma plane into the grey buffer; 10/12-bit little-endian samples keep their
-/// high 8 bits.
-fn copy_luma(y: &[u8], bit_depth: usize, out: &mut [u8]) {
-    if bit_depth <= 8 {
-        out.copy_from_slice(&y[..out.len()]);
-    } else {
-        let shift = bit_depth - 8;
-        for (o, s) in out.iter_mut().zip(y.chunks_exact(2)) {
-            let v = u16::from_le_bytes([s[0], s[1]]) >> shift;
-            *o = v.min(255) as u8;
-        }
-    }
 }
 
 /// Decodes an image file into the grey buffer (see [`read_grey`]).

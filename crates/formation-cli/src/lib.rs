@@ -12,3 +12,4 @@
 
 pub mod frames;
 pub mod inputs;
+pub mod y4m;

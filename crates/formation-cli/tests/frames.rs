@@ -39,6 +39,90 @@ fn expected_luma(k: usize, n: usize) -> Vec<u8> {
     (0..n).map(|i| ((10 * k + i) % 256) as u8).collect()
 }
 
+/// A y4m stream in any colour space: `depth`-bit samples (two bytes above 8), `other`
+/// samples of chroma and alpha per frame after the luma plane.
+fn y4m_any(w: usize, h: usize, cs: &str, depth: u32, other: usize, frames: usize) -> Vec<u8> {
+    let mut out =
+        format!("YUV4MPEG2 W{w} H{h} F25:1 It A0:0 C{cs} XCOLORRANGE=FULL\n").into_bytes();
+    for k in 0..frames {
+        out.extend_from_slice(b"FRAME\n");
+        for i in 0..w * h {
+            let v = ((10 * k + i) % 256) as u16;
+            if depth == 8 {
+                out.push(v as u8);
+            } else {
+                out.extend_from_slice(&(v << (depth - 8)).to_le_bytes());
+            }
+        }
+        let bytes = if depth == 8 { 1 } else { 2 };
+        out.extend(std::iter::repeat_n(77u8, other * bytes));
+    }
+    out
+}
+
+/// Regression (#11): gray16le, gray10le, yuva444p, yuv411p and yuv444p16le failed with
+/// "Bad input parameters provided". Every colour space ffmpeg's y4m muxer writes is read.
+#[test]
+fn every_colour_space_ffmpeg_writes_is_read() {
+    let (w, h) = (7usize, 5usize);
+    let (cw2, ch2) = (w.div_ceil(2), h.div_ceil(2));
+    for (cs, depth, other) in [
+        ("mono", 8, 0),
+        ("mono16", 16, 0),
+        ("mono10", 10, 0),
+        ("mono12", 12, 0),
+        ("444alpha", 8, 3 * w * h),
+        ("411", 8, 2 * w.div_ceil(4) * h),
+        ("444p16", 16, 2 * w * h),
+        ("444", 8, 2 * w * h),
+        ("422", 8, 2 * cw2 * h),
+        ("422p12", 12, 2 * cw2 * h),
+        ("420jpeg", 8, 2 * cw2 * ch2),
+        ("420paldv", 8, 2 * cw2 * ch2),
+        ("420mpeg2", 8, 2 * cw2 * ch2),
+        ("420p9", 9, 2 * cw2 * ch2),
+        ("420p16", 16, 2 * cw2 * ch2),
+    ] {
+        let mut src = source(y4m_any(w, h, cs, depth, other, 2)).unwrap();
+        assert_eq!(src.frame_rate(), Some(25.0), "{cs}");
+        for k in 0..2 {
+            let f = src.next_frame().unwrap().expect("a frame");
+            assert_eq!(f.image.data, expected_luma(k, w * h), "{cs} frame {k}");
+        }
+        assert!(src.next_frame().unwrap().is_none(), "{cs}");
+        assert!(
+            !src.truncated(),
+            "{cs}: the planes were not skipped exactly"
+        );
+    }
+}
+
+#[test]
+fn header_errors_name_the_field_and_the_value() {
+    for (header, says) in [
+        (
+            "YUV4MPEG2 W4 H4 Cnv12\n",
+            "header field C: colour space `nv12` is not one y4m defines",
+        ),
+        ("YUV4MPEG2 W4 H4 C420p7\n", "7-bit samples"),
+        (
+            "YUV4MPEG2 W4x H4\n",
+            "header field W: `4x` is not a whole number",
+        ),
+        (
+            "YUV4MPEG2 W4 H4 F30\n",
+            "header field F: `30` is not a frame rate",
+        ),
+        ("YUV4MPEG2 W4 H4", "the stream ended inside its header"),
+    ] {
+        let e = source(header.as_bytes().to_vec()).unwrap_err();
+        assert!(e.to_string().contains(says), "{header:?}: {e}");
+    }
+    let long = format!("YUV4MPEG2 W4 H4 X{}\n", "a".repeat(2000));
+    let e = source(long.into_bytes()).unwrap_err();
+    assert!(e.to_string().contains("within 1024 bytes"), "{e}");
+}
+
 #[test]
 fn reads_every_frame_luma_into_one_buffer() {
     for cs in ["420", "mono", "420p10"] {
