@@ -26,6 +26,9 @@ mod cmd;
                   closes the pipe (`| head`) ends a command quietly with 0. See docs/reliability.md."
 )]
 struct Cli {
+    /// No progress on stderr (bar or periodic status lines); results and errors still print.
+    #[arg(long, short, global = true)]
+    quiet: bool,
     #[command(subcommand)]
     command: Command,
 }
@@ -51,6 +54,7 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    cmd::progress::set_quiet(cli.quiet);
     let result: Result<(), cmd::CliError> = match cli.command {
         Command::Info => cmd::info::run(),
         Command::Markers(args) => cmd::markers::run(&args),

@@ -139,3 +139,37 @@ fn info_lists_every_package_with_its_version() {
             .contains("name and version of every package")
     );
 }
+
+/// Long work is visible in a log: without a terminal, `track` prints status lines (here
+/// every frame, `FORMATION_TRACKER_STATUS_SECS=0`); `--quiet` prints none.
+#[test]
+fn progress_is_logged_without_a_terminal_and_quiet_silences_it() {
+    let d = common::blank_frames("progress");
+    let run = |quiet: bool| {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_formation-tracker"));
+        if quiet {
+            cmd.arg("--quiet");
+        }
+        let out = cmd
+            .args(["track", "--camera", "camera.yaml", "frames"])
+            .env("FORMATION_TRACKER_STATUS_SECS", "0")
+            .current_dir(&d)
+            .output()
+            .unwrap();
+        assert!(out.status.success());
+        String::from_utf8(out.stderr).unwrap()
+    };
+    let logged = run(false);
+    for k in 1..=3 {
+        assert!(
+            logged.contains(&format!("track: {k}/3 frames after ")),
+            "{logged}"
+        );
+    }
+    let quiet = run(true);
+    assert!(!quiet.contains("frames after"), "{quiet}");
+    assert!(
+        quiet.contains("3 frames tracked"),
+        "results still print: {quiet}"
+    );
+}

@@ -61,23 +61,12 @@ pub fn run(args: Args) -> Result<(), CliError> {
             ""
         }
     );
-    let bar = std::io::IsTerminal::is_terminal(&std::io::stderr()).then(|| {
-        let bar = indicatif::ProgressBar::new(0);
-        bar.set_style(
-            indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames {eta}")
-                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-        );
-        bar
-    });
+    let mut progress = super::progress::Progress::new("demo", "frames", None);
     let run = run_demo_with_progress(&config, |step, steps| {
-        if let Some(bar) = &bar {
-            bar.set_length(steps as u64 + 1);
-            bar.set_position(step as u64 + 1);
-        }
+        progress.set_total(steps as u64 + 1);
+        progress.set(step as u64 + 1);
     })?;
-    if let Some(bar) = bar {
-        bar.finish_and_clear();
-    }
+    progress.finish();
     super::prepare_out_dir(&args.out.join("frames"))?;
     write_outputs(&args.out, &run)?;
     super::write_stdout(format_args!(

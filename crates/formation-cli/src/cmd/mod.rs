@@ -157,6 +157,7 @@ pub mod detect;
 pub mod detect_robots;
 pub mod info;
 pub mod markers;
+pub mod progress;
 pub mod render;
 pub mod reproduce;
 pub mod reproduce_scenes;

@@ -1,7 +1,7 @@
 //! `formation-tracker track`: camera frames in, formation variables and leader velocities
 //! out, one line per frame.
 
-use std::io::{IsTerminal, Write};
+use std::io::Write;
 use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
@@ -117,9 +117,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     // Built at the first frame, whose size the calibration is scaled to with
     // --scale-calibration.
     let mut pipeline: Option<Pipeline> = None;
-    let progress = std::io::stderr()
-        .is_terminal()
-        .then(|| progress_bar(frames.len_hint()));
+    let mut progress = super::progress::Progress::new("track", "frames", frames.len_hint());
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
     let (mut broken, mut processed) = (0u64, 0u64);
@@ -129,13 +127,11 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             Ok(None) => break,
             Err(e) => {
                 broken += 1;
-                report_error(progress.as_ref(), &format!("track: {e}"));
+                progress.println(&format!("track: {e}"));
                 continue;
             }
         };
-        if let Some(bar) = &progress {
-            bar.inc(1);
-        }
+        progress.inc();
         let index = frame.index;
         let source = frame.file.map_or_else(
             || format!("{}#{index}", args.input.display()),
@@ -178,17 +174,12 @@ pub fn run(args: &Args) -> Result<(), CliError> {
                 } else {
                     ""
                 };
-                report_error(
-                    progress.as_ref(),
-                    &format!("track: frame {index}: {e}{hint}"),
-                );
+                progress.println(&format!("track: frame {index}: {e}{hint}"));
             }
         }
     }
     out.flush().map_err(super::StdoutError)?;
-    if let Some(bar) = progress {
-        bar.finish_and_clear();
-    }
+    progress.finish();
     let truncated = if frames.truncated() {
         "; the stream ended inside a frame (truncated), which was dropped"
     } else {
@@ -240,18 +231,6 @@ fn build_pipeline(
     ))
 }
 
-fn progress_bar(len: Option<u64>) -> indicatif::ProgressBar {
-    let bar = match len {
-        Some(n) => indicatif::ProgressBar::new(n),
-        None => indicatif::ProgressBar::new_spinner(),
-    };
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{spinner} {pos}/{len} frames {per_sec}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-    );
-    bar
-}
-
 /// One frame's line: JSON with `--json`, else text.
 fn write_frame(
     out: &mut impl Write,
@@ -297,12 +276,4 @@ fn write_frame(
     writeln!(text, " ({:.1} ms)", timing.total_ms)?;
     out.write_all(text.as_bytes()).map_err(super::StdoutError)?;
     Ok(())
-}
-
-/// One error line on stderr, above the progress bar if there is one.
-fn report_error(progress: Option<&indicatif::ProgressBar>, message: &str) {
-    match progress {
-        Some(bar) => bar.println(message),
-        None => eprintln!("{message}"),
-    }
 }
