@@ -248,13 +248,48 @@ pub fn run_demo(config: &DemoConfig) -> Result<DemoRun, DemoError> {
     run_demo_with_progress(config, |_, _| {})
 }
 
+/// One camera frame of a demo run, as [`run_demo_observed`] hands it out.
+#[derive(Debug, Clone, Copy)]
+pub struct DemoFrame<'a> {
+    /// Step from 0; the frame is at `t = step * dt`.
+    pub step: usize,
+    /// The robot whose camera took it (2 for the first follower).
+    pub robot: usize,
+    /// The follower's own inputs over the interval ending at this frame (what a real robot
+    /// logs from its odometry), as the tracker is given them.
+    pub inputs: Inputs,
+    /// The raw rendered frame (grey, before any annotation).
+    pub image: &'a image::GrayImage,
+}
+
+/// [`run_demo_with_progress`], also handing every follower's raw frame to `on_frame` (to save
+/// a test sequence for `track`).
+///
+/// # Errors
+/// As [`run_demo`].
+pub fn run_demo_observed(
+    config: &DemoConfig,
+    progress: impl FnMut(usize, usize),
+    on_frame: impl FnMut(&DemoFrame<'_>),
+) -> Result<DemoRun, DemoError> {
+    run_demo_inner(config, progress, on_frame)
+}
+
 /// [`run_demo`], calling `progress(step, steps)` after every step (for a progress bar).
 ///
 /// # Errors
 /// As [`run_demo`].
 pub fn run_demo_with_progress(
     config: &DemoConfig,
+    progress: impl FnMut(usize, usize),
+) -> Result<DemoRun, DemoError> {
+    run_demo_inner(config, progress, |_| {})
+}
+
+fn run_demo_inner(
+    config: &DemoConfig,
     mut progress: impl FnMut(usize, usize),
+    mut on_frame: impl FnMut(&DemoFrame<'_>),
 ) -> Result<DemoRun, DemoError> {
     validate(config)?;
     let camera = CameraSpec::default();
@@ -292,7 +327,13 @@ pub fn run_demo_with_progress(
         let mut new_inputs = vec![reference_leader_inputs(t)];
         for (idx, f) in followers.iter_mut().enumerate() {
             let me = idx + 1;
-            let (render, annotated) = f.frame(&world, &ctx, me, new_inputs[me - 1])?;
+            let (render, annotated, image) = f.frame(&world, &ctx, me, new_inputs[me - 1])?;
+            on_frame(&DemoFrame {
+                step,
+                robot: me + 1,
+                inputs: ctx.applied[me],
+                image: &image,
+            });
             render_s += render;
             strip.extend(annotated.map(|image| (step, image)));
             new_inputs.push(f.inputs);
@@ -412,15 +453,15 @@ fn follower_scene(world: &World<'_>, ctx: &StepContext<'_>, me: usize) -> SceneS
 impl Follower {
     /// Renders and processes follower `me`'s frame, records it (after `t = 0`) and sets the
     /// inputs for the next interval. `leader_now` is the leader's input for that interval.
-    /// Returns the seconds spent rendering and, on robot 2's strip steps, the annotated
-    /// frame.
+    /// Returns the seconds spent rendering, on robot 2's strip steps the annotated frame, and
+    /// the raw frame.
     fn frame(
         &mut self,
         world: &World<'_>,
         ctx: &StepContext<'_>,
         me: usize,
         leader_now: Inputs,
-    ) -> Result<(f64, Option<image::RgbImage>), DemoError> {
+    ) -> Result<(f64, Option<image::RgbImage>, image::GrayImage), DemoError> {
         let ahead = me - 1;
         let d = world.mount.offset;
         let (width, height) = (world.camera.width, world.camera.height);
@@ -493,7 +534,7 @@ impl Follower {
                 l12_desired: self.controller.config().l12_desired,
             });
         }
-        Ok((render_s, annotated))
+        Ok((render_s, annotated, frame))
     }
 
     /// The frame with the markers read and each measured robot's rig drawn over it.

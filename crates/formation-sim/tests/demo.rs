@@ -90,3 +90,36 @@ fn bad_settings_are_errors() {
         Err(DemoError::Config { what: "dt", .. })
     ));
 }
+
+/// `run_demo_observed` hands out every follower's raw frame, in step order, with the inputs
+/// the tracker was given: the test sequence `demo --save-frames` writes for `track`.
+#[test]
+fn observed_run_hands_out_every_raw_frame() {
+    let mut c = short(false, 3);
+    c.duration = 0.5;
+    c.occlusion = None;
+    let mut seen = Vec::new();
+    let mut markers = Vec::new();
+    let mut detector = fiducial::Detector::new(fiducial::DetectorConfig::default());
+    let mut found = Vec::new();
+    let run = formation_sim::demo::run_demo_observed(
+        &c,
+        |_, _| {},
+        |f| {
+            assert_eq!(f.image.dimensions(), (640, 480));
+            assert!(f.inputs.v.is_finite() && f.inputs.w.is_finite());
+            seen.push((f.step, f.robot));
+            let view = fiducial::GrayView::new(f.image.as_raw(), 640, 480).unwrap();
+            detector.detect(&view, &mut found);
+            markers.push(found.len());
+        },
+    )
+    .unwrap();
+    let steps = (c.duration / c.dt).round() as usize;
+    let want: Vec<(usize, usize)> = (0..=steps).flat_map(|s| [(s, 2), (s, 3)]).collect();
+    assert_eq!(seen, want);
+    // Raw frames, not annotated ones: the leader's markers read in every frame, as the demo's
+    // own tracker read them.
+    assert!(markers.iter().all(|&m| m > 0), "{markers:?}");
+    assert_eq!(run.traces[0].records.len(), steps);
+}

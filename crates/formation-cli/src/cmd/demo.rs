@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use clap::Args as ClapArgs;
-use formation_sim::demo::{DemoConfig, DemoRun, DemoSummary, run_demo_with_progress};
+use formation_sim::demo::{DemoConfig, DemoFrame, DemoRun, DemoSummary, run_demo_observed};
 use formation_sim::plot::{fig12_panels, fig13_panels, write_png, write_svg};
 use formation_sim::reproduce::StepRecord;
 
@@ -39,6 +39,12 @@ pub struct Args {
     /// Seed of the sensor noise.
     #[arg(long, value_name = "N", default_value_t = 1)]
     seed: u64,
+    /// Also save the first follower's raw camera frames as a test sequence for `track`:
+    /// DIR/frames/frame-NNNN.png, DIR/camera.yaml (the camera's calibration) and
+    /// DIR/inputs.csv (the follower's inputs per frame). Then: `formation-tracker track
+    /// DIR/frames --camera DIR/camera.yaml --inputs DIR/inputs.csv --fps 30`.
+    #[arg(long, value_name = "DIR")]
+    save_frames: Option<PathBuf>,
 }
 
 /// Runs `demo`.
@@ -50,6 +56,11 @@ pub fn run(args: Args) -> Result<(), CliError> {
     };
     config.render.seed = args.seed;
     super::prepare_out_dir(&args.out)?;
+    let mut saver = args
+        .save_frames
+        .as_deref()
+        .map(FrameSaver::new)
+        .transpose()?;
     let started = std::time::Instant::now();
     eprintln!(
         "demo: rendering and tracking {} s at 30 frames/s, {} robot(s){}...",
@@ -62,11 +73,22 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
     );
     let mut progress = super::progress::Progress::new("demo", "frames", None);
-    let run = run_demo_with_progress(&config, |step, steps| {
-        progress.set_total(steps as u64 + 1);
-        progress.set(step as u64 + 1);
-    })?;
+    let run = run_demo_observed(
+        &config,
+        |step, steps| {
+            progress.set_total(steps as u64 + 1);
+            progress.set(step as u64 + 1);
+        },
+        |frame| {
+            if let Some(saver) = &mut saver {
+                saver.save(frame);
+            }
+        },
+    )?;
     progress.finish();
+    if let Some(saver) = saver {
+        saver.finish()?;
+    }
     super::prepare_out_dir(&args.out.join("frames"))?;
     write_outputs(&args.out, &run)?;
     super::write_stdout(format_args!(
@@ -233,4 +255,75 @@ fn summary_text(s: &DemoSummary, wall_s: f64) -> String {
         s.detect_ms_median, s.pipeline_ms_median, s.frames_per_second, s.render_s, wall_s
     );
     t
+}
+
+/// Writes the first follower's frames, its inputs and the camera's calibration
+/// (`demo --save-frames`). The first write error is kept and reported at the end.
+struct FrameSaver {
+    dir: PathBuf,
+    csv: String,
+    error: Option<String>,
+}
+
+impl FrameSaver {
+    fn new(dir: &Path) -> Result<Self, CliError> {
+        super::prepare_out_dir(&dir.join("frames"))?;
+        let camera = formation_sim::scene::CameraSpec::default();
+        let k = pose::Intrinsics::from_hfov(
+            camera.hfov_deg.to_radians(),
+            camera.width as u32,
+            camera.height as u32,
+        )?
+        .matrix();
+        let row = |r: usize| format!("{:?}, {:?}, {:?}", k[(r, 0)], k[(r, 1)], k[(r, 2)]);
+        let yaml = format!(
+            "%YAML:1.0\n---\n# The demo camera: {w}x{h}, {hfov} degrees horizontal field of view, no distortion.\nimage_width: {w}\nimage_height: {h}\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ {}, {}, {} ]\ndistortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 5\n   dt: d\n   data: [ 0., 0., 0., 0., 0. ]\n",
+            row(0),
+            row(1),
+            row(2),
+            w = camera.width,
+            h = camera.height,
+            hfov = camera.hfov_deg,
+        );
+        let path = dir.join("camera.yaml");
+        std::fs::write(&path, yaml).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            csv: "frame,v2,w2\n".into(),
+            error: None,
+        })
+    }
+
+    fn save(&mut self, frame: &DemoFrame<'_>) {
+        if frame.robot != 2 || self.error.is_some() {
+            return;
+        }
+        let path = self
+            .dir
+            .join("frames")
+            .join(format!("frame-{:04}.png", frame.step));
+        if let Err(e) = frame.image.save(&path) {
+            self.error = Some(format!("cannot write {}: {e}", path.display()));
+            return;
+        }
+        let _ = writeln!(
+            self.csv,
+            "{},{:?},{:?}",
+            frame.step, frame.inputs.v, frame.inputs.w
+        );
+    }
+
+    fn finish(self) -> Result<(), CliError> {
+        if let Some(e) = self.error {
+            return Err(e.into());
+        }
+        let path = self.dir.join("inputs.csv");
+        std::fs::write(&path, self.csv)
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        eprintln!(
+            "demo: saved the raw frames of robot 2's camera to {}",
+            self.dir.display()
+        );
+        Ok(())
+    }
 }
