@@ -41,7 +41,8 @@ enum Command {
     Detect(cmd::detect::Args),
     /// Track leader robots through camera frames (a folder of images, a y4m file or stdin).
     Track(cmd::track::Args),
-    /// Write print-ready marker images (PNG + SVG) for every robot's rig, and markers.json.
+    /// Write print-ready marker images for every robot's rig (PNGs that carry their print
+    /// resolution, and SVGs in millimetres) and markers.json.
     Markers(cmd::markers::Args),
     /// Render a synthetic frame of a paper scene (Figs. 7-11) or a scene file, with its truth.
     Render(cmd::render::Args),

@@ -60,6 +60,18 @@ fn json_matches_the_pngs() {
             .unwrap()
             .to_luma8();
         assert_eq!((png.width(), png.height()), (9 * 9, 8 * 9));
+        // The PNG carries its print scale: 9 px per 0.02 m cell = 450 px/m, so the border's
+        // corners print size_m apart.
+        let file = std::fs::File::open(dir.join(e["png"].as_str().unwrap())).unwrap();
+        let reader = png::Decoder::new(std::io::BufReader::new(file))
+            .read_info()
+            .unwrap();
+        let dims = reader.info().pixel_dims.expect("a pHYs chunk");
+        assert_eq!(
+            (dims.xppu, dims.yppu, dims.unit),
+            (450, 450, png::Unit::Meter)
+        );
+        assert!(((corners[1].x - corners[0].x) / 450.0 - size[0]).abs() < 1e-9);
         let view =
             GrayView::new(png.as_raw(), png.width() as usize, png.height() as usize).unwrap();
         let d = decode(&view, &corners, dict, &DecodeParams::default()).unwrap();

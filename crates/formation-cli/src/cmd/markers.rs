@@ -7,7 +7,7 @@
 //! black border in the PNG. A `(robot, face)` to which the rig's marker table gives no marker
 //! is skipped.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::Args as ClapArgs;
 use fiducial::{Dictionary, RenderOptions, render_marker, render_svg};
@@ -92,9 +92,8 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             let corners_px = marker.corners().map(|p| [p.x, p.y]);
             let png = format!("{stem}.png");
             let path = args.out.join(&png);
-            marker
-                .into_gray_image()
-                .save(&path)
+            let px_per_m = f64::from(args.px_per_cell) / rig.geometry.cell_size_m;
+            write_png_at_scale(&path, &marker.into_gray_image(), px_per_m)
                 .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
             let svg = format!("{stem}.svg");
             let path = args.out.join(&svg);
@@ -125,5 +124,28 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         rig.faces.len(),
         args.out.display()
     );
+    Ok(())
+}
+
+/// Writes a grey PNG whose `pHYs` chunk says `px_per_m` pixels per metre, so that printing
+/// it at its stored resolution gives the marker its size in `markers.json`.
+fn write_png_at_scale(
+    path: &Path,
+    image: &image::GrayImage,
+    px_per_m: f64,
+) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+    let file = std::io::BufWriter::new(std::fs::File::create(path)?);
+    let mut encoder = png::Encoder::new(file, image.width(), image.height());
+    encoder.set_color(png::ColorType::Grayscale);
+    encoder.set_depth(png::BitDepth::Eight);
+    let ppu = px_per_m.round() as u32;
+    encoder.set_pixel_dims(Some(png::PixelDimensions {
+        xppu: ppu,
+        yppu: ppu,
+        unit: png::Unit::Meter,
+    }));
+    let mut writer = encoder.write_header()?;
+    writer.write_image_data(image.as_raw())?;
+    writer.finish()?;
     Ok(())
 }
