@@ -165,9 +165,13 @@ pub struct DemoSummary {
     pub mse_meas_alpha12: f64,
     /// Frames processed by robot 2's pipeline (including `t = 0`).
     pub frames: usize,
-    /// Frames in which robot 1 was measured.
+    /// Frames scored (every frame after `t = 0`, whose measurement only initialises the
+    /// tracker): the rows of `series.csv` and the frames the MSEs are over. Equal to
+    /// `frames_detected + frames_occluded` when the leader is seen whenever it is visible.
+    pub frames_scored: usize,
+    /// Scored frames in which robot 1 was measured.
     pub frames_detected: usize,
-    /// Frames inside the occlusion.
+    /// Scored frames inside the occlusion.
     pub frames_occluded: usize,
     /// Frames in which robot 2's track of robot 1 was coasting.
     pub frames_coasting: usize,
@@ -630,6 +634,7 @@ fn summarize(traces: &[FollowerTrace], config: &DemoConfig, render_s: f64) -> De
         mse_meas_l12: mse.measurement[0],
         mse_meas_alpha12: mse.measurement[1],
         frames,
+        frames_scored: records.len(),
         frames_detected: mse.measured,
         frames_occluded: occluded,
         frames_coasting: coasting,

@@ -24,6 +24,10 @@ fn open_loop_tracks_through_the_occlusion() {
     let run = run_demo(&short(false, 2)).unwrap();
     let s = &run.summary;
     assert_eq!(s.frames, 121);
+    // The counts add up: every scored frame (after t = 0) is detected or hidden.
+    assert_eq!(s.frames_scored, 120);
+    assert_eq!(s.frames_scored, s.frames_detected + s.frames_occluded);
+    assert_eq!(run.traces[0].records.len(), s.frames_scored);
     assert_eq!(s.frames_occluded, 15);
     // Seen in every frame outside the occlusion, coasting exactly through it.
     assert_eq!(s.frames_detected, 120 - 15);

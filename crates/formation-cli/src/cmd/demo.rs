@@ -230,8 +230,13 @@ fn summary_text(s: &DemoSummary, wall_s: f64) -> String {
     let _ = writeln!(t, "  w1                      {:11.3e}", s.mse_w1);
     let _ = writeln!(
         t,
-        "  frames {} (leader detected in {}, hidden in {}), coasting {}, max coasting l12 error {:.3} m",
-        s.frames, s.frames_detected, s.frames_occluded, s.frames_coasting, s.max_coasting_error_l12
+        "  frames {} (t = 0 initialises the tracker; of the {} scored, leader detected in {}, hidden in {}), coasting {}, max coasting l12 error {:.3} m",
+        s.frames,
+        s.frames_scored,
+        s.frames_detected,
+        s.frames_occluded,
+        s.frames_coasting,
+        s.max_coasting_error_l12
     );
     let _ = writeln!(
         t,
