@@ -3,18 +3,10 @@
 //! calibrated camera's images; then the intrinsics are scaled and the pose is the same.
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
-use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
 mod common;
-
-fn run(d: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_formation-tracker"))
-        .args(args)
-        .current_dir(d)
-        .output()
-        .unwrap()
-}
+use common::run;
 
 /// `l12` of every robot in a `detect --json` line.
 fn l12s(out: &Output) -> Vec<f64> {

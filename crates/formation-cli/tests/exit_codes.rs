@@ -8,11 +8,7 @@ use std::process::Command;
 mod common;
 
 fn code(d: &Path, args: &[&str]) -> (Option<i32>, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_formation-tracker"))
-        .args(args)
-        .current_dir(d)
-        .output()
-        .unwrap();
+    let out = common::run(d, args);
     (
         out.status.code(),
         String::from_utf8_lossy(&out.stderr).into_owned(),

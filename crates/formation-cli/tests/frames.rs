@@ -8,27 +8,15 @@ use std::path::PathBuf;
 use formation_tracker_cli::frames::{FrameError, FrameSource};
 
 /// A y4m stream of `frames` frames of `w x h` in colour space `cs` (`"420"`, `"mono"`,
-/// `"420p10"`); luma of frame `k` at pixel `i` is `(10 k + i) % 256` (times 4 for 10 bits).
+/// `"420p10"`) at 30000/1001 frames/s; luma of frame `k` at pixel `i` is `(10 k + i) % 256`.
 fn y4m(w: usize, h: usize, cs: &str, frames: usize) -> Vec<u8> {
-    let mut out = format!("YUV4MPEG2 W{w} H{h} F30000:1001 Ip A1:1 C{cs}\n").into_bytes();
-    let (bytes, chroma) = match cs {
-        "mono" => (1, 0),
-        "420p10" => (2, 2 * w.div_ceil(2) * h.div_ceil(2)),
-        _ => (1, w.div_ceil(2) * h.div_ceil(2)),
+    let chroma = 2 * w.div_ceil(2) * h.div_ceil(2);
+    let (depth, other) = match cs {
+        "mono" => (8, 0),
+        "420p10" => (10, chroma),
+        _ => (8, chroma),
     };
-    for k in 0..frames {
-        out.extend_from_slice(b"FRAME\n");
-        for i in 0..w * h {
-            let v = ((10 * k + i) % 256) as u16;
-            if bytes == 1 {
-                out.push(v as u8);
-            } else {
-                out.extend_from_slice(&(v << 2).to_le_bytes());
-            }
-        }
-        out.extend(std::iter::repeat_n(128u8, 2 * chroma));
-    }
-    out
+    y4m_any(w, h, cs, "F30000:1001", depth, other, frames)
 }
 
 fn source(bytes: Vec<u8>) -> Result<FrameSource, FrameError> {
@@ -41,9 +29,17 @@ fn expected_luma(k: usize, n: usize) -> Vec<u8> {
 
 /// A y4m stream in any colour space: `depth`-bit samples (two bytes above 8), `other`
 /// samples of chroma and alpha per frame after the luma plane.
-fn y4m_any(w: usize, h: usize, cs: &str, depth: u32, other: usize, frames: usize) -> Vec<u8> {
+fn y4m_any(
+    w: usize,
+    h: usize,
+    cs: &str,
+    rate: &str,
+    depth: u32,
+    other: usize,
+    frames: usize,
+) -> Vec<u8> {
     let mut out =
-        format!("YUV4MPEG2 W{w} H{h} F25:1 It A0:0 C{cs} XCOLORRANGE=FULL\n").into_bytes();
+        format!("YUV4MPEG2 W{w} H{h} {rate} It A0:0 C{cs} XCOLORRANGE=FULL\n").into_bytes();
     for k in 0..frames {
         out.extend_from_slice(b"FRAME\n");
         for i in 0..w * h {
@@ -83,7 +79,7 @@ fn every_colour_space_ffmpeg_writes_is_read() {
         ("420p9", 9, 2 * cw2 * ch2),
         ("420p16", 16, 2 * cw2 * ch2),
     ] {
-        let mut src = source(y4m_any(w, h, cs, depth, other, 2)).unwrap();
+        let mut src = source(y4m_any(w, h, cs, "F25:1", depth, other, 2)).unwrap();
         assert_eq!(src.frame_rate(), Some(25.0), "{cs}");
         for k in 0..2 {
             let f = src.next_frame().unwrap().expect("a frame");

@@ -3,18 +3,10 @@
 //! size comes from the header, so an oversized image is refused before it is decoded.
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
-use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
 mod common;
-
-fn run(d: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_formation-tracker"))
-        .args(args)
-        .current_dir(d)
-        .output()
-        .unwrap()
-}
+use common::run;
 
 fn crc32(bytes: &[u8]) -> u32 {
     let mut c = 0xFFFF_FFFFu32;

@@ -3,18 +3,10 @@
 //! and options that may be negative take negative numbers without `=`.
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
-use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Command;
 
 mod common;
-
-fn run(d: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_formation-tracker"))
-        .args(args)
-        .current_dir(d)
-        .output()
-        .unwrap()
-}
+use common::run;
 
 #[test]
 fn non_finite_and_out_of_range_values_are_usage_errors() {

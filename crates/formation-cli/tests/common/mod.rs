@@ -1,7 +1,8 @@
 //! Helpers shared by the command tests.
 #![allow(dead_code)] // each test binary uses its own subset
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
 
 /// A 640 x 480 pinhole calibration (60 deg horizontal field of view, no distortion), as
 /// OpenCV writes it.
@@ -35,4 +36,13 @@ pub fn blank_frames(name: &str) -> PathBuf {
             .unwrap();
     }
     d
+}
+
+/// Runs the binary with `args` in `dir`, and returns what it did.
+pub fn run(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_formation-tracker"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap()
 }
