@@ -130,6 +130,7 @@ enum Kind {
 /// A sequence of grey frames from a folder, a y4m file or stdin.
 pub struct FrameSource {
     kind: Kind,
+    max_side: usize,
     grey: GreyImage,
     read: u64,
     truncated: bool,
@@ -157,8 +158,17 @@ impl FrameSource {
     /// # Errors
     /// The path cannot be read, the folder has no images, or the y4m header is bad.
     pub fn open(input: &Path) -> Result<Self, FrameError> {
+        Self::open_with_max_side(input, MAX_SIDE)
+    }
+
+    /// As [`FrameSource::open`], accepting frames of at most `max_side` pixels a side
+    /// (instead of [`MAX_SIDE`]).
+    ///
+    /// # Errors
+    /// As [`FrameSource::open`].
+    pub fn open_with_max_side(input: &Path, max_side: usize) -> Result<Self, FrameError> {
         if input == Path::new("-") {
-            return Self::from_y4m_reader(Box::new(io::stdin().lock()));
+            return Self::y4m(Box::new(io::stdin().lock()), max_side);
         }
         let open_error = |source| FrameError::Open {
             path: input.to_path_buf(),
@@ -166,10 +176,10 @@ impl FrameSource {
         };
         let meta = fs::metadata(input).map_err(open_error)?;
         if meta.is_dir() {
-            return Self::from_folder(input);
+            return Self::folder(input, max_side);
         }
         let file = fs::File::open(input).map_err(open_error)?;
-        Self::from_y4m_reader(Box::new(file))
+        Self::y4m(Box::new(file), max_side)
     }
 
     /// The images of a folder, sorted by name.
@@ -177,6 +187,10 @@ impl FrameSource {
     /// # Errors
     /// The folder cannot be listed or has no images.
     pub fn from_folder(folder: &Path) -> Result<Self, FrameError> {
+        Self::folder(folder, MAX_SIDE)
+    }
+
+    fn folder(folder: &Path, max_side: usize) -> Result<Self, FrameError> {
         let entries = fs::read_dir(folder).map_err(|source| FrameError::Open {
             path: folder.to_path_buf(),
             source,
@@ -191,7 +205,7 @@ impl FrameSource {
             });
         }
         files.sort_by(|a, b| a.file_name().cmp(&b.file_name()));
-        Ok(Self::new(Kind::Folder { files, next: 0 }))
+        Ok(Self::new(Kind::Folder { files, next: 0 }, max_side))
     }
 
     /// A y4m stream from any reader (buffered here).
@@ -200,6 +214,10 @@ impl FrameSource {
     /// [`FrameError::Y4mHeader`] for a missing or bad header or frames larger than
     /// [`MAX_SIDE`].
     pub fn from_y4m_reader(reader: Box<dyn Read>) -> Result<Self, FrameError> {
+        Self::y4m(reader, MAX_SIDE)
+    }
+
+    fn y4m(reader: Box<dyn Read>, max_side: usize) -> Result<Self, FrameError> {
         let mut reader = BufReader::new(reader);
         let bad = |message: String| FrameError::Y4mHeader { message };
         let mut line = Vec::with_capacity(128);
@@ -219,23 +237,27 @@ impl FrameSource {
         // The size is checked before any frame buffer is allocated.
         let header = crate::y4m::parse_header(&line).map_err(bad)?;
         let (width, height) = (header.width, header.height);
-        if width == 0 || height == 0 || width > MAX_SIDE || height > MAX_SIDE {
+        if width == 0 || height == 0 || width > max_side || height > max_side {
             return Err(FrameError::Size {
                 width,
                 height,
-                max: MAX_SIDE,
+                max: max_side,
             });
         }
-        Ok(Self::new(Kind::Y4m {
-            reader: Box::new(crate::y4m::Reader::new(reader, header)),
-            next: 0,
-            done: false,
-        }))
+        Ok(Self::new(
+            Kind::Y4m {
+                reader: Box::new(crate::y4m::Reader::new(reader, header)),
+                next: 0,
+                done: false,
+            },
+            max_side,
+        ))
     }
 
-    fn new(kind: Kind) -> Self {
+    fn new(kind: Kind, max_side: usize) -> Self {
         Self {
             kind,
+            max_side,
             grey: GreyImage::default(),
             read: 0,
             truncated: false,
@@ -284,10 +306,12 @@ impl FrameSource {
                 };
                 let index = *next as u64;
                 *next += 1;
-                load_image(path, &mut self.grey).map_err(|message| FrameError::Image {
-                    index,
-                    path: path.clone(),
-                    message,
+                load_image(path, &mut self.grey, self.max_side).map_err(|message| {
+                    FrameError::Image {
+                        index,
+                        path: path.clone(),
+                        message,
+                    }
                 })?;
                 (index, Some(path.as_path()))
             }
@@ -336,12 +360,20 @@ impl FrameSource {
 /// # Errors
 /// One line saying why the file cannot be used.
 pub fn read_grey(path: &Path) -> Result<GreyImage, String> {
+    read_grey_with_max_side(path, MAX_SIDE)
+}
+
+/// As [`read_grey`], accepting images of at most `max_side` pixels a side.
+///
+/// # Errors
+/// As [`read_grey`].
+pub fn read_grey_with_max_side(path: &Path, max_side: usize) -> Result<GreyImage, String> {
     let mut grey = GreyImage {
         width: 0,
         height: 0,
         data: Vec::new(),
     };
-    load_image(path, &mut grey)?;
+    load_image(path, &mut grey, max_side)?;
     Ok(grey)
 }
 
@@ -355,7 +387,7 @@ fn jpeg_is_complete(bytes: &[u8]) -> bool {
 }
 
 /// Decodes an image file into the grey buffer (see [`read_grey`]).
-fn load_image(path: &Path, grey: &mut GreyImage) -> Result<(), String> {
+fn load_image(path: &Path, grey: &mut GreyImage, max_side: usize) -> Result<(), String> {
     let bytes = std::fs::read(path).map_err(|e| e.to_string())?;
     let reader = image::ImageReader::new(std::io::Cursor::new(&bytes[..]))
         .with_guessed_format()
@@ -369,9 +401,9 @@ fn load_image(path: &Path, grey: &mut GreyImage) -> Result<(), String> {
         .into_dimensions()
         .map_err(|e| e.to_string())?;
     let (w, h) = (w as usize, h as usize);
-    if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
+    if w == 0 || h == 0 || w > max_side || h > max_side {
         return Err(format!(
-            "image size {w}x{h} is outside 1..={MAX_SIDE} pixels a side"
+            "image size {w}x{h} is outside 1..={max_side} pixels a side (--max-side sets the limit)"
         ));
     }
     if format == image::ImageFormat::Jpeg && !jpeg_is_complete(&bytes) {

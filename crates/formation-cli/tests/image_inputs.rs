@@ -95,3 +95,48 @@ fn images_are_read_by_content_and_checked_before_decoding() {
         assert!(stderr.contains(says), "track {name}: {stderr}");
     }
 }
+
+/// The pixel limit is an option: `--max-side` lowers or raises it, and the message says so.
+#[test]
+fn the_pixel_limit_is_configurable() {
+    let d = common::blank_frames("image-max-side");
+    let out = run(&d, &["detect", "--max-side", "100", "frames/f0.png"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("image size 640x480 is outside 1..=100 pixels a side (--max-side"),
+        "{stderr}"
+    );
+    let out = run(
+        &d,
+        &[
+            "track",
+            "--max-side",
+            "479",
+            "--camera",
+            "camera.yaml",
+            "frames",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("outside 1..=479 pixels"), "{stderr}");
+    let out = run(
+        &d,
+        &[
+            "track",
+            "--max-side",
+            "640",
+            "--camera",
+            "camera.yaml",
+            "frames",
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = run(&d, &["detect", "--max-side", "0", "frames/f0.png"]);
+    assert_eq!(out.status.code(), Some(2));
+}

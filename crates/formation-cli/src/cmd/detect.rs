@@ -30,6 +30,11 @@ pub struct Args {
     /// Print one JSON object per image (one line each) instead of a listing.
     #[arg(long)]
     pub json: bool,
+    /// Largest image side accepted, pixels; larger images are refused from their header,
+    /// before they are decoded.
+    #[arg(long, value_name = "PX", default_value_t = formation_tracker_cli::frames::MAX_SIDE,
+          value_parser = super::numbers::max_side)]
+    pub max_side: usize,
     /// The robot stage: `--camera`, `--rig`, `--pan`, `--mount`, `--free-pose`.
     #[command(flatten)]
     pub robots: super::detect_robots::RobotArgs,
@@ -155,7 +160,8 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     let mut found = Vec::new();
     let mut failed = 0usize;
     for path in &args.images {
-        let grey = match formation_tracker_cli::frames::read_grey(path) {
+        let grey = match formation_tracker_cli::frames::read_grey_with_max_side(path, args.max_side)
+        {
             Ok(grey) => grey,
             Err(err) => {
                 eprintln!("formation-tracker: error: {}: {err}", path.display());

@@ -132,6 +132,16 @@ pub mod numbers {
         }
     }
 
+    /// The largest image side accepted (`--max-side`), 1 to 1048576 pixels.
+    pub fn max_side(s: &str) -> Result<usize, String> {
+        match s.trim().parse::<usize>() {
+            Ok(n) if (1..=1 << 20).contains(&n) => Ok(n),
+            _ => Err(format!(
+                "`{s}` is not an image side from 1 to 1048576 pixels"
+            )),
+        }
+    }
+
     /// A frame rate inside [`FPS_RANGE`].
     pub fn fps(s: &str) -> Result<f64, String> {
         let x = number(s)?;

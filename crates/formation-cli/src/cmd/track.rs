@@ -66,6 +66,11 @@ pub struct Args {
     /// frames are errors: their poses would be wrong by the scale.
     #[arg(long = "scale-calibration")]
     scale_calibration: bool,
+    /// Largest image side accepted, pixels; larger frames are refused from their header,
+    /// before they are decoded.
+    #[arg(long, value_name = "PX", default_value_t = formation_tracker_cli::frames::MAX_SIDE,
+          value_parser = super::numbers::max_side)]
+    max_side: usize,
     /// Seconds without a measurement before a track is dropped.
     #[arg(long, value_name = "S", default_value_t = 2.0, value_parser = super::numbers::positive)]
     lost_after: f64,
@@ -96,7 +101,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     let calibration = Calibration::from_file(&args.camera)?;
     let dict = Dictionary::paper();
     let rig = super::load_rig(args.rig.as_deref(), dict)?;
-    let mut frames = FrameSource::open(&args.input)?;
+    let mut frames = FrameSource::open_with_max_side(&args.input, args.max_side)?;
     let fps = frame_rate(args, &frames)?;
     let inputs = match &args.inputs {
         Some(path) => Some(FollowerInputs::from_path(path)?),
