@@ -146,7 +146,49 @@ pub struct FollowerTrace {
     pub records: Vec<DemoRecord>,
 }
 
-/// Figures of merit of robot 2's track of robot 1 (`summary.json`).
+/// How one follower tracked the robot ahead of it (every pair of a chain).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PairSummary {
+    /// The follower (whose camera and tracker these are).
+    pub follower: u32,
+    /// The robot it tracks.
+    pub leader: u32,
+    /// Mean square errors of the tracked `[l12, alpha12, beta12, v1, w1]` over the scored
+    /// frames (m^2, rad^2, rad^2, (m/s)^2, (rad/s)^2).
+    pub mse: [f64; 5],
+    /// Mean square errors of the vision measurement of `[l12, alpha12, beta12]` over the
+    /// frames with one.
+    pub mse_meas: [f64; 3],
+    /// Scored frames (after `t = 0`).
+    pub frames_scored: usize,
+    /// Scored frames in which the leader was measured.
+    pub frames_detected: usize,
+    /// Scored frames in which the track was coasting.
+    pub frames_coasting: usize,
+}
+
+impl PairSummary {
+    fn of(trace: &FollowerTrace) -> Self {
+        let mse = MeanSquareErrors::of(trace.records.iter().map(|r| &r.step));
+        Self {
+            follower: trace.follower,
+            leader: trace.leader,
+            mse: mse.estimate,
+            mse_meas: mse.measurement,
+            frames_scored: trace.records.len(),
+            frames_detected: mse.measured,
+            frames_coasting: trace
+                .records
+                .iter()
+                .filter(|r| r.status == Some(Status::Coasting))
+                .count(),
+        }
+    }
+}
+
+/// Figures of merit of the demo (`summary.json`). The top-level fields are robot 2's track
+/// of robot 1 (the reference pair); `pairs` has every follower-leader pair of the chain,
+/// that one first.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct DemoSummary {
     /// Mean square error of `l12` over the frames with an estimate, m^2.
@@ -198,6 +240,8 @@ pub struct DemoSummary {
     pub robots: usize,
     /// Whether the controllers used the estimates.
     pub closed_loop: bool,
+    /// Every follower-leader pair (robot `k + 1` tracking robot `k`), robot 2's first.
+    pub pairs: Vec<PairSummary>,
     /// Noise seed.
     pub seed: u64,
 }
@@ -652,6 +696,7 @@ fn summarize(traces: &[FollowerTrace], config: &DemoConfig, render_s: f64) -> De
         render_s,
         robots: config.robots,
         closed_loop: config.closed_loop,
+        pairs: traces.iter().map(PairSummary::of).collect(),
         seed: config.render.seed,
     }
 }

@@ -69,6 +69,21 @@ fn closed_loop_chain_keeps_the_formation() {
     assert_eq!(run.traces.len(), 2);
     assert_eq!((run.traces[1].follower, run.traces[1].leader), (3, 2));
     let s = &run.summary;
+    // Every pair of the chain is reported, the reference pair (2 -> 1) first and equal to
+    // the top-level figures.
+    let pairs: Vec<(u32, u32)> = s.pairs.iter().map(|p| (p.follower, p.leader)).collect();
+    assert_eq!(pairs, [(2, 1), (3, 2)]);
+    assert_eq!(s.pairs[0].mse[0], s.mse_l12);
+    assert_eq!(s.pairs[0].frames_detected, s.frames_detected);
+    let p = &s.pairs[1];
+    assert!(
+        p.mse
+            .iter()
+            .chain(&p.mse_meas)
+            .all(|m| m.is_finite() && *m >= 0.0)
+    );
+    assert!(p.mse[0] < 1e-3, "robot 3's l12 MSE {}", p.mse[0]);
+    assert_eq!(p.frames_scored, run.traces[1].records.len());
     assert!(s.closed_loop);
     assert!(
         s.max_formation_error_after_3s < 0.1,

@@ -107,17 +107,21 @@ fn write_outputs(out: &Path, run: &DemoRun) -> Result<(), CliError> {
     let json = serde_json::to_string_pretty(&run.summary)? + "\n";
     write_file(&out.join("summary.json"), json.as_bytes())?;
     write_file(&out.join("series.csv"), series_csv(run).as_bytes())?;
-    let records: Vec<StepRecord> = run.traces[0]
-        .records
-        .iter()
-        .map(|r| r.step.clone())
-        .collect();
-    let fig12 = fig12_panels(&records);
-    write_svg(&out.join("fig12.svg"), &fig12, FIGURE_SIZE)?;
-    write_png(&out.join("fig12.png"), &fig12, FIGURE_SIZE)?;
-    let fig13 = fig13_panels(&records);
-    write_svg(&out.join("fig13.svg"), &fig13, FIGURE_SIZE)?;
-    write_png(&out.join("fig13.png"), &fig13, FIGURE_SIZE)?;
+    // Figs. 12-13 for every pair: robot 2's as fig12/fig13, robot k's as figNN-robotK.
+    for (i, trace) in run.traces.iter().enumerate() {
+        let records: Vec<StepRecord> = trace.records.iter().map(|r| r.step.clone()).collect();
+        let suffix = if i == 0 {
+            String::new()
+        } else {
+            format!("-robot{}", trace.follower)
+        };
+        let fig12 = fig12_panels(&records);
+        write_svg(&out.join(format!("fig12{suffix}.svg")), &fig12, FIGURE_SIZE)?;
+        write_png(&out.join(format!("fig12{suffix}.png")), &fig12, FIGURE_SIZE)?;
+        let fig13 = fig13_panels(&records);
+        write_svg(&out.join(format!("fig13{suffix}.svg")), &fig13, FIGURE_SIZE)?;
+        write_png(&out.join(format!("fig13{suffix}.png")), &fig13, FIGURE_SIZE)?;
+    }
     for (step, image) in &run.strip {
         let path = out.join("frames").join(format!("frame-{step:04}.png"));
         image
@@ -249,6 +253,22 @@ fn summary_text(s: &DemoSummary, wall_s: f64) -> String {
         s.reacquired_after_s
             .map_or(String::new(), |x| format!("after {x:.3} s"))
     );
+    for p in s.pairs.iter().skip(1) {
+        let _ = writeln!(
+            t,
+            "  robot {} tracking robot {}: tracked MSE l12 {:.3e} (vision {:.3e}), alpha12 {:.3e} (vision {:.3e}), beta12 {:.3e}; leader detected in {} of {} scored frames, coasting {}",
+            p.follower,
+            p.leader,
+            p.mse[0],
+            p.mse_meas[0],
+            p.mse[1],
+            p.mse_meas[1],
+            p.mse[2],
+            p.frames_detected,
+            p.frames_scored,
+            p.frames_coasting
+        );
+    }
     let _ = writeln!(
         t,
         "  formation: true l12 within {:.1} % of its set-point after 3 s",
