@@ -10,6 +10,7 @@ mod bench_report;
 mod detector_accuracy;
 mod dictionary;
 mod dukf_table;
+mod figures;
 mod random_scenes;
 mod unused_deps;
 
@@ -30,6 +31,7 @@ commands:
                    the paper's bias) and write docs/dukf-reproduction.md
                    (--scenario FILE: that scenario file against the baselines, printed)
   unused-deps      fail if a workspace crate declares a dependency its code never names
+  figures          run the demo and copy its figures into docs/img/ (the README's)
 ";
 
 fn main() -> ExitCode {
@@ -42,6 +44,7 @@ fn main() -> ExitCode {
         Some("detector-accuracy") => detector_accuracy::run(&args[1..]),
         Some("dukf-table") => dukf_table::run(&args[1..]),
         Some("unused-deps") => unused_deps::run(&args[1..]),
+        Some("figures") => figures::run(&args[1..]),
         _ => {
             eprint!("{USAGE}");
             return ExitCode::from(2);

@@ -98,12 +98,16 @@ pub struct Panel {
     pub y_label: String,
     /// The series to draw, in drawing order (the legend follows it).
     pub series: Vec<Series>,
+    /// A time window `[from, to)` in seconds to shade (e.g. an occlusion), if any.
+    pub shade: Option<(f64, f64)>,
 }
 
 /// Colours shared by the figures.
 const REAL: RGBColor = RGBColor(0, 0, 0);
 const MEASURED: RGBColor = RGBColor(150, 150, 150);
 const ESTIMATED: RGBColor = RGBColor(200, 30, 30);
+/// Background of a shaded time window (an occlusion).
+const SHADE: RGBColor = RGBColor(225, 225, 240);
 
 fn bounds(panel: &Panel) -> Option<(f64, f64, f64, f64)> {
     let mut it = panel
@@ -126,11 +130,54 @@ fn bounds(panel: &Panel) -> Option<(f64, f64, f64, f64)> {
     Some((t0, t1, y0 - pad, y1 + pad))
 }
 
-/// Tick labels: up to three significant decimals, never "-0".
-fn tick(v: f64) -> String {
-    let s = format!("{v:.3}");
-    let s = s.trim_end_matches('0').trim_end_matches('.').to_owned();
+/// Decimals that tell apart the ticks of an axis spanning `range` (plotters puts 5 to 10
+/// ticks on it, at steps of 1, 2 or 5 times a power of ten).
+fn decimals_for(range: f64) -> usize {
+    let step = range / 10.0;
+    if !(step.is_finite() && step > 0.0) {
+        return 3;
+    }
+    (-step.log10()).ceil().clamp(0.0, 9.0) as usize
+}
+
+/// A tick label with `decimals` decimals, trailing zeros dropped, never "-0".
+fn tick(v: f64, decimals: usize) -> String {
+    let s = format!("{v:.decimals$}");
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_owned()
+    } else {
+        s
+    };
     if s == "-0" { "0".to_owned() } else { s }
+}
+
+/// The corner of the panel whose box (35 % of the width, 30 % of the height) holds the
+/// fewest data points, so that the legend covers as little data as possible.
+fn legend_corner(panel: &Panel, (t0, t1, y0, y1): (f64, f64, f64, f64)) -> SeriesLabelPosition {
+    let (tw, yh) = (0.35 * (t1 - t0), 0.30 * (y1 - y0));
+    let corners = [
+        (SeriesLabelPosition::UpperRight, t1 - tw, t1, y1 - yh, y1),
+        (SeriesLabelPosition::UpperLeft, t0, t0 + tw, y1 - yh, y1),
+        (SeriesLabelPosition::LowerRight, t1 - tw, t1, y0, y0 + yh),
+        (SeriesLabelPosition::LowerLeft, t0, t0 + tw, y0, y0 + yh),
+    ];
+    let count = |&(_, a, b, c, d): &(SeriesLabelPosition, f64, f64, f64, f64)| {
+        panel
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter())
+            .filter(|p| p.0 >= a && p.0 <= b && p.1 >= c && p.1 <= d)
+            .count()
+    };
+    // The first corner with the fewest points (upper right wins ties).
+    let mut best = (usize::MAX, SeriesLabelPosition::UpperRight);
+    for c in &corners {
+        let n = count(c);
+        if n < best.0 {
+            best = (n, c.0.clone());
+        }
+    }
+    best.1
 }
 
 fn draw_err<E: std::fmt::Debug>(figure: &str) -> impl Fn(E) -> PlotError + '_ {
@@ -166,6 +213,18 @@ where
             .y_label_area_size(62)
             .build_cartesian_2d(t0..t1, y0..y1)
             .map_err(draw_err(name))?;
+        let (xd, yd) = (decimals_for(t1 - t0), decimals_for(y1 - y0));
+        if let Some((a, b)) = panel.shade {
+            let (a, b) = (a.max(t0), b.min(t1));
+            if b > a {
+                chart
+                    .draw_series(std::iter::once(Rectangle::new(
+                        [(a, y0), (b, y1)],
+                        SHADE.filled(),
+                    )))
+                    .map_err(draw_err(name))?;
+            }
+        }
         chart
             .configure_mesh()
             .x_desc("time t [s]")
@@ -175,8 +234,8 @@ where
             .light_line_style(RGBColor(240, 240, 240))
             .x_max_light_lines(2)
             .y_max_light_lines(2)
-            .x_label_formatter(&|v| tick(*v))
-            .y_label_formatter(&|v| tick(*v))
+            .x_label_formatter(&|v| tick(*v, xd))
+            .y_label_formatter(&|v| tick(*v, yd))
             .draw()
             .map_err(draw_err(name))?;
         for s in &panel.series {
@@ -200,7 +259,7 @@ where
         }
         chart
             .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
+            .position(legend_corner(panel, (t0, t1, y0, y1)))
             .background_style(WHITE.mix(0.85))
             .border_style(RGBColor(180, 180, 180))
             .label_font(("sans-serif", 12))
@@ -275,10 +334,18 @@ fn collect(records: &[StepRecord], f: impl Fn(&StepRecord) -> f64) -> Vec<(f64, 
     records.iter().map(|r| (r.t, f(r))).collect()
 }
 
+/// Shades the time window `[from, to)` (seconds) in every panel, e.g. an occlusion.
+pub fn shade(panels: &mut [Panel], window: Option<(f64, f64)>) {
+    for p in panels {
+        p.shade = window;
+    }
+}
+
 /// The paper's Fig. 12: `l12` and `alpha12`, real / measured / estimated, and their errors.
 pub fn fig12_panels(records: &[StepRecord]) -> Vec<Panel> {
     let value_panel = |title: &str, unit: &str, i: usize| Panel {
         title: title.to_owned(),
+        shade: None,
         y_label: unit.to_owned(),
         series: vec![
             series(
@@ -303,6 +370,7 @@ pub fn fig12_panels(records: &[StepRecord]) -> Vec<Panel> {
     };
     let error_panel = |title: &str, unit: &str, i: usize| Panel {
         title: title.to_owned(),
+        shade: None,
         y_label: unit.to_owned(),
         series: vec![
             series(
@@ -334,6 +402,7 @@ pub fn fig13_panels(records: &[StepRecord]) -> Vec<Panel> {
                        real: fn(&StepRecord) -> f64,
                        est: fn(&StepRecord) -> f64| Panel {
         title: title.to_owned(),
+        shade: None,
         y_label: unit.to_owned(),
         series: vec![
             series("real", REAL, Mark::Line(2), collect(records, real)),
@@ -342,6 +411,7 @@ pub fn fig13_panels(records: &[StepRecord]) -> Vec<Panel> {
     };
     let error_panel = |title: &str, unit: &str, err: fn(&StepRecord) -> f64| Panel {
         title: title.to_owned(),
+        shade: None,
         y_label: unit.to_owned(),
         series: vec![series(
             "estimation error",
@@ -402,10 +472,65 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
     }
 
+    /// Regression (#11): the alpha12 error panel's ticks read `-0.001, -0.001, 0, 0.001,
+    /// 0.001`.
+    #[test]
+    fn tick_labels_tell_the_ticks_apart() {
+        let d = decimals_for(0.004);
+        let labels: Vec<String> = [-0.001, -0.0005, 0.0, 0.0005, 0.001]
+            .iter()
+            .map(|&v| tick(v, d))
+            .collect();
+        assert_eq!(labels, ["-0.001", "-0.0005", "0", "0.0005", "0.001"]);
+        assert_eq!(tick(1.25, decimals_for(2.0)), "1.2");
+        assert_eq!(tick(-0.0, 3), "0");
+        assert_eq!(tick(8.0, decimals_for(8.0)), "8");
+        assert_eq!(decimals_for(f64::NAN), 3);
+    }
+
+    #[test]
+    fn the_legend_goes_where_the_data_is_not() {
+        let points = |pts: &[(f64, f64)]| Panel {
+            title: "t".into(),
+            y_label: "y".into(),
+            series: vec![series("s", REAL, Mark::Line(1), pts.to_vec())],
+            shade: None,
+        };
+        let b = (0.0, 10.0, 0.0, 10.0);
+        // Data along the top: the legend goes below.
+        let top: Vec<(f64, f64)> = (0..=10).map(|t| (f64::from(t), 9.5)).collect();
+        assert!(matches!(
+            legend_corner(&points(&top), b),
+            SeriesLabelPosition::LowerRight
+        ));
+        // Data in the upper right only: the upper left is free.
+        assert!(matches!(
+            legend_corner(&points(&[(9.0, 9.0), (9.5, 9.5)]), b),
+            SeriesLabelPosition::UpperLeft
+        ));
+    }
+
+    #[test]
+    fn a_shaded_window_is_drawn() {
+        let run = reproduce(1, false).unwrap();
+        let mut panels = fig12_panels(&run.records);
+        let plain = render_rgb(&panels, (400, 300)).unwrap();
+        shade(&mut panels, Some((3.5, 4.5)));
+        let shaded = render_rgb(&panels, (400, 300)).unwrap();
+        let count = |rgb: &[u8]| {
+            rgb.chunks_exact(3)
+                .filter(|p| (p[0], p[1], p[2]) == (SHADE.0, SHADE.1, SHADE.2))
+                .count()
+        };
+        assert_eq!(count(&plain), 0);
+        assert!(count(&shaded) > 200, "{} shaded pixels", count(&shaded));
+    }
+
     #[test]
     fn an_empty_panel_is_an_error() {
         let panels = vec![Panel {
             title: "nothing".into(),
+            shade: None,
             y_label: "y [m]".into(),
             series: vec![],
         }];

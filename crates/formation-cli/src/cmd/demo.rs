@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use clap::Args as ClapArgs;
 use formation_sim::demo::{DemoConfig, DemoFrame, DemoRun, DemoSummary, run_demo_observed};
-use formation_sim::plot::{fig12_panels, fig13_panels, write_png, write_svg};
+use formation_sim::plot::{fig12_panels, fig13_panels, shade, write_png, write_svg};
 use formation_sim::reproduce::StepRecord;
 
 use super::CliError;
@@ -90,7 +90,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         saver.finish()?;
     }
     super::prepare_out_dir(&args.out.join("frames"))?;
-    write_outputs(&args.out, &run)?;
+    write_outputs(&args.out, &run, config.occlusion)?;
     super::write_stdout(format_args!(
         "{}",
         summary_text(&run.summary, started.elapsed().as_secs_f64())
@@ -103,7 +103,7 @@ fn write_file(path: &Path, bytes: &[u8]) -> Result<(), CliError> {
     std::fs::write(path, bytes).map_err(|e| format!("cannot write {}: {e}", path.display()).into())
 }
 
-fn write_outputs(out: &Path, run: &DemoRun) -> Result<(), CliError> {
+fn write_outputs(out: &Path, run: &DemoRun, occlusion: Option<(f64, f64)>) -> Result<(), CliError> {
     let json = serde_json::to_string_pretty(&run.summary)? + "\n";
     write_file(&out.join("summary.json"), json.as_bytes())?;
     write_file(&out.join("series.csv"), series_csv(run).as_bytes())?;
@@ -115,10 +115,12 @@ fn write_outputs(out: &Path, run: &DemoRun) -> Result<(), CliError> {
         } else {
             format!("-robot{}", trace.follower)
         };
-        let fig12 = fig12_panels(&records);
+        let mut fig12 = fig12_panels(&records);
+        shade(&mut fig12, occlusion);
         write_svg(&out.join(format!("fig12{suffix}.svg")), &fig12, FIGURE_SIZE)?;
         write_png(&out.join(format!("fig12{suffix}.png")), &fig12, FIGURE_SIZE)?;
-        let fig13 = fig13_panels(&records);
+        let mut fig13 = fig13_panels(&records);
+        shade(&mut fig13, occlusion);
         write_svg(&out.join(format!("fig13{suffix}.svg")), &fig13, FIGURE_SIZE)?;
         write_png(&out.join(format!("fig13{suffix}.png")), &fig13, FIGURE_SIZE)?;
     }
