@@ -157,10 +157,10 @@ fn contact_sheet(frames: &[(usize, image::RgbImage)]) -> Option<image::RgbImage>
 
 fn series_csv(run: &DemoRun) -> String {
     let mut s = String::from(
-        "follower,leader,t,l12_true,alpha12_true,beta12_true,l12_meas,alpha12_meas,beta12_meas,\
-         l12_est,alpha12_est,beta12_est,l12_std,alpha12_std,beta12_std,v1_true,w1_true,v1_est,\
-         w1_est,v1_std,w1_std,status,measurement,occluded,markers,leaders,detect_ms,pose_ms,\
-         track_ms\n",
+        "follower,leader,t,l12_true,alpha12_true,beta12_true,l12_measured,alpha12_measured,\
+         beta12_measured,l12_estimated,alpha12_estimated,beta12_estimated,l12_std,alpha12_std,\
+         beta12_std,v1_true,w1_true,v1_estimated,w1_estimated,v1_std,w1_std,status,measurement,\
+         occluded,markers,leaders,detect_ms,pose_ms,track_ms\n",
     );
     for tr in &run.traces {
         for r in &tr.records {
