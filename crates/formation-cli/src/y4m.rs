@@ -164,7 +164,8 @@ pub enum Next {
 pub struct Reader {
     inner: BufReader<Box<dyn Read>>,
     header: Header,
-    skip: Vec<u8>,
+    /// Two-byte samples of a deep luma plane, before they are narrowed to 8 bits.
+    wide: Vec<u8>,
 }
 
 impl std::fmt::Debug for Reader {
@@ -181,7 +182,7 @@ impl Reader {
         Self {
             inner,
             header,
-            skip: Vec::new(),
+            wide: Vec::new(),
         }
     }
 
@@ -226,16 +227,18 @@ impl Reader {
             colour,
             ..
         } = self.header;
-        let bytes = colour.bytes_per_sample();
-        self.skip.resize(width * height * bytes, 0);
-        if !read_full(&mut self.inner, &mut self.skip).map_err(|e| e.to_string())? {
+        let whole = if colour.bytes_per_sample() == 1 {
+            read_full(&mut self.inner, &mut luma[..width * height])
+        } else {
+            self.wide.resize(2 * width * height, 0);
+            read_full(&mut self.inner, &mut self.wide)
+        };
+        if !whole.map_err(|e| e.to_string())? {
             return Ok(Next::Truncated);
         }
-        if bytes == 1 {
-            luma.copy_from_slice(&self.skip);
-        } else {
+        if colour.bytes_per_sample() == 2 {
             let shift = colour.depth - 8;
-            for (o, s) in luma.iter_mut().zip(self.skip.chunks_exact(2)) {
+            for (o, s) in luma.iter_mut().zip(self.wide.chunks_exact(2)) {
                 *o = (u16::from_le_bytes([s[0], s[1]]) >> shift).min(255) as u8;
             }
         }

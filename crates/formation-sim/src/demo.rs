@@ -626,16 +626,15 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 fn summarize(traces: &[FollowerTrace], config: &DemoConfig, render_s: f64) -> DemoSummary {
     let records = &traces[0].records;
-    let mse = MeanSquareErrors::of(records.iter().map(|r| &r.step));
+    // The top-level figures are the first pair's.
+    let pairs: Vec<PairSummary> = traces.iter().map(PairSummary::of).collect();
+    let first = &pairs[0];
     let mut max_coast: f64 = 0.0;
-    let (mut coasting, mut occluded) = (0, 0);
+    let mut occluded = 0;
     for r in records {
         let e = r.step.estimation_error();
-        if r.status == Some(Status::Coasting) {
-            coasting += 1;
-            if e[0].is_finite() {
-                max_coast = max_coast.max(e[0].abs());
-            }
+        if r.status == Some(Status::Coasting) && e[0].is_finite() {
+            max_coast = max_coast.max(e[0].abs());
         }
         if r.occluded {
             occluded += 1;
@@ -670,18 +669,18 @@ fn summarize(traces: &[FollowerTrace], config: &DemoConfig, render_s: f64) -> De
     let total_s: f64 = pipeline_ms.iter().sum::<f64>() / 1e3;
     let frames = records.len() + 1;
     DemoSummary {
-        mse_l12: mse.estimate[0],
-        mse_alpha12: mse.estimate[1],
-        mse_beta12: mse.estimate[2],
-        mse_v1: mse.estimate[3],
-        mse_w1: mse.estimate[4],
-        mse_meas_l12: mse.measurement[0],
-        mse_meas_alpha12: mse.measurement[1],
+        mse_l12: first.mse[0],
+        mse_alpha12: first.mse[1],
+        mse_beta12: first.mse[2],
+        mse_v1: first.mse[3],
+        mse_w1: first.mse[4],
+        mse_meas_l12: first.mse_meas[0],
+        mse_meas_alpha12: first.mse_meas[1],
         frames,
-        frames_scored: records.len(),
-        frames_detected: mse.measured,
+        frames_scored: first.frames_scored,
+        frames_detected: first.frames_detected,
         frames_occluded: occluded,
-        frames_coasting: coasting,
+        frames_coasting: first.frames_coasting,
         max_coasting_error_l12: max_coast,
         reacquired_same_id,
         reacquired_after_s: first_update.zip(occlusion_end).map(|(r, b)| r.step.t - b),
@@ -696,7 +695,7 @@ fn summarize(traces: &[FollowerTrace], config: &DemoConfig, render_s: f64) -> De
         render_s,
         robots: config.robots,
         closed_loop: config.closed_loop,
-        pairs: traces.iter().map(PairSummary::of).collect(),
+        pairs,
         seed: config.render.seed,
     }
 }

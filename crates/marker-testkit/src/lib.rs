@@ -639,6 +639,9 @@ impl NotMarkers<'_> {
     /// marker of the family.
     fn rejects(&self, p: &CellPattern) -> bool {
         let (dr, dc) = (p.rows.saturating_sub(2), p.cols.saturating_sub(2));
+        if self.rows * self.cols > 64 {
+            return false; // no code of more than 64 bits reaches the test
+        }
         let bit = |r: usize, c: usize| p.cells.get((r + 1) * p.cols + c + 1) == Some(&true);
         let code = if (dr, dc) == (self.rows, self.cols) {
             (0..dr * dc)
@@ -654,7 +657,7 @@ impl NotMarkers<'_> {
         } else {
             return false;
         };
-        self.rows * self.cols <= 64 && (self.is_marker)(code)
+        (self.is_marker)(code)
     }
 }
 
