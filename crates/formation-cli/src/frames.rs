@@ -389,7 +389,24 @@ fn jpeg_is_complete(bytes: &[u8]) -> bool {
 /// Decodes an image file into the grey buffer (see [`read_grey`]).
 fn load_image(path: &Path, grey: &mut GreyImage, max_side: usize) -> Result<(), String> {
     let bytes = std::fs::read(path).map_err(|e| e.to_string())?;
-    let reader = image::ImageReader::new(std::io::Cursor::new(&bytes[..]))
+    decode_into(&bytes, grey, max_side)
+}
+
+/// Decodes the bytes of an image file (PNG, JPEG, or another format the `image` crate
+/// reads) as 8-bit grey, exactly as [`read_grey`] does for a file: for a caller whose image
+/// is already in memory (a message from a recording, a network buffer).
+///
+/// # Errors
+/// As [`read_grey`].
+pub fn decode_grey(bytes: &[u8], max_side: usize) -> Result<GreyImage, String> {
+    let mut grey = GreyImage::default();
+    decode_into(bytes, &mut grey, max_side)?;
+    Ok(grey)
+}
+
+/// Decodes image bytes into the grey buffer (see [`read_grey`]).
+fn decode_into(bytes: &[u8], grey: &mut GreyImage, max_side: usize) -> Result<(), String> {
+    let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| e.to_string())?;
     let format = reader.format().ok_or(
@@ -405,7 +422,7 @@ fn load_image(path: &Path, grey: &mut GreyImage, max_side: usize) -> Result<(), 
             "image size {w}x{h} is outside 1..={max_side} pixels a side (--max-side sets the limit)"
         ));
     }
-    if format == image::ImageFormat::Jpeg && !jpeg_is_complete(&bytes) {
+    if format == image::ImageFormat::Jpeg && !jpeg_is_complete(bytes) {
         return Err("truncated JPEG: the file ends before its end-of-image marker".into());
     }
     let img = image::DynamicImage::from_decoder(decoder).map_err(|e| e.to_string())?;
