@@ -1,5 +1,6 @@
 //! Camera models and 6-DOF pose from 2D-3D correspondences: pinhole intrinsics with skew, the
-//! OpenGL frustum of the synthetic camera, radial-tangential lens distortion, rotations by the
+//! OpenGL frustum of the synthetic camera, lens distortion (OpenCV's and ROS's `plumb_bob`,
+//! `rational_polynomial` and fisheye `equidistant` models), rotations by the
 //! exponential map, POSIT, IPPE and Levenberg-Marquardt (spec sections 2.1 and 4).
 //!
 //! # Design
@@ -78,7 +79,7 @@ pub mod so3;
 mod solve;
 
 pub use camera::{Frustum, Intrinsics};
-pub use distortion::{Distortion, UNDISTORT_MAX_ITERATIONS, UNDISTORT_TOLERANCE};
+pub use distortion::{Distortion, DistortionModel, UNDISTORT_MAX_ITERATIONS, UNDISTORT_TOLERANCE};
 pub use error::PoseError;
 pub use lm::LmConfig;
 pub use plane::{PlanarEstimate, PlanarPose, PlaneFrame};
@@ -89,7 +90,7 @@ pub use solve::{Estimate, PoseSolution, PoseSolver, SolverOptions};
 /// The types most callers need.
 pub mod prelude {
     pub use crate::{
-        Distortion, Estimate, Frustum, Intrinsics, Pose, PoseError, PoseSolution, PoseSolver,
-        SolverOptions,
+        Distortion, DistortionModel, Estimate, Frustum, Intrinsics, Pose, PoseError, PoseSolution,
+        PoseSolver, SolverOptions,
     };
 }
