@@ -127,6 +127,16 @@ pub enum PoseError {
         /// Final residual in normalised units.
         residual: f64,
     },
+    /// A marker size that is not positive and finite.
+    #[error(
+        "invalid marker size {width} x {height} m (need positive, finite side lengths in metres)"
+    )]
+    InvalidMarkerSize {
+        /// Width, metres.
+        width: f64,
+        /// Height, metres.
+        height: f64,
+    },
     /// A point lies on or behind the camera plane (z <= 0 in the camera frame).
     #[error("point {index} is behind the camera (camera-frame z = {z})")]
     PointBehindCamera {

@@ -37,6 +37,10 @@
 //! does not converge and an LM solve that runs out of iterations each have a [`PoseError`]
 //! variant; the last carries the estimate reached (`NotConverged { iterations, estimate }`).
 //!
+//! **One marker** ([`marker`]): [`PoseSolver::solve_square_marker`] gives what OpenCV's
+//! `solvePnP(..., SOLVEPNP_IPPE_SQUARE)` gives, in OpenCV's marker frame and corner order,
+//! with both candidates and the covariance.
+//!
 //! **Calibration files** (feature `calib`, on by default; pure Rust via `serde-saphyr`): OpenCV
 //! `FileStorage` YAML and ROS `camera_info` YAML, see [`calib`].
 //!
@@ -73,6 +77,7 @@ mod error;
 mod ippe;
 mod ldl;
 mod lm;
+pub mod marker;
 pub mod plane;
 mod posit;
 pub mod so3;
@@ -82,6 +87,7 @@ pub use camera::{Frustum, Intrinsics};
 pub use distortion::{Distortion, DistortionModel, UNDISTORT_MAX_ITERATIONS, UNDISTORT_TOLERANCE};
 pub use error::PoseError;
 pub use lm::LmConfig;
+pub use marker::{MarkerPose, marker_corners};
 pub use plane::{PlanarEstimate, PlanarPose, PlaneFrame};
 pub use posit::{POSIT_MAX_ITERATIONS, POSIT_TOLERANCE, posit};
 pub use so3::Pose;
@@ -90,7 +96,7 @@ pub use solve::{Estimate, PoseSolution, PoseSolver, SolverOptions};
 /// The types most callers need.
 pub mod prelude {
     pub use crate::{
-        Distortion, DistortionModel, Estimate, Frustum, Intrinsics, Pose, PoseError, PoseSolution,
-        PoseSolver, SolverOptions,
+        Distortion, DistortionModel, Estimate, Frustum, Intrinsics, MarkerPose, Pose, PoseError,
+        PoseSolution, PoseSolver, SolverOptions,
     };
 }
