@@ -12,6 +12,7 @@ mod dictionary;
 mod dukf_table;
 mod figures;
 mod random_scenes;
+mod solvepnp;
 mod unused_deps;
 
 type Result<T = ()> = std::result::Result<T, Box<dyn std::error::Error>>;
@@ -32,6 +33,9 @@ commands:
                    (--scenario FILE: that scenario file against the baselines, printed)
   unused-deps      fail if a workspace crate declares a dependency its code never names
   figures          run the demo and copy its figures into docs/img/ (the README's)
+  solvepnp         OpenCV's single-marker poses (solvePnP IPPE_SQUARE) and lens projections
+                   for pose's tests, in a Python venv under target/py-venv; writes
+                   fixtures/opencv/ (--cases FILE: corner sets to use, --out FILE)
 ";
 
 fn main() -> ExitCode {
@@ -45,6 +49,7 @@ fn main() -> ExitCode {
         Some("dukf-table") => dukf_table::run(&args[1..]),
         Some("unused-deps") => unused_deps::run(&args[1..]),
         Some("figures") => figures::run(&args[1..]),
+        Some("solvepnp") => solvepnp::run(&args[1..]),
         _ => {
             eprint!("{USAGE}");
             return ExitCode::from(2);
