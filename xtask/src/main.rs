@@ -8,6 +8,7 @@ use std::process::ExitCode;
 
 mod bench_report;
 mod detector_accuracy;
+mod dictionaries;
 mod dictionary;
 mod dukf_table;
 mod figures;
@@ -26,6 +27,8 @@ commands:
   detector-accuracy  measure the marker detector on synthetic scenes and write
                    docs/detector-accuracy.md (--quick: fewer scenes)
   dictionary       regenerate crates/fiducial/data/dict-4x5-d6.txt (--check: only compare)
+  dictionaries     regenerate the standard families' tables (crates/fiducial/data/families/)
+                   and fixtures/markers/ from OpenCV in target/py-venv (--check: only compare)
   random-scenes    score 100 seeded random scenes, write docs/random-scenes.md
                    (--count N, --seed S; --check: only compare)
   dukf-table       run the dual-UKF reproduction over seeds 1..20 (with and without
@@ -44,6 +47,7 @@ fn main() -> ExitCode {
         Some("no-c") => no_c(),
         Some("bench-report") => bench_report::run(&args[1..]),
         Some("dictionary") => dictionary::run(&args[1..]),
+        Some("dictionaries") => dictionaries::run(&args[1..]),
         Some("random-scenes") => random_scenes::run(&args[1..]),
         Some("detector-accuracy") => detector_accuracy::run(&args[1..]),
         Some("dukf-table") => dukf_table::run(&args[1..]),
