@@ -6,6 +6,7 @@
 
 use std::process::ExitCode;
 
+mod bags;
 mod bench_report;
 mod detector_accuracy;
 mod dictionary;
@@ -32,6 +33,10 @@ commands:
                    (--scenario FILE: that scenario file against the baselines, printed)
   unused-deps      fail if a workspace crate declares a dependency its code never names
   figures          run the demo and copy its figures into docs/img/ (the README's)
+  bags             write the fixture ROS 2 bags in fixtures/bags/ with the Python rosbags and
+                   mcap-ros2-support packages (venv in target/py-venv), the folder path's
+                   estimates on the same frames, and check our --mcap output with the
+                   Python mcap reader (--frames N: demo frames in demo_zstd.mcap, default 16)
 ";
 
 fn main() -> ExitCode {
@@ -45,6 +50,7 @@ fn main() -> ExitCode {
         Some("dukf-table") => dukf_table::run(&args[1..]),
         Some("unused-deps") => unused_deps::run(&args[1..]),
         Some("figures") => figures::run(&args[1..]),
+        Some("bags") => bags::run(&args[1..]),
         _ => {
             eprint!("{USAGE}");
             return ExitCode::from(2);
