@@ -14,7 +14,8 @@
 //!    `inputs.csv`, `--fps 30`) writes `demo.expected.jsonl` and `duckietown.expected.jsonl`.
 //! 4. `formation-tracker track BAG --mcap` runs on every bag, and the Python `mcap` reader
 //!    (with `mcap-ros2-support` for the CDR images) reads each output back and checks every
-//!    JSON message against its channel's JSON schema (`xtask/py/check_mcap.py`).
+//!    JSON message against its channel's JSON schema (`xtask/py/check_mcap.py`); the
+//!    demo's `demo.mcap` from step 1 too.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -271,6 +272,8 @@ pub fn run(args: &[String]) -> Result {
         )?;
         outputs.push(out);
     }
+    // The demo's own demo.mcap too.
+    outputs.push(demo_out.join("demo.mcap"));
     let status = Command::new(&python)
         .arg(root.join("xtask/py/check_mcap.py"))
         .args(&outputs)

@@ -1,6 +1,7 @@
 //! `track BAG`: the fixture bags written by Python's `mcap-ros2-support` and `rosbags`
 //! (`cargo xtask bags`) reproduce the folder path's estimates; `--mcap` output reads back;
 //! broken bags give one line naming the topic and the message, never a panic.
+#![allow(clippy::unwrap_used)] // Tests may unwrap (house rules); helpers here are test code too.
 
 mod common;
 

@@ -121,13 +121,8 @@ fn demosaic(pattern: &str, data: &[u8], step: usize, w: usize, h: usize, out: &m
                     n[c] += 1;
                 }
             }
-            let mean = |c: usize| {
-                if n[c] == 0 {
-                    0
-                } else {
-                    ((sum[c] + n[c] / 2) / n[c]) as u8
-                }
-            };
+            // Every 3x3 neighbourhood of a mosaic holds each colour at least once.
+            let mean = |c: usize| (sum[c] + n[c] / 2).checked_div(n[c]).map_or(0, |m| m as u8);
             out[y * w + x] = bt601_luma(mean(0), mean(1), mean(2));
         }
     }
