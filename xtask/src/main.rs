@@ -6,6 +6,7 @@
 
 use std::process::ExitCode;
 
+mod bags;
 mod bench_report;
 mod detector_accuracy;
 mod dictionaries;
@@ -39,6 +40,10 @@ commands:
   solvepnp         OpenCV's single-marker poses (solvePnP IPPE_SQUARE) and lens projections
                    for pose's tests, in a Python venv under target/py-venv; writes
                    fixtures/opencv/ (--cases FILE: corner sets to use, --out FILE)
+  bags             write the fixture ROS 2 bags in fixtures/bags/ with the Python rosbags and
+                   mcap-ros2-support packages (venv in target/py-venv), the folder path's
+                   estimates on the same frames, and check our --mcap output with the
+                   Python mcap reader (--frames N: demo frames in demo_zstd.mcap, default 16)
 ";
 
 fn main() -> ExitCode {
@@ -54,6 +59,7 @@ fn main() -> ExitCode {
         Some("unused-deps") => unused_deps::run(&args[1..]),
         Some("figures") => figures::run(&args[1..]),
         Some("solvepnp") => solvepnp::run(&args[1..]),
+        Some("bags") => bags::run(&args[1..]),
         _ => {
             eprint!("{USAGE}");
             return ExitCode::from(2);

@@ -22,8 +22,9 @@ const FIGURE_SIZE: (u32, u32) = (1000, 750);
 /// and re-acquisition), series.csv (one row per frame: true / measured / estimated
 /// formation variables and velocities, status, markers, timing), fig12.svg/png and
 /// fig13.svg/png (Figs. 12-13 from the vision measurements), frames/frame-NNNN.png
-/// (annotated frames, one a second) and strip.png (those frames side by side); prints a
-/// summary.
+/// (annotated frames, one a second), strip.png (those frames side by side) and demo.mcap
+/// (robot 2's camera with its markers, reprojected rigs and estimates, for Foxglove);
+/// prints a summary.
 #[derive(Debug, ClapArgs)]
 pub struct Args {
     /// Directory to write the demo's outputs into (created if missing).
@@ -61,6 +62,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         .as_deref()
         .map(FrameSaver::new)
         .transpose()?;
+    let mut mcap = McapSaver::new(&args.out.join("demo.mcap"), config.dt)?;
     let started = std::time::Instant::now();
     eprintln!(
         "demo: rendering and tracking {} s at 30 frames/s, {} robot(s){}...",
@@ -83,12 +85,14 @@ pub fn run(args: Args) -> Result<(), CliError> {
             if let Some(saver) = &mut saver {
                 saver.save(frame);
             }
+            mcap.save(frame);
         },
     )?;
     progress.finish();
     if let Some(saver) = saver {
         saver.finish()?;
     }
+    mcap.finish()?;
     super::prepare_out_dir(&args.out.join("frames"))?;
     write_outputs(&args.out, &run, config.occlusion, config.dt)?;
     super::write_stdout(format_args!(
@@ -380,6 +384,109 @@ impl FrameSaver {
             "demo: saved the raw frames of robot 2's camera to {}",
             self.dir.display()
         );
+        Ok(())
+    }
+}
+
+/// Writes robot 2's camera, tracked as `track` would track its saved frames, to
+/// `demo.mcap` (`docs/bags.md`): the frames, marker outlines and reprojected rigs, camera to
+/// leader transforms and the estimates. The first error is kept and reported at the end.
+struct McapSaver {
+    path: PathBuf,
+    dt: f64,
+    pipeline: formation_tracker::pipeline::Pipeline,
+    writer:
+        Option<formation_tracker_cli::foxglove::FoxgloveWriter<std::io::BufWriter<std::fs::File>>>,
+    error: Option<String>,
+}
+
+impl McapSaver {
+    fn new(path: &Path, dt: f64) -> Result<Self, CliError> {
+        use fiducial::{Detector, DetectorConfig, Dictionary};
+        use formation_tracker::mount::CameraMount;
+        use formation_tracker::tracker::{Tracker, TrackerConfig};
+        let camera = formation_sim::scene::CameraSpec::default();
+        let (w, h) = (camera.width as u32, camera.height as u32);
+        let intrinsics = pose::Intrinsics::from_hfov(camera.hfov_deg.to_radians(), w, h)?;
+        let calibration = pose::calib::Calibration {
+            intrinsics,
+            distortion: pose::Distortion::default(),
+            width: w,
+            height: h,
+            format: pose::calib::CalibrationFormat::Ros,
+        };
+        let rig = formation_tracker::rig::RigModel::reference();
+        let tracker = Tracker::new(TrackerConfig::reference(CameraMount::default().offset, dt))?;
+        let pipeline = formation_tracker::pipeline::Pipeline::new(
+            Detector::with_dictionary(DetectorConfig::default(), Dictionary::paper().clone()),
+            pose::PoseSolver::new(intrinsics),
+            (w, h),
+            rig.clone(),
+            formation_tracker::robots::RobotConfig::default(),
+            tracker,
+        );
+        let file = std::fs::File::create(path)
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        let writer = formation_tracker_cli::foxglove::FoxgloveWriter::new(
+            std::io::BufWriter::new(file),
+            rig,
+            calibration,
+            true,
+        )
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            dt,
+            pipeline,
+            writer: Some(writer),
+            error: None,
+        })
+    }
+
+    fn save(&mut self, frame: &DemoFrame<'_>) {
+        if frame.robot != 2 || self.error.is_some() {
+            return;
+        }
+        let Some(writer) = self.writer.as_mut() else {
+            return;
+        };
+        let t = frame.step as f64 * self.dt;
+        let (w, h) = (frame.image.width() as usize, frame.image.height() as usize);
+        let done = match self.pipeline.process(
+            frame.image.as_raw(),
+            w,
+            h,
+            t,
+            frame.inputs,
+            formation_tracker::mount::CameraMount::default(),
+        ) {
+            Ok(done) => done,
+            Err(e) => {
+                self.error = Some(format!("demo.mcap: frame {}: {e}", frame.step));
+                return;
+            }
+        };
+        let out = formation_tracker_cli::foxglove::FrameOut {
+            frame: frame.step as u64,
+            stamp_ns: (t * 1e9).round() as u64,
+            t,
+            image: Some((frame.image.as_raw(), w, h)),
+            result: &done,
+            markers: self.pipeline.markers(),
+        };
+        if let Err(e) = writer.frame(&out) {
+            self.error = Some(format!("cannot write {}: {e}", self.path.display()));
+        }
+    }
+
+    fn finish(mut self) -> Result<(), CliError> {
+        if let Some(e) = self.error {
+            return Err(e.into());
+        }
+        if let Some(w) = self.writer.take() {
+            w.finish()
+                .map_err(|e| format!("cannot write {}: {e}", self.path.display()))?;
+        }
         Ok(())
     }
 }
