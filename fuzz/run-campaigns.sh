@@ -12,7 +12,7 @@ cd "$(dirname "$0")"
 secs=${1:-600}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(detect calibration rig scene scenario inputs y4m image)
+[ ${#targets[@]} -gt 0 ] || targets=(detect calibration rig scene scenario inputs y4m image bag)
 export RUSTC_BOOTSTRAP=1
 
 # Seed corpora: the checked-in files each parser reads (the YAML/JSON bodies take a first byte
@@ -36,6 +36,10 @@ printf 'frame,v2,w2,pan\n0,0.0,0.0,0.0\n1,0.35,0.02,0.1\n' > corpus/inputs/seed-
 printf 't,w2,v2\n0.0,0.1,0.5\n0.5,0.0,0.6\n' > corpus/inputs/seed-times.csv
 { printf 'YUV4MPEG2 W4 H2 F30:1 Cmono\nFRAME\n'; printf '\x10\x20\x30\x40\x50\x60\x70\x80'; } > corpus/y4m/seed-mono.y4m
 { printf 'YUV4MPEG2 W2 H2 F30000:1001 C420jpeg\nFRAME\n'; printf '\x10\x20\x30\x40\x80\x80'; } > corpus/y4m/seed-420.y4m
+mkdir -p corpus/bag
+for f in ../fixtures/bags/*.mcap; do
+    [ "$(stat -c %s "$f")" -lt 1000000 ] && cp "$f" corpus/bag/ || true
+done
 for f in ../crates/formation-sim/assets/*.png ../docs/img/*.png; do
     [ -f "$f" ] && [ "$(stat -c %s "$f")" -lt 200000 ] && cp "$f" corpus/image/ || true
 done

@@ -167,7 +167,10 @@ fn names_resolve_case_insensitively_with_aliases() {
         Dictionary::paper()
     ));
     let err = canonical_name("tag99h1").unwrap_err().to_string();
-    assert!(err.contains("tag99h1") && err.contains("DICT_APRILTAG_36h11"), "{err}");
+    assert!(
+        err.contains("tag99h1") && err.contains("DICT_APRILTAG_36h11"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -199,8 +202,16 @@ fn index_distances_and_corrections_are_those_of_the_tables() {
     }
     // OpenCV's defaults for the families users print most.
     assert_eq!(dictionary_by_name("tag36h11").unwrap().max_correctable(), 3);
-    assert_eq!(dictionary_by_name("DICT_4X4_50").unwrap().max_correctable(), 0);
-    assert_eq!(dictionary_by_name("DICT_6X6_250").unwrap().max_correctable(), 3);
+    assert_eq!(
+        dictionary_by_name("DICT_4X4_50").unwrap().max_correctable(),
+        0
+    );
+    assert_eq!(
+        dictionary_by_name("DICT_6X6_250")
+            .unwrap()
+            .max_correctable(),
+        3
+    );
 }
 
 #[test]
@@ -226,7 +237,10 @@ fn lookup_by_flips_equals_a_scan() {
             let brute = d.nearest(read);
             if brute.distance <= d.max_correctable() {
                 let m = fast.unwrap();
-                assert_eq!((m.index, m.rotation, m.distance), (brute.index, brute.rotation, brute.distance));
+                assert_eq!(
+                    (m.index, m.rotation, m.distance),
+                    (brute.index, brute.rotation, brute.distance)
+                );
             } else {
                 assert!(fast.is_none());
             }

@@ -1,6 +1,6 @@
 //! The parser fuzz targets of `fuzz/fuzz_targets/` as stable proptests that CI runs: every
 //! parser of a user file (calibration YAML, rig files, scene files, scenario files, the
-//! inputs CSV, y4m streams, image files) gets arbitrary bytes and valid files with random
+//! inputs CSV, y4m streams, image files, ROS 2 bags) gets arbitrary bytes and valid files with random
 //! edits, through the same bodies (`tests/fuzz_body/`) as the fuzz targets: never a panic,
 //! and what a parser accepts is usable. The long campaigns (`fuzz/run-campaigns.sh`) and
 //! what they found are recorded in docs/reliability.md.
@@ -192,6 +192,27 @@ proptest! {
     }
 }
 
+/// The smaller fixture bag (lz4 chunks, the demo's frames): edits of its bytes reach the
+/// MCAP records, the chunk decompression, the CDR messages and the images.
+const BAG: &[u8] = include_bytes!("../../../fixtures/bags/demo_lz4.mcap");
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(32))]
+
+    #[test]
+    fn bags(edits in prop::collection::vec(edit(), 0..6),
+            cut in any::<usize>(),
+            noise in prop::collection::vec(any::<u8>(), 0..512)) {
+        // Edits anywhere, and the same edits on a file cut short (a recording that stopped).
+        let edited = apply(BAG, &edits);
+        let _ = fuzz_body::bag::run(&edited);
+        let _ = fuzz_body::bag::run(&edited[..cut % (edited.len() + 1)]);
+        let mut magic = b"\x89MCAP0\r\n".to_vec();
+        magic.extend_from_slice(&noise);
+        let _ = fuzz_body::bag::run(&magic);
+    }
+}
+
 #[test]
 fn the_seeds_are_accepted() {
     // The edits start from inputs the parsers accept, so the proptests explore near them.
@@ -223,6 +244,11 @@ fn the_seeds_are_accepted() {
         );
         assert!(header.is_ok(), "{colour}: {header:?}");
     }
+    assert_eq!(
+        fuzz_body::bag::run(BAG),
+        2,
+        "both frames of the seed bag are read"
+    );
     for format in [image::ImageFormat::Png, image::ImageFormat::Jpeg] {
         let img = formation_tracker_cli::frames::decode_grey(&image_bytes(format), 64).unwrap();
         assert_eq!((img.width, img.height, img.data.len()), (24, 16, 24 * 16));

@@ -5,6 +5,7 @@
 //! parser, so that each fuzz target includes only its own body with `#[path]`.
 #![allow(dead_code)] // each test binary uses its own subset
 
+pub mod bag;
 pub mod calibration;
 pub mod image;
 pub mod inputs;

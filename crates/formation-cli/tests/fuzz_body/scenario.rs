@@ -1,6 +1,6 @@
 //! Scenario files (YAML or JSON, `formation_sim::scenario_file::ScenarioSpec`): never a
-//! panic, and an accepted scenario has a positive frame rate and duration and finite leader
-//! inputs over its whole run.
+//! panic, and an accepted scenario has a positive frame rate and duration, a bounded number
+//! of steps, and finite leader inputs over its whole run.
 
 use std::path::Path;
 
@@ -15,8 +15,9 @@ pub fn run(data: &[u8]) {
     };
     assert!(spec.frame_rate.is_finite() && spec.frame_rate > 0.0);
     assert!(spec.duration.is_finite() && spec.duration > 0.0);
+    assert!(spec.duration * spec.frame_rate <= formation_sim::scenario_file::MAX_STEPS);
     for k in 0..=16 {
-        let t = spec.duration * f64::from(k) / 16.0;
+        let t = spec.duration * (f64::from(k) / 16.0);
         let u = spec.leader_inputs(t);
         assert!(
             u.v.is_finite() && u.w.is_finite(),
