@@ -513,6 +513,9 @@ fn follower_scene(world: &World<'_>, ctx: &StepContext<'_>, me: usize) -> SceneS
     }
 }
 
+/// An annotated strip frame and the `robot/face` labels of the markers read in it.
+type Annotated = (image::RgbImage, Vec<String>);
+
 impl Follower {
     /// Renders and processes follower `me`'s frame, records it (after `t = 0`) and sets the
     /// inputs for the next interval. `leader_now` is the leader's input for that interval.
@@ -524,14 +527,7 @@ impl Follower {
         ctx: &StepContext<'_>,
         me: usize,
         leader_now: Inputs,
-    ) -> Result<
-        (
-            f64,
-            Option<(image::RgbImage, Vec<String>)>,
-            image::GrayImage,
-        ),
-        DemoError,
-    > {
+    ) -> Result<(f64, Option<Annotated>, image::GrayImage), DemoError> {
         let ahead = me - 1;
         let d = world.mount.offset;
         let (width, height) = (world.camera.width, world.camera.height);
@@ -614,7 +610,7 @@ impl Follower {
         world: &World<'_>,
         frame: &image::GrayImage,
         robots: &[formation_tracker::robots::RobotMeasurement],
-    ) -> Result<(image::RgbImage, Vec<String>), DemoError> {
+    ) -> Result<Annotated, DemoError> {
         let markers: Vec<MarkerLabel> = self
             .pipeline
             .markers()

@@ -431,7 +431,11 @@ mod tests {
             ),
             ("value: 0.1", "value: -101", "beyond 100"),
             ("duration: 1.0", "duration: 1e308", "steps"),
-            ("frame_rate: 30", "frame_rate: 1e9", "10000 frames per second"),
+            (
+                "frame_rate: 30",
+                "frame_rate: 1e9",
+                "10000 frames per second",
+            ),
         ] {
             let bad = MINIMAL.replace(from, to);
             let err = ScenarioSpec::parse(&bad, false, Path::new("x.yaml"))
