@@ -174,3 +174,61 @@ fn bad_marker_sizes_are_usage_errors() {
         );
     }
 }
+
+#[test]
+fn a_fisheye_calibration_works_end_to_end() {
+    // The ROS equidistant (fisheye) fixture is for 1280x800 frames; a marker near the image
+    // centre, where the lens is nearly a pinhole, gets a pose in front of the camera.
+    let d = dir("marker-pose-fisheye");
+    let png = d.join("frame.png");
+    let dict = Dictionary::paper();
+    let m = render_marker(
+        dict.family(),
+        dict.code(3).unwrap(),
+        &RenderOptions {
+            px_per_cell: 10,
+            quiet_cells: 2,
+        },
+    )
+    .unwrap();
+    let mut img = image::GrayImage::from_pixel(1280, 800, image::Luma([255]));
+    let (x0, y0) = (640 - m.width() as u32 / 2, 400 - m.height() as u32 / 2);
+    for y in 0..m.height() {
+        for x in 0..m.width() {
+            img.put_pixel(
+                x0 + x as u32,
+                y0 + y as u32,
+                image::Luma([m.pixels()[y * m.width() + x]]),
+            );
+        }
+    }
+    img.save(&png).unwrap();
+    let camera = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures/calibration/ros_equidistant.yaml");
+    let (wc, hc) = (dict.family().width_cells(), dict.family().height_cells());
+    let size = format!("{}x{}", f64::from(wc) * 0.02, f64::from(hc) * 0.02);
+    let out = common::run(
+        &d,
+        &[
+            "detect",
+            "frame.png",
+            "--camera",
+            camera.to_str().unwrap(),
+            "--json",
+            "--marker-size",
+            &size,
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let line: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let pose = &line["markers"][0]["pose"];
+    assert!(pose["translation"][2].as_f64().unwrap() > 0.3, "{line}");
+    assert!(
+        pose["reprojection_rms_px"].as_f64().unwrap() < 1.0,
+        "{line}"
+    );
+}

@@ -103,7 +103,7 @@ pub struct CandidateOut {
     pub rotation: [f64; 3],
     /// The marker's centre in the camera frame, metres.
     pub translation: [f64; 3],
-    /// RMS over the four corners (undistorted), pixels.
+    /// RMS over the four corners as detected, pixels.
     pub reprojection_rms_px: f64,
 }
 
@@ -114,7 +114,7 @@ pub struct MarkerPoseOut {
     pub rotation: [f64; 3],
     /// The marker's centre in the camera frame, metres.
     pub translation: [f64; 3],
-    /// RMS over the four corners (undistorted), pixels.
+    /// RMS over the four corners as detected, pixels.
     pub reprojection_rms_px: f64,
     /// The other planar candidate (the "flip"); equal to the pose when there is none.
     pub alternative: CandidateOut,
