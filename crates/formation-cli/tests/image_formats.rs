@@ -224,3 +224,23 @@ fn exif_orientation_is_applied() {
         }
     }
 }
+
+#[test]
+fn a_20_megapixel_frame_loads() {
+    // 5472x3648 (20 MP, a common sensor) with an EXIF-free JPEG of it: sizes from the header.
+    let (w, h) = (5472u32, 3648u32);
+    let img = ImageBuffer::from_fn(w, h, |x, y| {
+        Luma([if x < w / 2 && y < h / 2 { 40u8 } else { 220 }])
+    });
+    let path = dir().join("20mp.jpg");
+    let mut bytes = Vec::new();
+    img.write_with_encoder(image::codecs::jpeg::JpegEncoder::new_with_quality(
+        &mut bytes, 80,
+    ))
+    .unwrap();
+    std::fs::write(&path, bytes).unwrap();
+    let g = read_grey(&path).unwrap();
+    assert_eq!((g.width, g.height), (w as usize, h as usize));
+    assert_eq!(g.data.len(), (w * h) as usize);
+    assert_eq!(dark_quadrant(&g), 0);
+}
