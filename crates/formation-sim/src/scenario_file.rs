@@ -119,6 +119,44 @@ impl Term {
     }
 }
 
+/// Largest magnitude of a leader input term's value (a constant, a sine's amplitude, a
+/// step's value): m/s for `v`, rad/s for `w`. No ground robot moves at 100 m/s or turns at
+/// 100 rad/s; the bound keeps every sum of terms finite.
+pub const MAX_INPUT: f64 = 100.0;
+
+/// Largest angular frequency of a sine term, rad/s.
+pub const MAX_OMEGA: f64 = 1000.0;
+
+/// Most simulation steps a scenario may take (`duration * frame_rate`): the run keeps a
+/// record per step.
+pub const MAX_STEPS: f64 = 1.0e6;
+
+impl Term {
+    /// Checks the magnitudes against [`MAX_INPUT`] and [`MAX_OMEGA`], naming the field.
+    fn check_bounds(&self, name: &str) -> Result<(), ScenarioFileError> {
+        let (value, omega) = match *self {
+            Self::Constant(c) => (c, 0.0),
+            Self::Sine {
+                amplitude, omega, ..
+            } => (amplitude, omega),
+            Self::Step { value, .. } => (value, 0.0),
+        };
+        if value.abs() > MAX_INPUT {
+            return Err(field(
+                name,
+                format!("{value} is beyond {MAX_INPUT} (m/s or rad/s)"),
+            ));
+        }
+        if omega.abs() > MAX_OMEGA {
+            return Err(field(
+                name,
+                format!("angular frequency {omega} is beyond {MAX_OMEGA} rad/s"),
+            ));
+        }
+        Ok(())
+    }
+}
+
 fn sum(terms: &[Term], t: f64) -> f64 {
     terms.iter().fold(0.0, |acc, term| acc + term.at(t))
 }
@@ -223,11 +261,23 @@ impl ScenarioSpec {
         if !(self.camera_offset.is_finite() && self.camera_offset > 0.0) {
             return Err(field("camera_offset", "must be finite and > 0"));
         }
-        if !(self.frame_rate.is_finite() && self.frame_rate > 0.0) {
-            return Err(field("frame_rate", "must be finite and > 0"));
+        if !(self.frame_rate.is_finite() && (0.001..=10_000.0).contains(&self.frame_rate)) {
+            return Err(field(
+                "frame_rate",
+                "must be from 0.001 to 10000 frames per second",
+            ));
         }
         if !(self.duration.is_finite() && self.duration > 0.0) {
             return Err(field("duration", "must be finite and > 0"));
+        }
+        if self.duration * self.frame_rate > MAX_STEPS {
+            return Err(field(
+                "duration",
+                format!(
+                    "{} s at {} frames/s is more than {MAX_STEPS} steps",
+                    self.duration, self.frame_rate
+                ),
+            ));
         }
         finite("follower", &self.follower)?;
         finite("leader", &self.leader)?;
@@ -241,6 +291,7 @@ impl ScenarioSpec {
         ] {
             for term in terms {
                 finite(name, &term.values())?;
+                term.check_bounds(name)?;
             }
         }
         for (i, s) in self.setpoints.iter().enumerate() {
@@ -364,6 +415,30 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("cosine"), "{err}");
+    }
+
+    /// Found by the parser fuzz test: terms of 1e308 passed the finiteness check, and their
+    /// sum (or `omega t`) made the leader's inputs infinite or NaN; a duration of 1e308 s
+    /// would have simulated without end.
+    #[test]
+    fn inputs_and_durations_no_robot_has_are_refused() {
+        for (from, to, what) in [
+            ("constant: 0.8", "constant: 1e308", "leader_inputs.v"),
+            (
+                "{step: {at: 0.5, value: 0.1}}",
+                "{sine: {amplitude: 1, omega: 1e300}}",
+                "angular frequency",
+            ),
+            ("value: 0.1", "value: -101", "beyond 100"),
+            ("duration: 1.0", "duration: 1e308", "steps"),
+            ("frame_rate: 30", "frame_rate: 1e9", "10000 frames per second"),
+        ] {
+            let bad = MINIMAL.replace(from, to);
+            let err = ScenarioSpec::parse(&bad, false, Path::new("x.yaml"))
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains(what), "{to}: {err}");
+        }
     }
 
     #[test]
