@@ -354,8 +354,10 @@ impl FrameSource {
 /// Reads an image file as 8-bit grey, the way every command does: the format is taken from
 /// the file's content (not its extension), the size from its header before decoding (at
 /// most [`MAX_SIDE`] a side), a JPEG that ends before its end-of-image marker is an error
-/// (decoders would return a partly grey image), and colour is converted with the BT.601
-/// weights.
+/// (decoders would return a partly grey image), colour is converted with the BT.601
+/// weights (alpha ignored), 16-bit samples are scaled to 8 bits, and the EXIF Orientation
+/// tag (1-8) is applied, so the image is the one a viewer shows. Memory is linear in the
+/// image size: the file's bytes, the decoded image and the grey buffer.
 ///
 /// # Errors
 /// One line saying why the file cannot be used.
@@ -419,7 +421,7 @@ pub(crate) fn decode_image(
          the `image` crate knows)",
     )?;
     // One decoder: the size from its header is checked before anything is decoded.
-    let decoder = reader.into_decoder().map_err(|e| e.to_string())?;
+    let mut decoder = reader.into_decoder().map_err(|e| e.to_string())?;
     let (w, h) = image::ImageDecoder::dimensions(&decoder);
     let (w, h) = (w as usize, h as usize);
     if w == 0 || h == 0 || w > max_side || h > max_side {
@@ -430,7 +432,14 @@ pub(crate) fn decode_image(
     if format == image::ImageFormat::Jpeg && !jpeg_is_complete(bytes) {
         return Err("truncated JPEG: the file ends before its end-of-image marker".into());
     }
-    let img = image::DynamicImage::from_decoder(decoder).map_err(|e| e.to_string())?;
+    // The EXIF Orientation tag (1-8; JPEG APP1, PNG eXIf): cameras store the sensor's
+    // rows and say how to turn them; the detector must see the picture as it is shown. An
+    // unreadable tag is taken as "no rotation", as viewers do.
+    let orientation = image::ImageDecoder::orientation(&mut decoder)
+        .unwrap_or(image::metadata::Orientation::NoTransforms);
+    let mut img = image::DynamicImage::from_decoder(decoder).map_err(|e| e.to_string())?;
+    img.apply_orientation(orientation);
+    let (w, h) = (img.width() as usize, img.height() as usize);
     let out = grey.reshape(w, h);
     let luma = bt601_luma;
     match &img {

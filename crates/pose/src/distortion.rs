@@ -374,6 +374,26 @@ impl Distortion {
         }
     }
 
+    /// The distorted point and the 2x2 Jacobian of [`Distortion::distort`] at `n`.
+    #[inline]
+    pub(crate) fn distort_with_jacobian(&self, n: &Point2<f64>) -> (Point2<f64>, Matrix2<f64>) {
+        if let Some(c) = self.polynomial() {
+            return polynomial_distort(&c, n);
+        }
+        let r = n.x.hypot(n.y);
+        if r < 1e-8 {
+            return (*n, Matrix2::identity());
+        }
+        // d = s(r) n with s = theta_d(atan r) / r: J = s I + (ds/dr / r) n n^T.
+        let theta = r.atan();
+        let (theta_d, dtheta_d) = self.fisheye_theta_d(theta);
+        let s = theta_d / r;
+        let ds = (dtheta_d / (1.0 + r * r) * r - theta_d) / (r * r);
+        let v = Vector2::new(n.x, n.y);
+        let j = Matrix2::identity() * s + v * v.transpose() * (ds / r);
+        (Point2::new(n.x * s, n.y * s), j)
+    }
+
     /// Fisheye `theta_d(theta)` and its derivative.
     #[inline]
     fn fisheye_theta_d(&self, theta: f64) -> (f64, f64) {

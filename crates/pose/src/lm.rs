@@ -31,7 +31,7 @@
 //! of `max_iterations` [100] returns [`PoseError::NotConverged`] carrying the last estimate.
 
 use crate::ldl::Ldl;
-use crate::{Intrinsics, Pose, PoseError, so3};
+use crate::{Distortion, Intrinsics, Pose, PoseError, so3};
 use nalgebra::{Matrix2x3, Matrix3, Matrix6, Point2, Point3, SMatrix, SVector, Vector6};
 
 /// Levenberg-Marquardt settings. `Default` gives the documented defaults.
@@ -126,6 +126,50 @@ impl LeastSquares<6> for Reprojection<'_> {
     }
 }
 
+/// The 6-DOF pose problem with the residual in distorted (detected) pixels: model points
+/// project through the pinhole, then the lens model, then `K`, and are compared with the
+/// pixels as detected. This is the objective of OpenCV's `solvePnP` refinement and the
+/// maximum-likelihood one when the detector's noise is in its own pixels.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct DistortedReprojection<'a> {
+    pub k: &'a Intrinsics,
+    pub distortion: &'a Distortion,
+    pub model: &'a [Point3<f64>],
+    pub image: &'a [Point2<f64>],
+}
+
+impl LeastSquares<6> for DistortedReprojection<'_> {
+    type Params = Pose;
+
+    #[inline]
+    fn to_vector(p: &Pose) -> Vector6<f64> {
+        p.to_params()
+    }
+
+    #[inline]
+    fn from_vector(v: &Vector6<f64>) -> Pose {
+        Pose::from_params(v)
+    }
+
+    #[inline]
+    fn normalized(p: &Pose) -> Pose {
+        p.normalized()
+    }
+
+    fn normal_equations(&self, p: &Pose) -> Result<Normal<6>, (usize, f64)> {
+        let m = self.k.matrix();
+        let k2 = nalgebra::Matrix2::new(m[(0, 0)], m[(0, 1)], 0.0, m[(1, 1)]);
+        let (k, d) = (self.k, self.distortion);
+        normal_equations_with(self.model, self.image, p, |pc| {
+            let iz = 1.0 / pc.z;
+            let n = Point2::new(pc.x * iz, pc.y * iz);
+            let (dn, jd) = d.distort_with_jacobian(&n);
+            let jn = Matrix2x3::new(iz, 0.0, -n.x * iz, 0.0, iz, -n.y * iz);
+            (k.normalized_to_pixel(&dn), k2 * jd * jn)
+        })
+    }
+}
+
 /// Reprojection residuals and normal equations at `pose`. `Err(index, z)` names the first
 /// point on or behind the camera plane.
 pub(crate) fn normal_equations(
@@ -133,6 +177,23 @@ pub(crate) fn normal_equations(
     model: &[Point3<f64>],
     image: &[Point2<f64>],
     pose: &Pose,
+) -> Result<Normal<6>, (usize, f64)> {
+    normal_equations_with(model, image, pose, |pc| {
+        (
+            k.normalized_to_pixel(&Point2::new(pc.x / pc.z, pc.y / pc.z)),
+            k.projection_jacobian(pc),
+        )
+    })
+}
+
+/// [`normal_equations`] for any projection: `project(pc)` gives the pixel of a camera-frame
+/// point in front of the camera and its 2x3 Jacobian.
+#[inline]
+fn normal_equations_with(
+    model: &[Point3<f64>],
+    image: &[Point2<f64>],
+    pose: &Pose,
+    project: impl Fn(&Point3<f64>) -> (Point2<f64>, Matrix2x3<f64>),
 ) -> Result<Normal<6>, (usize, f64)> {
     let (r, jl) = so3::exp_and_left_jacobian(&pose.rotation);
     // Local-frame accumulation: blocks [rot | trans] with rot = J_proj [-Rp]x.
@@ -148,10 +209,9 @@ pub(crate) fn normal_equations(
         if pc.z.is_nan() || pc.z <= 0.0 {
             return Err((i, pc.z));
         }
-        let proj = k.normalized_to_pixel(&Point2::new(pc.x / pc.z, pc.y / pc.z));
+        let (proj, jp) = project(&pc);
         let e = nalgebra::Vector2::new(proj.x - m.x, proj.y - m.y);
         sse += e.norm_squared();
-        let jp: Matrix2x3<f64> = k.projection_jacobian(&pc);
         // Row a of J_proj times -[Rp]x is (Rp x a)^T.
         let (a0, a1) = (jp.row(0).transpose(), jp.row(1).transpose());
         let jr: Matrix2x3<f64> =

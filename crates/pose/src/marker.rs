@@ -12,7 +12,12 @@
 //! lens model, IPPE's two planar candidates in closed form, each refined by
 //! Levenberg-Marquardt; the better is [`MarkerPose::best`], the other
 //! [`MarkerPose::alternative`] (a marker seen nearly face-on at a distance has two poses
-//! that fit almost equally well: the "flip").
+//! that fit almost equally well: the "flip"). With a lens model, each candidate is then
+//! refined once more with the error measured in the detected (distorted) pixels, as OpenCV's
+//! `solvePnP` does: that is where the detector's noise is, so it is the maximum-likelihood
+//! pose, and the RMS and covariance are those of the detected corners. (Without it the two
+//! objectives differ by up to ~0.1 degree for a small marker near the corner of a strongly
+//! distorted image.)
 
 use crate::{Estimate, PoseError, PoseSolver};
 use nalgebra::{Point2, Point3};
@@ -36,7 +41,7 @@ pub fn marker_corners(width: f64, height: f64) -> Result<[Point3<f64>; 4], PoseE
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MarkerPose {
     /// The candidate with the lower reprojection RMS: marker frame to camera frame, its RMS
-    /// (pixels, over the four undistorted corners) and its 6x6 covariance of
+    /// (pixels, over the four corners as detected) and its 6x6 covariance of
     /// `[wx, wy, wz, tx, ty, tz]` (see [`Estimate`]).
     pub best: Estimate,
     /// The other IPPE candidate after its own refinement. When only one candidate could be
@@ -81,7 +86,8 @@ impl PoseSolver {
         height: f64,
     ) -> Result<MarkerPose, PoseError> {
         let model = marker_corners(width, height)?;
-        let [best, alternative] = self.planar_candidates(&model, corners)?;
+        let candidates = self.planar_candidates(&model, corners)?;
+        let [best, alternative] = self.refine_in_detected_pixels(&model, corners, candidates);
         Ok(MarkerPose { best, alternative })
     }
 }

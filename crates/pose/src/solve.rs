@@ -319,6 +319,40 @@ impl PoseSolver {
         })
     }
 
+    /// With a lens model set, refines each candidate (from the solve on undistorted pixels)
+    /// once more with the residual in the detected, distorted pixels `image`, and reorders
+    /// them (see `lm::DistortedReprojection`); the RMS and covariance are then those of the
+    /// detected pixels. A candidate whose refinement fails keeps its first estimate. Without
+    /// a lens model the candidates are returned as they are.
+    pub(crate) fn refine_in_detected_pixels(
+        &self,
+        model: &[Point3<f64>],
+        image: &[Point2<f64>],
+        candidates: [Estimate; 2],
+    ) -> [Estimate; 2] {
+        let Some(d) = &self.distortion else {
+            return candidates;
+        };
+        let problem = lm::DistortedReprojection {
+            k: &self.intrinsics,
+            distortion: d,
+            model,
+            image,
+        };
+        let [a, b] = candidates.map(|c| {
+            let refined = match lm::refine(&problem, &c.pose, &self.options.lm) {
+                Ok(Ok(r)) => self.estimate(r.pose, &r.normal, r.iterations, true, model.len()),
+                Ok(Err(u)) => self.estimate(u.pose, &u.normal, u.iterations, false, model.len()),
+                Err(e) => Err(e),
+            };
+            match refined {
+                Ok(e) if e.converged || !c.converged => e,
+                _ => c,
+            }
+        });
+        if rank(&b) < rank(&a) { [b, a] } else { [a, b] }
+    }
+
     /// LM from `initial`; a non-converged solve is an error carrying its estimate.
     fn refine_checked(
         &self,

@@ -41,6 +41,14 @@ fn solves_do_not_allocate() {
     let rig_px = project_all(&k, &rig_pose, &rig);
     let d = Distortion::plumb_bob(-0.1, 0.02, 0.001, 0.0, 0.0).unwrap();
     let rig_px_distorted: Vec<_> = rig_px.iter().map(|m| d.distort_pixel(&k, m)).collect();
+    // One 100 mm marker 0.8 m ahead, through the lens (OpenCV's marker frame).
+    let marker_pose = pose::Pose::new(
+        nalgebra::Vector3::new(3.0, 0.1, -0.2),
+        nalgebra::Vector3::new(0.05, -0.03, 0.8),
+    );
+    let marker_px: [nalgebra::Point2<f64>; 4] = pose::marker_corners(0.1, 0.1)
+        .unwrap()
+        .map(|p| d.distort_pixel(&k, &k.project(&marker_pose.transform_point(&p)).unwrap()));
     let solver = PoseSolver::new(k);
     let with_lens = PoseSolver::new(k).with_distortion(d);
     // The rig standing at the origin of a plane whose frame is the rig's own.
@@ -61,8 +69,10 @@ fn solves_do_not_allocate() {
     let e = with_lens.solve(&rig, &rig_px_distorted);
     let f = solver.planar_candidates(&face, &face_px);
     let g = solver.refine_on_plane(&plane, &rig, &rig_px, &start);
+    let h = with_lens.solve_square_marker(&marker_px, 0.1);
     let after = ALLOCATIONS.load(Ordering::SeqCst);
     assert!(a.is_ok() && b.is_ok() && c.is_ok() && e.is_ok() && f.is_ok());
+    assert!(h.is_ok(), "{h:?}");
     let g = g.expect("the rig on its plane");
     assert!(g.converged && g.pose.to_vector().norm() < 1e-9, "{g:?}");
     assert_eq!(

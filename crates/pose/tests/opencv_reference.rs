@@ -3,10 +3,11 @@
 //! `solvepnp_cases.json`, OpenCV's answers in `solvepnp_opencv.json`).
 //!
 //! OpenCV's poses are `solvePnPGeneric(..., SOLVEPNP_IPPE_SQUARE)`, each solution refined by
-//! `solvePnPRefineLM` (IPPE alone does not minimise the reprojection error, our solver does):
-//! once OpenCV's own way, with the distortion handed to `solvePnP` so the error is minimised in
-//! distorted pixels (checked to 1 mm and 0.15 degree, see the test), and once on corners undistorted to
-//! convergence, the objective our solver minimises (the same minima, checked to 1 um).
+//! `solvePnPRefineLM` (IPPE alone does not minimise the reprojection error, our solver does),
+//! with the distortion handed to `solvePnP` so the error is minimised in detected pixels, as
+//! ours is: checked to 1 mm and 0.1 degree, and to 10 um and 0.01 degree (both candidates), for
+//! the pinhole, plumb-bob and rational lenses; OpenCV's `solvePnP` has no fisheye model, so
+//! its fisheye poses (from corners undistorted first) are checked to 1 mm and 0.15 degree.
 
 use nalgebra::{Matrix3, Point2, Point3, Vector3};
 use pose::{Distortion, Intrinsics, Pose, PoseSolver};
@@ -50,6 +51,7 @@ fn single_marker_poses_match_opencv() {
     let cameras = cases["cameras"].as_array().unwrap();
     let (mut worst_t, mut worst_r) = (0.0f64, 0.0f64);
     let (mut same_t, mut same_r) = (0.0f64, 0.0f64);
+    let (mut fish_t, mut fish_r) = (0.0f64, 0.0f64);
     let mut alternatives = 0;
     let cv_cases = opencv["cases"].as_array().unwrap();
     assert_eq!(cv_cases.len(), cases["cases"].as_array().unwrap().len());
@@ -86,34 +88,48 @@ fn single_marker_poses_match_opencv() {
                 a.rotation_angle_to(b).to_degrees(),
             )
         };
-        // OpenCV's own way. Its refinement minimises the error in distorted pixels, ours in
-        // ideal (undistorted) pixels: with 0.2 px noise the two minima differ, most for small
-        // markers near the corners of a strongly distorted image (0.11 degrees at worst here,
-        // a 65 mm marker at k1 = -0.25), so the rotation bound is 0.15 degrees, not 0.1.
+        // OpenCV's own way, for every lens: to 1 mm and 0.1 degree. OpenCV's solvePnP takes no
+        // fisheye model, so its fisheye poses minimise the error in undistorted pixels, ours in
+        // detected ones: with 0.2 px noise the two minima differ by up to ~0.1 degree (0.102
+        // at worst here), so the fisheye bound is 0.15 degree.
+        let fisheye = cam["distortion_model"] == "equidistant";
         let (dt, dr) = diff(&ours.best.pose, &pose_of("solutions", 0));
-        assert!(dt < 1e-3 && dr < 0.15, "{}: {dt} m, {dr} deg", case["name"]);
-        (worst_t, worst_r) = (worst_t.max(dt), worst_r.max(dr));
-        // The same objective as ours (ideal pixels): the same minima, both candidates.
-        let (dt, dr) = diff(&ours.best.pose, &pose_of("undistorted_solutions", 0));
-        assert!(dt < 1e-5 && dr < 1e-2, "{}: {dt} m, {dr} deg", case["name"]);
-        (same_t, same_r) = (same_t.max(dt), same_r.max(dr));
-        if ours.ambiguity_ratio().is_some() {
-            let (dt, dr) = diff(&ours.alternative.pose, &pose_of("undistorted_solutions", 1));
-            assert!(
-                dt < 1e-5 && dr < 1e-2,
-                "{} alternative: {dt} m, {dr} deg",
-                case["name"]
-            );
-            let theirs = cv["undistorted_solutions"][1]["rms_px"].as_f64().unwrap();
-            assert!(
-                (ours.alternative.rms - theirs).abs() < 1e-4,
-                "{}",
-                case["name"]
-            );
-            alternatives += 1;
+        let bound = if fisheye { 0.15 } else { 0.1 };
+        assert!(
+            dt < 1e-3 && dr < bound,
+            "{}: {dt} m, {dr} deg",
+            case["name"]
+        );
+        if fisheye {
+            (fish_t, fish_r) = (fish_t.max(dt), fish_r.max(dr));
+        } else {
+            (worst_t, worst_r) = (worst_t.max(dt), worst_r.max(dr));
         }
-        let theirs = cv["undistorted_solutions"][0]["rms_px"].as_f64().unwrap();
-        assert!((ours.best.rms - theirs).abs() < 1e-6, "{}", case["name"]);
+        // For the polynomial lenses OpenCV's refinement minimises the same objective as ours
+        // (the error in detected pixels): the same minima, both candidates, the same RMS.
+        if !fisheye {
+            let (dt, dr) = diff(&ours.best.pose, &pose_of("solutions", 0));
+            assert!(dt < 1e-5 && dr < 1e-2, "{}: {dt} m, {dr} deg", case["name"]);
+            (same_t, same_r) = (same_t.max(dt), same_r.max(dr));
+            let theirs = cv["solutions"][0]["rms_px"].as_f64().unwrap();
+            assert!((ours.best.rms - theirs).abs() < 1e-4, "{}", case["name"]);
+            if ours.ambiguity_ratio().is_some() {
+                let (dt, dr) = diff(&ours.alternative.pose, &pose_of("solutions", 1));
+                assert!(
+                    dt < 1e-5 && dr < 1e-2,
+                    "{} alternative: {dt} m, {dr} deg",
+                    case["name"]
+                );
+                let theirs = cv["solutions"][1]["rms_px"].as_f64().unwrap();
+                assert!(
+                    (ours.alternative.rms - theirs).abs() < 1e-4,
+                    "{}",
+                    case["name"]
+                );
+                (same_t, same_r) = (same_t.max(dt), same_r.max(dr));
+                alternatives += 1;
+            }
+        }
         // Both near the truth the corners were made from (0.2 px noise).
         let truth = Pose::new(
             vec3(&case["truth"]["rotation"]),
@@ -127,9 +143,9 @@ fn single_marker_poses_match_opencv() {
         );
     }
     eprintln!(
-        "worst difference to OpenCV: {worst_t:e} m, {worst_r:e} deg; same objective: {same_t:e} m, {same_r:e} deg; {alternatives} alternatives compared"
+        "worst difference to OpenCV: {worst_t:e} m, {worst_r:e} deg (to 1e-5 m, 1e-2 deg: {same_t:e} m, {same_r:e} deg, {alternatives} alternatives too); fisheye {fish_t:e} m, {fish_r:e} deg"
     );
-    assert!(alternatives >= 20);
+    assert!(alternatives >= 15, "{alternatives}");
 }
 
 #[test]

@@ -5,7 +5,8 @@
 //! image's path and size, the markers read (code, robot and face from the rig mapping,
 //! Hamming distance corrected, sub-pixel corners NW, NE, SE, SW in pixel-centre convention),
 //! `robots` (with `--camera`: one joint pose per robot and its formation variables, see
-//! `detect_robots.rs`; empty otherwise) and `timing.detect_ms`: the
+//! `detect_robots.rs`; empty otherwise), with `--marker-size` each marker's own `pose`
+//! (`marker_pose.rs`; `null` otherwise) and `timing.detect_ms`: the
 //! detector's own time for the image, decoding excluded (quad finding, timed around
 //! `Detector::find_quads`). Without `--json`, a short listing. An unreadable file gets one
 //! error line on stderr and the others are still processed; the exit code is then non-zero.
@@ -35,6 +36,12 @@ pub struct Args {
     #[arg(long, value_name = "PX", default_value_t = formation_tracker_cli::frames::MAX_SIDE,
           value_parser = super::numbers::max_side)]
     pub max_side: usize,
+    /// Size of the markers, metres, for a `pose` per marker (needs `--camera`):
+    /// `--marker-size 0.065` for all, `--marker-size 12=0.15` for dictionary index 12,
+    /// `WxH` for a rectangular marker. Repeat as needed.
+    #[arg(long, value_name = "[ID=]METRES", requires = "camera", allow_hyphen_values = true,
+          value_parser = super::marker_pose::parse_marker_size)]
+    pub marker_size: Vec<super::marker_pose::MarkerSize>,
     /// The robot stage: `--camera`, `--rig`, `--pan`, `--mount`, `--free-pose`.
     #[command(flatten)]
     pub robots: super::detect_robots::RobotArgs,
@@ -52,6 +59,8 @@ struct MarkerOut {
     /// NW, NE, SE, SW, pixel centres at integer coordinates.
     corners: [[f64; 2]; 4],
     contrast: f64,
+    /// With `--marker-size`: the marker's own pose (`null` without a size or when rejected).
+    pose: Option<super::marker_pose::MarkerPoseOut>,
 }
 
 /// One robot in the JSON output (with `--camera`), built from the library's
@@ -129,6 +138,9 @@ struct ImageOut {
 struct RejectedOut {
     /// The robot, when the failure is about one.
     robot: Option<u32>,
+    /// The marker's dictionary index, for a rejected single-marker pose (absent otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    marker: Option<usize>,
     /// Why, e.g. `robot 1: pose rejected: reprojection 49.0 px above 3 px`.
     reason: String,
 }
@@ -144,6 +156,7 @@ fn marker_out(d: &Decoded, rig: &RigModel) -> MarkerOut {
         hamming: d.distance,
         corners: d.corners.map(|p| [p.x, p.y]),
         contrast: d.contrast,
+        pose: None,
     }
 }
 
@@ -156,6 +169,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         Some(stage) => stage.rig.clone(),
         None => super::detect_robots::RobotStage::rig(&args.robots, dict)?,
     };
+    let sizes = super::marker_pose::MarkerSizes::new(&args.marker_size);
     let mut detector = Detector::new(DetectorConfig::default());
     let mut found = Vec::new();
     let mut failed = 0usize;
@@ -192,6 +206,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
                         .iter()
                         .map(|f| RejectedOut {
                             robot: f.robot(),
+                            marker: None,
                             reason: f.to_string(),
                         })
                         .collect(),
@@ -203,11 +218,36 @@ pub fn run(args: &Args) -> Result<(), CliError> {
                 }
             },
         };
+        let mut markers: Vec<MarkerOut> = found.iter().map(|d| marker_out(d, &rig)).collect();
+        let mut rejected = rejected;
+        if let Some(stage) = stage.as_ref().filter(|_| !sizes.is_empty()) {
+            let calibration = match stage.calibration_for(w as u32, h as u32) {
+                Ok(c) => c,
+                Err(err) => {
+                    eprintln!("formation-tracker: error: {}: {err}", path.display());
+                    failed += 1;
+                    continue;
+                }
+            };
+            for (m, d) in markers.iter_mut().zip(&found) {
+                match super::marker_pose::marker_pose(&calibration, &sizes, d.index, &d.corners) {
+                    Ok(pose) => m.pose = pose,
+                    Err(reason) => {
+                        eprintln!("formation-tracker: warning: {reason}");
+                        rejected.push(RejectedOut {
+                            robot: None,
+                            marker: Some(d.index),
+                            reason,
+                        });
+                    }
+                }
+            }
+        }
         let out = ImageOut {
             image: path.display().to_string(),
             width: w,
             height: h,
-            markers: found.iter().map(|d| marker_out(d, &rig)).collect(),
+            markers,
             robots,
             rejected,
             timing: Timing {
@@ -244,6 +284,20 @@ pub fn run(args: &Args) -> Result<(), CliError> {
                     c[3][0],
                     c[3][1]
                 )?;
+                if let Some(p) = &m.pose {
+                    let t = p.translation;
+                    super::outln!(
+                        "    pose: centre ({:.3}, {:.3}, {:.3}) m, {:.3} m away, rotation {:.1} deg, reprojection {:.2} px",
+                        t[0],
+                        t[1],
+                        t[2],
+                        (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt(),
+                        (p.rotation[0].powi(2) + p.rotation[1].powi(2) + p.rotation[2].powi(2))
+                            .sqrt()
+                            .to_degrees(),
+                        p.reprojection_rms_px
+                    )?;
+                }
             }
             for r in &out.robots {
                 super::outln!(

@@ -118,6 +118,19 @@ impl RobotStage {
         }))
     }
 
+    /// The calibration for a `width x height` image: the file's, or scaled to the image with
+    /// `--scale-calibration`; an image of another size is an error otherwise.
+    pub fn calibration_for(&self, width: u32, height: u32) -> Result<Calibration, CliError> {
+        if self.scale_calibration {
+            Ok(self.calibration.scaled_to(width, height)?)
+        } else {
+            self.calibration.check_size(width, height).map_err(|e| {
+                format!("{e} (pass --scale-calibration if the image was resized from the calibrated camera's)")
+            })?;
+            Ok(self.calibration)
+        }
+    }
+
     /// The robots seen in a `width x height` image from its markers (corners undistorted
     /// first), and the robots whose pose failed or was rejected as implausible (also
     /// reported on stderr). An image whose size is not the calibration's is an error, unless
@@ -128,14 +141,7 @@ impl RobotStage {
         width: u32,
         height: u32,
     ) -> Result<(Vec<RobotMeasurement>, Vec<RobotError>), CliError> {
-        let calibration = if self.scale_calibration {
-            self.calibration.scaled_to(width, height)?
-        } else {
-            self.calibration.check_size(width, height).map_err(|e| {
-                format!("{e} (pass --scale-calibration if the image was resized from the calibrated camera's)")
-            })?;
-            self.calibration
-        };
+        let calibration = self.calibration_for(width, height)?;
         let (intrinsics, distortion) = (calibration.intrinsics, calibration.distortion);
         let solver = PoseSolver::new(intrinsics);
         let observations: Vec<MarkerObservation> = markers

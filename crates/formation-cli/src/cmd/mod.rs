@@ -166,6 +166,7 @@ pub mod demo;
 pub mod detect;
 pub mod detect_robots;
 pub mod info;
+pub mod marker_pose;
 pub mod markers;
 pub mod progress;
 pub mod render;
