@@ -339,6 +339,37 @@ fn bad_bags_give_one_line_naming_the_topic_and_message() {
     );
 }
 
+#[test]
+fn several_image_topics_need_a_choice_and_the_error_lists_them() {
+    let dir = tmp("several");
+    let bag = dir.join("two-cameras.mcap");
+    let file = std::fs::File::create(&bag).unwrap();
+    let mut w = McapWriter::new(file, "ros2").unwrap();
+    let s = w
+        .add_schema("sensor_msgs/msg/Image", "ros2msg", b"")
+        .unwrap();
+    let left = w.add_channel(s, "/left/image", "cdr").unwrap();
+    let right = w.add_channel(s, "/right/image", "cdr").unwrap();
+    for c in [left, right] {
+        w.write(c, 1, &mono8_image(1, "cam", 64, 48, &[9; 64 * 48]))
+            .unwrap();
+    }
+    w.finish().unwrap();
+    let out = track_bag(&dir, &bag, &["--camera", "missing.yaml"]);
+    assert_eq!(out.status.code(), Some(1));
+    let e = one_line_error(&out);
+    assert!(
+        e.contains("several image topics, pick one with --image-topic: /left/image (sensor_msgs/msg/Image), /right/image"),
+        "{e}"
+    );
+    let out = track_bag(&dir, &bag, &["--image-topic", "/middle/image"]);
+    let e = one_line_error(&out);
+    assert!(
+        e.contains("--image-topic /middle/image: no such topic"),
+        "{e}"
+    );
+}
+
 /// The records of an MCAP file: (opcode, offset of the record).
 fn records(bytes: &[u8]) -> Vec<(u8, usize)> {
     let mut out = Vec::new();
