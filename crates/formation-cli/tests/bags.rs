@@ -340,6 +340,35 @@ fn bad_bags_give_one_line_naming_the_topic_and_message() {
 }
 
 #[test]
+fn mcap_output_works_for_image_folders_too_and_no_images_leaves_them_out() {
+    let d = common::blank_frames("bags-folder-mcap");
+    for (flags, channels) in [(&[][..], 4usize), (&["--no-images"][..], 3)] {
+        let out_mcap = d.join("out.mcap");
+        let mut args = vec![
+            "--quiet",
+            "track",
+            "frames",
+            "--camera",
+            "camera.yaml",
+            "--mcap",
+            "out.mcap",
+        ];
+        args.extend_from_slice(flags);
+        let out = common::run(&d, &args);
+        assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+        let mut r = McapReader::open(&out_mcap).unwrap();
+        assert_eq!(r.summary().unwrap().unwrap().channels.len(), channels);
+        let mut times = Vec::new();
+        while let Some(m) = r.next_message().unwrap() {
+            times.push(m.log_time);
+        }
+        // One message per channel per frame, stamped t = frame / 30 s.
+        assert_eq!(times.len(), 3 * channels);
+        assert_eq!(*times.last().unwrap(), 66_666_667);
+    }
+}
+
+#[test]
 fn several_image_topics_need_a_choice_and_the_error_lists_them() {
     let dir = tmp("several");
     let bag = dir.join("two-cameras.mcap");
