@@ -67,6 +67,8 @@ pub enum Covariance {
     Innovation,
     /// The covariance after a measurement update (`P+ = P- - K S K^T`).
     Updated,
+    /// A smoothed covariance (`Ps_k = P_k + G_k (Ps_{k+1} - P-_{k+1}) G_k^T`).
+    Smoothed,
 }
 
 impl fmt::Display for Covariance {
@@ -76,6 +78,7 @@ impl fmt::Display for Covariance {
             Covariance::Predicted => "predicted state covariance",
             Covariance::Innovation => "innovation covariance",
             Covariance::Updated => "updated state covariance",
+            Covariance::Smoothed => "smoothed state covariance",
         })
     }
 }
@@ -223,6 +226,20 @@ pub enum UkfError {
         #[source]
         source: Box<UkfError>,
     },
+
+    /// The smoother was given no filtered estimates.
+    #[error("the smoother needs at least one filtered estimate; the history is empty")]
+    EmptyHistory,
+
+    /// One backward step of the smoother failed; no smoothed estimate was returned.
+    #[error("smoother, backward step at estimate {step}: {source}")]
+    Smoothing {
+        /// Index of the estimate being smoothed (the transition `step -> step + 1`).
+        step: usize,
+        /// What went wrong in it.
+        #[source]
+        source: Box<UkfError>,
+    },
 }
 
 impl UkfError {
@@ -234,10 +251,11 @@ impl UkfError {
         }
     }
 
-    /// The innermost error: for [`UkfError::Dual`] the wrapped error, otherwise `self`.
+    /// The innermost error: for [`UkfError::Dual`] and [`UkfError::Smoothing`] the wrapped
+    /// error, otherwise `self`.
     pub fn root(&self) -> &UkfError {
         match self {
-            UkfError::Dual { source, .. } => source.root(),
+            UkfError::Dual { source, .. } | UkfError::Smoothing { source, .. } => source.root(),
             other => other,
         }
     }

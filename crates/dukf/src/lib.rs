@@ -11,6 +11,10 @@
 //!   over `x` with the parameters `w` held at their estimate, and a parameter filter over `w`
 //!   as a random walk observing the same `y` through `g(w) = h(f(x^_{k-1}, w))`.
 //!   [`DualUkf::step`] for a frame with a measurement, [`DualUkf::predict_only`] without.
+//! - [`RtsSmoother`]: the unscented Rauch-Tung-Striebel smoother (Särkkä 2008) that runs
+//!   backwards over a finished forward pass's filtered estimates ([`Gaussian`]), recomputing
+//!   each prediction from the filtered sigma points; see its module for the equations and
+//!   how to smooth a dual filter's state and parameters together.
 //! - [`Space`]: how to subtract, add and average vectors, with [`Euclidean`] and
 //!   [`AngleMask`] ready-made; [`wrap_angle`] and [`circular_mean`] as free functions.
 //! - [`unscented_transform`]: one transform on its own; [`Weights`] and [`SigmaPoints`] for
@@ -124,6 +128,7 @@ mod dual;
 mod error;
 mod jitter;
 mod sigma;
+mod smoother;
 mod space;
 mod transform;
 mod ukf;
@@ -132,6 +137,7 @@ pub use dual::{DualPredictReport, DualReport, DualUkf};
 pub use error::{Covariance, DualFilter, Function, Input, UkfError};
 pub use jitter::{Factored, JitterPolicy, factor_repaired};
 pub use sigma::{SigmaPoints, UtParams, Weights};
+pub use smoother::{Gaussian, RtsSmoother, Smoothed};
 pub use space::{AngleMask, Euclidean, Space, circular_mean, wrap_angle};
 pub use transform::{Transformed, unscented_transform};
 pub use ukf::{PredictReport, Ukf, UpdateReport};

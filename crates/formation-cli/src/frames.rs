@@ -392,6 +392,18 @@ fn load_image(path: &Path, grey: &mut GreyImage, max_side: usize) -> Result<(), 
     decode_image(&bytes, grey, max_side)
 }
 
+/// Decodes the bytes of an image file (PNG, JPEG, or another format the `image` crate
+/// reads) as 8-bit grey, exactly as [`read_grey`] does for a file: for a caller whose image
+/// is already in memory (a message from a recording, a network buffer).
+///
+/// # Errors
+/// As [`read_grey`].
+pub fn decode_grey(bytes: &[u8], max_side: usize) -> Result<GreyImage, String> {
+    let mut grey = GreyImage::default();
+    decode_image(bytes, &mut grey, max_side)?;
+    Ok(grey)
+}
+
 /// Decodes an encoded image (PNG, JPEG, ...) held in memory into the grey buffer, with the
 /// checks of [`read_grey`] (shared by image files and compressed images in bags).
 pub(crate) fn decode_image(

@@ -219,11 +219,19 @@ pub struct Reproduction {
     pub consistency: Vec<StepConsistency>,
     /// Its figures.
     pub summary: Summary,
+    /// The same frames after the offline unscented RTS smoother
+    /// ([`FormationFilter::smooth`]) ran backwards over the whole run: `estimated`, the
+    /// velocities and their standard deviations are the smoothed ones, everything else as in
+    /// [`records`](Self::records).
+    pub smoothed_records: Vec<StepRecord>,
+    /// The figures of [`smoothed_records`](Self::smoothed_records).
+    pub smoothed_summary: Summary,
 }
 
 /// Runs the formation filter over a simulated scenario: the filter starts at `t = 0` from
 /// its configured prior, and at every later frame `k` takes the follower's inputs applied
-/// over `(t_{k-1}, t_k]` and the measurement at `t_k`.
+/// over `(t_{k-1}, t_k]` and the measurement at `t_k`. Then the offline smoother runs over the
+/// recorded pass (see [`Reproduction::smoothed_records`]).
 ///
 /// # Errors
 /// Any [`ReproduceError`].
@@ -235,9 +243,12 @@ pub fn run_filter(
     let r = scenario.config.noise_covariance();
     let mut records = Vec::with_capacity(scenario.samples.len());
     let mut consistency = Vec::with_capacity(scenario.samples.len());
+    let mut history = Vec::with_capacity(scenario.samples.len());
+    history.push(filter.record(unicycle::Inputs::new(0.0, 0.0), None));
     for pair in scenario.samples.windows(2) {
         let (prev, now) = (&pair[0], &pair[1]);
         filter.step(&now.measurement, &r, prev.follower_inputs)?;
+        history.push(filter.record(prev.follower_inputs, Some((now.measurement, r))));
         let w = filter.leader_velocity();
         let w_std = filter.leader_velocity_std();
         let ex = wrapped_error(&PolarModel::h(filter.state()), &PolarModel::h(&now.truth));
@@ -266,16 +277,31 @@ pub fn run_filter(
             w1_std: w_std[1],
         });
     }
-    let summary = summarize(
-        &records,
-        scenario.config.seed,
-        scenario.config.bias.is_some(),
-    );
+    let (seed, bias) = (scenario.config.seed, scenario.config.bias.is_some());
+    let summary = summarize(&records, seed, bias);
+    // history[0] is the prior at t = 0, which has no record.
+    let smoothed = filter.smooth(&history)?;
+    let smoothed_records: Vec<StepRecord> = records
+        .iter()
+        .zip(&smoothed[1..])
+        .map(|(r, s)| StepRecord {
+            estimated: PolarModel::h(&s.state),
+            estimated_std: s.formation_std(),
+            v1_estimated: s.velocity.v,
+            w1_estimated: s.velocity.w,
+            v1_std: s.velocity_std()[0],
+            w1_std: s.velocity_std()[1],
+            ..r.clone()
+        })
+        .collect();
+    let smoothed_summary = summarize(&smoothed_records, seed, bias);
     Ok(Reproduction {
         scenario: scenario.config.clone(),
         records,
         consistency,
         summary,
+        smoothed_records,
+        smoothed_summary,
     })
 }
 

@@ -15,6 +15,16 @@
 //! current estimate (central differences) and `Pw- = Pw + Rr` the parameter filter's
 //! predicted covariance: the velocity uncertainty enters the state covariance exactly as a
 //! first-order propagation says it should. The measurement models are untouched.
+//!
+//! # Offline smoothing
+//! [`FormationFilter::record`] copies the estimates after a step into a [`FilterStep`];
+//! [`FormationFilter::smooth`] runs the unscented RTS smoother of `dukf` backwards over such a
+//! history, over the state and the leader velocities together (see `smooth.rs` and
+//! `docs/smoothing.md`), giving one [`SmoothedStep`] per recorded step.
+
+mod smooth;
+
+pub use smooth::{FilterStep, SmoothedStep};
 
 use std::cell::Cell;
 
@@ -127,6 +137,7 @@ pub struct FormationFilter {
     dt: f64,
     q: Matrix6,
     propagate: bool,
+    ut: UtParams,
     dual: Dual,
     last_nis: Option<f64>,
 }
@@ -191,6 +202,7 @@ impl FormationFilter {
             dt: config.dt,
             q: t.q,
             propagate: t.propagate_parameter_uncertainty,
+            ut: t.ut,
             dual,
             last_nis: None,
         })

@@ -79,12 +79,14 @@
 
 mod config;
 mod io;
+mod smooth;
 
 pub use config::{CHI2_3_999, TrackerConfig, TrackerError};
 pub use io::{
     FormationMeasurement, FrameInput, FrameReport, LeaderReport, LostReason, MeasurementUse,
     Observation, PoseMeasurement, Status,
 };
+pub use smooth::SmoothedLeader;
 
 use std::collections::BTreeMap;
 
@@ -95,6 +97,7 @@ use crate::filter::{FilterError, FormationFilter};
 use crate::mount::{
     CameraMount, MIN_L12, MeasurementError, formation_from_camera_pose, propagate_covariance,
 };
+use smooth::{NO_INPUTS, Recorded, Segment};
 
 /// How much lower (in summed `d^2`) the rival's score must be before it replaces the main
 /// hypothesis: hysteresis, so that the reported estimate does not alternate between the two
@@ -107,11 +110,26 @@ struct Hypothesis {
     filter: FormationFilter,
     /// Sum of the chosen candidates' `d^2`, each capped at the gate.
     score: f64,
+    /// Every filter step since the start, when the tracker records (see
+    /// [`Tracker::record_history`]); empty otherwise.
+    history: Vec<Recorded>,
 }
 
 impl Hypothesis {
-    fn new(filter: FormationFilter) -> Self {
-        Self { filter, score: 0.0 }
+    fn new(filter: FormationFilter, t: f64, recording: bool) -> Self {
+        let history = if recording {
+            vec![Recorded {
+                frame: Some(t),
+                step: filter.record(NO_INPUTS, None),
+            }]
+        } else {
+            Vec::new()
+        };
+        Self {
+            filter,
+            score: 0.0,
+            history,
+        }
     }
 }
 
@@ -146,6 +164,9 @@ pub struct Tracker {
     config: TrackerConfig,
     tracks: BTreeMap<u32, Track>,
     last_t: Option<f64>,
+    recording: bool,
+    /// The recorded steps of the tracks already dropped, in the order they ended.
+    finished: Vec<Segment>,
 }
 
 impl Tracker {
@@ -159,7 +180,51 @@ impl Tracker {
             config,
             tracks: BTreeMap::new(),
             last_t: None,
+            recording: false,
+            finished: Vec::new(),
         })
+    }
+
+    /// Turns recording for [`smooth`](Self::smooth) on or off (off by default). While on,
+    /// every filter step of every track is copied into the track's history, which grows by
+    /// one [`FilterStep`](crate::filter::FilterStep) (about 500 bytes) per step and leader
+    /// until the tracker is dropped. Tracks started while it was off are not recorded.
+    pub fn record_history(&mut self, on: bool) {
+        self.recording = on;
+    }
+
+    /// The fixed-interval smoothed estimates of every recorded track (the dropped ones and
+    /// the live ones), one [`SmoothedLeader`] per frame of each, segments in the order they
+    /// ended (live tracks last, by robot id). See [`FormationFilter::smooth`] and
+    /// `docs/smoothing.md`. Does not change the tracker: call it again after more frames.
+    ///
+    /// # Errors
+    /// [`TrackerError::Filter`] if a segment cannot be smoothed (a recorded covariance that
+    /// cannot be repaired, the model refusing a sigma point); nothing is returned then.
+    pub fn smooth(&self) -> Result<Vec<SmoothedLeader>, TrackerError> {
+        let template = FormationFilter::new(&self.config.filter)?;
+        let live = self.tracks.iter().map(|(&robot, track)| Segment {
+            robot,
+            steps: track.main.history.clone(),
+        });
+        let mut out = Vec::new();
+        for (index, segment) in self.finished.iter().cloned().chain(live).enumerate() {
+            if segment.steps.is_empty() {
+                continue;
+            }
+            out.extend(segment.smooth(index, &template)?);
+        }
+        Ok(out)
+    }
+
+    /// Keeps a dropped track's recorded steps for [`smooth`](Self::smooth).
+    fn finish(&mut self, robot: u32, track: Track) {
+        if !track.main.history.is_empty() {
+            self.finished.push(Segment {
+                robot,
+                steps: track.main.history,
+            });
+        }
     }
 
     /// The configuration.
@@ -335,12 +400,13 @@ impl Tracker {
     /// `confirm_time` has passed (see the module documentation).
     fn start(&mut self, robot: u32, t: f64, list: &[Formed]) -> Option<LeaderReport> {
         let m = list.first()?;
-        let main = Hypothesis::new(self.filter_from(m)?);
+        let recording = self.recording;
+        let main = Hypothesis::new(self.filter_from(m)?, t, recording);
         let rival = list
             .get(1)
             .filter(|_| self.config.confirm_time > 0.0)
             .and_then(|r| self.filter_from(r))
-            .map(Hypothesis::new);
+            .map(|f| Hypothesis::new(f, t, recording));
         let track = Track {
             main,
             rival,
@@ -390,18 +456,20 @@ impl Tracker {
         let waited = t - track.last_seen;
         if waited > self.config.lost_after {
             // Too long unseen: dropped. A measurement in this very frame starts a new track.
+            let lost = report(robot, &track, t, Status::Lost, MeasurementUse::Missing)
+                .lost(LostReason::Timeout);
+            self.finish(robot, track);
             if let Some(Ok(list)) = &formed
                 && let Some(r) = self.start(robot, t, list)
             {
                 return r;
             }
-            return report(robot, &track, t, Status::Lost, MeasurementUse::Missing)
-                .lost(LostReason::Timeout);
+            return lost;
         }
         let formed = formed.as_ref();
-        let main = self.run(&mut track.main, steps, u, formed);
+        let main = self.run(&mut track.main, t, steps, u, formed);
         let rival = match track.rival.take() {
-            Some(mut h) => self.run(&mut h, steps, u, formed).ok().map(|o| (h, o)),
+            Some(mut h) => self.run(&mut h, t, steps, u, formed).ok().map(|o| (h, o)),
             None => None,
         };
         let mut outcome = match (main, rival) {
@@ -421,8 +489,10 @@ impl Tracker {
                 ro
             }
             (Err(_), None) => {
-                return report(robot, &track, t, Status::Lost, MeasurementUse::Missing)
+                let lost = report(robot, &track, t, Status::Lost, MeasurementUse::Missing)
                     .lost(LostReason::FilterFailed);
+                self.finish(robot, track);
+                return lost;
             }
         };
         if t >= track.confirm_until {
@@ -450,12 +520,19 @@ impl Tracker {
     fn run(
         &self,
         h: &mut Hypothesis,
+        t: f64,
         steps: u64,
         u: Inputs,
         formed: Option<&Result<Vec<Formed>, MeasurementError>>,
     ) -> Result<Outcome, FilterError> {
         for _ in 1..steps {
             h.filter.predict_only(u)?;
+            if self.recording {
+                h.history.push(Recorded {
+                    frame: None,
+                    step: h.filter.record(u, None),
+                });
+            }
         }
         let (chosen, usage) = match formed {
             None => (None, MeasurementUse::Missing),
@@ -468,9 +545,21 @@ impl Tracker {
                 None => (None, MeasurementUse::Invalid),
             },
         };
-        match (usage, chosen) {
-            (MeasurementUse::Updated, Some((m, _))) => h.filter.step(&m.y, &m.r, u)?,
-            _ => h.filter.predict_only(u)?,
+        let applied = match (usage, chosen) {
+            (MeasurementUse::Updated, Some((m, _))) => {
+                h.filter.step(&m.y, &m.r, u)?;
+                Some((m.y, m.r))
+            }
+            _ => {
+                h.filter.predict_only(u)?;
+                None
+            }
+        };
+        if self.recording {
+            h.history.push(Recorded {
+                frame: Some(t),
+                step: h.filter.record(u, applied),
+            });
         }
         if let Some((_, nis)) = chosen {
             h.score += nis.min(self.config.gate);

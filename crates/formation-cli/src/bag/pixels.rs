@@ -155,22 +155,15 @@ pub fn compressed_to_grey(
     decode_image(img.data, grey, max_side)
 }
 
-/// The distortion models of `CameraInfo` and whether this build's `pose` crate can use them.
-///
-/// The one place to switch over when `pose` learns a model: `rational_polynomial` and
-/// `equidistant` are refused here with a message that says so.
+/// The distortion model of a `CameraInfo` (`plumb_bob`, `rational_polynomial` or
+/// `equidistant`, as `pose` reads them; empty means `plumb_bob`), or why it is refused.
 fn check_distortion_model(model: &str) -> Result<(), String> {
-    match model {
-        "plumb_bob" | "" => Ok(()),
-        "rational_polynomial" | "equidistant" => Err(format!(
-            "distortion model `{model}` is not supported by this build (plumb_bob only; pass \
-             --camera with a plumb_bob calibration of the same camera)"
-        )),
-        other => Err(format!(
-            "distortion model `{other}` is not a model we know (plumb_bob, rational_polynomial, \
-             equidistant)"
-        )),
+    if model.is_empty() {
+        return Ok(());
     }
+    pose::DistortionModel::from_name(model)
+        .map(|_| ())
+        .map_err(|e| e.to_string())
 }
 
 /// A calibration from `CameraInfo`, through the ROS calibration-file reader of `pose`, so
@@ -178,7 +171,7 @@ fn check_distortion_model(model: &str) -> Result<(), String> {
 /// point, distortion that can be inverted over the image).
 ///
 /// # Errors
-/// An unsupported distortion model or a calibration `pose` refuses (e.g. a zero focal
+/// An unknown distortion model or a calibration `pose` refuses (e.g. a zero focal
 /// length), as one line.
 pub fn calibration(info: &CameraInfo) -> Result<pose::calib::Calibration, String> {
     check_distortion_model(&info.distortion_model)?;
@@ -230,18 +223,22 @@ mod tests {
         let c = calibration(&info("plumb_bob", 500.0)).unwrap();
         assert_eq!((c.width, c.height), (640, 480));
         assert_eq!(c.intrinsics.alpha(), 500.0);
-        assert_eq!(c.distortion.k1, 0.01);
-        assert_eq!(c.distortion.k2, -0.02);
+        assert_eq!(c.distortion.model(), pose::DistortionModel::PlumbBob);
+        assert_eq!(&c.distortion.coefficients()[..2], &[0.01, -0.02]);
     }
 
     #[test]
-    fn other_models_are_refused_in_one_place() {
-        for model in ["rational_polynomial", "equidistant"] {
-            let e = calibration(&info(model, 500.0)).unwrap_err();
-            assert!(e.contains("not supported by this build"), "{e}");
-        }
+    fn rational_and_fisheye_camera_infos_are_calibrations_and_unknown_models_are_refused() {
+        let mut rational = info("rational_polynomial", 500.0);
+        rational.d = vec![0.01, -0.02, 0.0, 0.0, 0.001, 0.0, 0.0, 0.0];
+        let c = calibration(&rational).unwrap();
+        assert_eq!(c.distortion.model(), pose::DistortionModel::RationalPolynomial);
+        let mut fisheye = info("equidistant", 500.0);
+        fisheye.d = vec![0.01, -0.002, 0.0, 0.0];
+        let c = calibration(&fisheye).unwrap();
+        assert_eq!(c.distortion.model(), pose::DistortionModel::Equidistant);
         let e = calibration(&info("fisheye_2000", 500.0)).unwrap_err();
-        assert!(e.contains("not a model we know"), "{e}");
+        assert!(e.contains("unknown distortion model `fisheye_2000`"), "{e}");
     }
 
     #[test]

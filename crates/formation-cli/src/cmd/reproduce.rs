@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use clap::{Args as ClapArgs, Subcommand};
 use formation_sim::plot::{fig12_panels, fig13_panels, write_png, write_svg};
-use formation_sim::reproduce::{Reproduction, Summary, reproduce};
+use formation_sim::reproduce::{Reproduction, StepRecord, Summary, reproduce};
 use formation_sim::scenario_file::ScenarioSpec;
 
 use super::CliError;
@@ -67,17 +67,32 @@ pub struct DukfArgs {
     /// fixtures/scenarios/reference.yaml, which is the built-in scenario).
     #[arg(long, value_name = "FILE")]
     scenario: Option<PathBuf>,
+    /// Also run the offline fixed-interval smoother (a joint unscented pass over the
+    /// state and the leader velocities, then the unscented RTS smoother; docs/smoothing.md)
+    /// and write series-smoothed.csv and summary-smoothed.json beside the causal ones.
+    #[arg(long)]
+    smooth: bool,
 }
 
 /// Runs `reproduce`.
 pub fn run(args: Args) -> Result<(), CliError> {
     match args.what {
         What::Dukf(a) => {
-            let summary = match &a.scenario {
+            let run = match &a.scenario {
                 None => run_dukf(&a.out, a.seed, a.bias)?,
                 Some(file) => run_dukf_scenario(&a.out, a.seed, a.bias, file)?,
             };
-            super::write_stdout(format_args!("{}", summary_table(&summary)))?;
+            let mut text = summary_table(&run.summary);
+            if a.smooth {
+                write_smoothed(&a.out, &run)?;
+                text.push('\n');
+                text.push_str(&summary_table(&run.smoothed_summary).replacen(
+                    "dual UKF,",
+                    "smoothed (offline, joint unscented RTS),",
+                    1,
+                ));
+            }
+            super::write_stdout(format_args!("{text}"))?;
             Ok(())
         }
         What::PaperScenes(a) => super::reproduce_scenes::run(&a),
@@ -85,8 +100,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
 }
 
 /// Runs the dual-UKF reproduction and writes every output into `out`; progress goes to
-/// stderr. Shared with `demo`.
-pub fn run_dukf(out: &Path, seed: u64, bias: bool) -> Result<Summary, CliError> {
+/// stderr.
+fn run_dukf(out: &Path, seed: u64, bias: bool) -> Result<Reproduction, CliError> {
     eprintln!(
         "reproduce dukf: seed {seed}{}, writing to {}",
         if bias { ", with the paper's bias" } else { "" },
@@ -94,11 +109,17 @@ pub fn run_dukf(out: &Path, seed: u64, bias: bool) -> Result<Summary, CliError> 
     );
     super::prepare_out_dir(out)?;
     let run = reproduce(seed, bias)?;
-    write_outputs(out, &run)
+    write_outputs(out, &run)?;
+    Ok(run)
 }
 
 /// As [`run_dukf`] on a scenario file.
-fn run_dukf_scenario(out: &Path, seed: u64, bias: bool, file: &Path) -> Result<Summary, CliError> {
+fn run_dukf_scenario(
+    out: &Path,
+    seed: u64,
+    bias: bool,
+    file: &Path,
+) -> Result<Reproduction, CliError> {
     let spec = ScenarioSpec::load(file).map_err(|e| e.to_string())?;
     eprintln!(
         "reproduce dukf: scenario {}, seed {seed}{}, writing to {}",
@@ -108,12 +129,25 @@ fn run_dukf_scenario(out: &Path, seed: u64, bias: bool, file: &Path) -> Result<S
     );
     super::prepare_out_dir(out)?;
     let run = spec.reproduce(seed, bias)?;
-    write_outputs(out, &run)
+    write_outputs(out, &run)?;
+    Ok(run)
+}
+
+/// Writes the smoothed series and summary of a run into `out`.
+fn write_smoothed(out: &Path, run: &Reproduction) -> Result<(), CliError> {
+    write_file(
+        &out.join("series-smoothed.csv"),
+        &series_csv(&run.smoothed_records),
+    )?;
+    let json = serde_json::to_string_pretty(&run.smoothed_summary)?;
+    write_file(&out.join("summary-smoothed.json"), &(json + "\n"))?;
+    eprintln!("reproduce dukf: wrote series-smoothed.csv, summary-smoothed.json");
+    Ok(())
 }
 
 /// Writes the series, figures and summary of a run into `out`.
 fn write_outputs(out: &Path, run: &Reproduction) -> Result<Summary, CliError> {
-    write_file(&out.join("series.csv"), &series_csv(run))?;
+    write_file(&out.join("series.csv"), &series_csv(&run.records))?;
     let fig12 = fig12_panels(&run.records);
     write_svg(&out.join("fig12.svg"), &fig12, FIGURE_SIZE)?;
     write_png(&out.join("fig12.png"), &fig12, FIGURE_SIZE)?;
@@ -134,12 +168,12 @@ fn write_file(path: &Path, text: &str) -> Result<(), CliError> {
 }
 
 /// The per-step series as CSV with a header.
-fn series_csv(run: &Reproduction) -> String {
+fn series_csv(records: &[StepRecord]) -> String {
     let mut s = String::from(
         "t,l12_true,l12_measured,l12_estimated,alpha12_true,alpha12_measured,alpha12_estimated,\
          beta12_true,beta12_measured,beta12_estimated,v1_true,v1_estimated,w1_true,w1_estimated\n",
     );
-    for r in &run.records {
+    for r in records {
         let _ = writeln!(
             s,
             "{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6}",
