@@ -232,7 +232,10 @@ mod tests {
         let mut rational = info("rational_polynomial", 500.0);
         rational.d = vec![0.01, -0.02, 0.0, 0.0, 0.001, 0.0, 0.0, 0.0];
         let c = calibration(&rational).unwrap();
-        assert_eq!(c.distortion.model(), pose::DistortionModel::RationalPolynomial);
+        assert_eq!(
+            c.distortion.model(),
+            pose::DistortionModel::RationalPolynomial
+        );
         let mut fisheye = info("equidistant", 500.0);
         fisheye.d = vec![0.01, -0.002, 0.0, 0.0];
         let c = calibration(&fisheye).unwrap();
