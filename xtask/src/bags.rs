@@ -254,7 +254,10 @@ pub fn run(args: &[String]) -> Result {
             "--json",
         ],
     )?;
-    std::fs::write(fixtures.join("duckietown.expected.jsonl"), stable(&expected)?)?;
+    std::fs::write(
+        fixtures.join("duckietown.expected.jsonl"),
+        stable(&expected)?,
+    )?;
 
     // 4. Our output, read back by the Python reader.
     let mut outputs = Vec::new();
