@@ -241,7 +241,7 @@ pub fn run(args: &[String]) -> Result {
             "--json",
         ],
     )?;
-    std::fs::write(fixtures.join("demo.expected.jsonl"), expected)?;
+    std::fs::write(fixtures.join("demo.expected.jsonl"), stable(&expected)?)?;
     let expected = tracker(
         &root,
         &[
@@ -254,7 +254,10 @@ pub fn run(args: &[String]) -> Result {
             "--json",
         ],
     )?;
-    std::fs::write(fixtures.join("duckietown.expected.jsonl"), expected)?;
+    std::fs::write(
+        fixtures.join("duckietown.expected.jsonl"),
+        stable(&expected)?,
+    )?;
 
     // 4. Our output, read back by the Python reader.
     let mut outputs = Vec::new();
@@ -301,6 +304,28 @@ fn realdata(root: &Path) -> Result<PathBuf> {
             "cannot find shared/realdata/duckietown beside the repository (set FORMATION_REALDATA)"
                 .into()
         })
+}
+
+/// JSON lines without what changes from run to run or machine to machine: the wall-clock
+/// `timing`, and the `source` path (kept as its file name).
+fn stable(lines: &str) -> Result<String> {
+    let mut out = String::new();
+    for line in lines.lines() {
+        let mut v: serde_json::Value = serde_json::from_str(line)?;
+        if let Some(o) = v.as_object_mut() {
+            o.remove("timing");
+            if let Some(serde_json::Value::String(src)) = o.get_mut("source") {
+                let name = Path::new(src.as_str())
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default();
+                *src = name;
+            }
+        }
+        out.push_str(&serde_json::to_string(&v)?);
+        out.push('\n');
+    }
+    Ok(out)
 }
 
 /// K from the demo's OpenCV `camera.yaml` (its `camera_matrix` data line).

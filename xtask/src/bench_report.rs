@@ -72,12 +72,20 @@ const TARGETS: &[Target] = &[
 ];
 
 /// Ratios of two benchmarks of the same run that an issue bounds.
-const RATIOS: &[(&str, &str, f64, &str)] = &[(
-    "fiducial/detect_640x480_noisy",
-    "fiducial/detect_640x480_clean",
-    1.5,
-    "noisy scene (sigma 10) vs the same scene clean",
-)];
+const RATIOS: &[(&str, &str, f64, &str)] = &[
+    (
+        "fiducial/detect_640x480_noisy",
+        "fiducial/detect_640x480_clean",
+        1.5,
+        "noisy scene (sigma 10) vs the same scene clean",
+    ),
+    (
+        "cli/bag_read_16_frames",
+        "cli/pipeline_16_frames",
+        0.10,
+        "reading 16 demo frames from an uncompressed ROS 2 bag vs the pipeline on them (#10)",
+    ),
+];
 
 pub fn run(args: &[String]) -> Result {
     let no_run = args.iter().any(|a| a == "--no-run");

@@ -339,6 +339,106 @@ fn bad_bags_give_one_line_naming_the_topic_and_message() {
     );
 }
 
+#[test]
+fn mcap_output_works_for_image_folders_too_and_no_images_leaves_them_out() {
+    let d = common::blank_frames("bags-folder-mcap");
+    for (flags, channels) in [(&[][..], 4usize), (&["--no-images"][..], 3)] {
+        let out_mcap = d.join("out.mcap");
+        let mut args = vec![
+            "--quiet",
+            "track",
+            "frames",
+            "--camera",
+            "camera.yaml",
+            "--mcap",
+            "out.mcap",
+        ];
+        args.extend_from_slice(flags);
+        let out = common::run(&d, &args);
+        assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+        let mut r = McapReader::open(&out_mcap).unwrap();
+        assert_eq!(r.summary().unwrap().unwrap().channels.len(), channels);
+        let mut times = Vec::new();
+        while let Some(m) = r.next_message().unwrap() {
+            times.push(m.log_time);
+        }
+        // One message per channel per frame, stamped t = frame / 30 s.
+        assert_eq!(times.len(), 3 * channels);
+        assert_eq!(*times.last().unwrap(), 66_666_667);
+    }
+}
+
+#[test]
+fn an_unreadable_odometry_message_keeps_the_previous_inputs_and_is_counted() {
+    let dir = tmp("bad-odom");
+    let bag = dir.join("bad-odom.mcap");
+    let file = std::fs::File::create(&bag).unwrap();
+    let mut w = McapWriter::new(file, "ros2").unwrap();
+    let s = w
+        .add_schema("sensor_msgs/msg/Image", "ros2msg", b"")
+        .unwrap();
+    let img = w.add_channel(s, "/cam/image", "cdr").unwrap();
+    let s = w
+        .add_schema("nav_msgs/msg/Odometry", "ros2msg", b"")
+        .unwrap();
+    let odom = w.add_channel(s, "/odom", "cdr").unwrap();
+    for i in 0..3u64 {
+        let t = 1_000 * MS + i * 100 * MS;
+        // A CDR header and nothing else: too short for an Odometry.
+        w.write(odom, t, &[0, 1, 0, 0, 7]).unwrap();
+        w.write(img, t, &mono8_image(t, "cam", 64, 48, &[50; 64 * 48]))
+            .unwrap();
+    }
+    w.finish().unwrap();
+    let cam = dir.join("cam.yaml");
+    std::fs::write(
+        &cam,
+        "image_width: 64\nimage_height: 48\ncamera_matrix:\n  rows: 3\n  cols: 3\n  data: [60.0, 0.0, 31.5, 0.0, 60.0, 23.5, 0.0, 0.0, 1.0]\ndistortion_model: plumb_bob\ndistortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [0.0, 0.0, 0.0, 0.0, 0.0]\n",
+    )
+    .unwrap();
+    let out = track_bag(&dir, &bag, &["--camera", cam.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(3), "{}", stderr(&out));
+    assert_eq!(json_lines(&out.stdout).len(), 3);
+    let e = stderr(&out);
+    assert!(
+        e.contains("track: topic /odom, message 0: needs 4 bytes"),
+        "{e}"
+    );
+    assert!(e.contains("3 frames tracked, 0 broken"), "{e}");
+    assert!(e.contains("3 unreadable input messages"), "{e}");
+}
+
+#[test]
+fn several_image_topics_need_a_choice_and_the_error_lists_them() {
+    let dir = tmp("several");
+    let bag = dir.join("two-cameras.mcap");
+    let file = std::fs::File::create(&bag).unwrap();
+    let mut w = McapWriter::new(file, "ros2").unwrap();
+    let s = w
+        .add_schema("sensor_msgs/msg/Image", "ros2msg", b"")
+        .unwrap();
+    let left = w.add_channel(s, "/left/image", "cdr").unwrap();
+    let right = w.add_channel(s, "/right/image", "cdr").unwrap();
+    for c in [left, right] {
+        w.write(c, 1, &mono8_image(1, "cam", 64, 48, &[9; 64 * 48]))
+            .unwrap();
+    }
+    w.finish().unwrap();
+    let out = track_bag(&dir, &bag, &["--camera", "missing.yaml"]);
+    assert_eq!(out.status.code(), Some(1));
+    let e = one_line_error(&out);
+    assert!(
+        e.contains("several image topics, pick one with --image-topic: /left/image (sensor_msgs/msg/Image), /right/image"),
+        "{e}"
+    );
+    let out = track_bag(&dir, &bag, &["--image-topic", "/middle/image"]);
+    let e = one_line_error(&out);
+    assert!(
+        e.contains("--image-topic /middle/image: no such topic"),
+        "{e}"
+    );
+}
+
 /// The records of an MCAP file: (opcode, offset of the record).
 fn records(bytes: &[u8]) -> Vec<(u8, usize)> {
     let mut out = Vec::new();

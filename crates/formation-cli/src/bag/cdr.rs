@@ -399,3 +399,70 @@ pub fn mono8_image(stamp_ns: u64, frame_id: &str, width: u32, height: u32, data:
     w.bytes(data);
     w.finish()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_written_image_parses_back() {
+        let p = mono8_image(1_700_000_000_123_456_789, "cam", 3, 2, &[1, 2, 3, 4, 5, 6]);
+        let img = Image::parse(&p).unwrap();
+        assert_eq!(img.stamp_ns, 1_700_000_000_123_456_789);
+        assert_eq!(img.frame_id, "cam");
+        assert_eq!((img.width, img.height, img.step), (3, 2, 3));
+        assert_eq!(img.encoding, "mono8");
+        assert_eq!(img.data, &[1, 2, 3, 4, 5, 6]);
+    }
+
+    #[test]
+    fn big_endian_payloads_read_the_same() {
+        // TwistStamped, big endian: stamp 7 s 9 ns, frame "", twist (0.5, 0, 0), (0, 0, -0.25).
+        let mut p = vec![0u8, 0, 0, 0];
+        p.extend_from_slice(&7i32.to_be_bytes());
+        p.extend_from_slice(&9u32.to_be_bytes());
+        p.extend_from_slice(&1u32.to_be_bytes());
+        p.push(0);
+        p.extend_from_slice(&[0; 3]); // align to 8 (offset 13 -> 16 after the header)
+        for v in [0.5f64, 0.0, 0.0, 0.0, 0.0, -0.25] {
+            p.extend_from_slice(&v.to_be_bytes());
+        }
+        let s = TwistSample::parse("geometry_msgs/msg/TwistStamped", &p).unwrap();
+        assert_eq!(s.stamp_ns, Some(7_000_000_009));
+        assert_eq!((s.v, s.w), (0.5, -0.25));
+    }
+
+    #[test]
+    fn a_length_beyond_the_payload_is_an_error_not_an_allocation() {
+        let mut w = CdrWriter::new();
+        w.header(0, "");
+        w.u32(1);
+        w.u32(1);
+        w.string("mono8");
+        w.u8(0);
+        w.u32(1);
+        w.u32(u32::MAX); // data length
+        let e = Image::parse(&w.finish()).unwrap_err();
+        assert!(e.contains("runs past the end of the message"), "{e}");
+        let e = CameraInfo::parse(&[0, 1, 0, 0, 1]).unwrap_err();
+        assert!(e.contains("needs 4 bytes"), "{e}");
+        let e = Image::parse(&[0, 7, 0, 0]).unwrap_err();
+        assert!(e.contains("not plain CDR"), "{e}");
+    }
+
+    #[test]
+    fn non_finite_velocities_and_negative_stamps_are_refused() {
+        let mut w = CdrWriter::new();
+        for v in [f64::NAN, 0.0, 0.0, 0.0, 0.0, 0.0] {
+            w.f64(v);
+        }
+        let e = TwistSample::parse("geometry_msgs/msg/Twist", &w.finish()).unwrap_err();
+        assert!(e.contains("not finite"), "{e}");
+        let mut w = CdrWriter::new();
+        w.i32(-1);
+        w.u32(0);
+        w.string("");
+        let e = TwistSample::parse("geometry_msgs/msg/TwistStamped", &w.finish()).unwrap_err();
+        assert!(e.contains("not a valid time"), "{e}");
+    }
+}

@@ -221,7 +221,11 @@ pub struct Summary {
 #[derive(Debug)]
 enum Cursor {
     Records,
-    Chunk { pos: usize },
+    /// The chunk's records are `chunk[pos..end]`.
+    Chunk {
+        pos: usize,
+        end: usize,
+    },
 }
 
 /// A streaming reader of one MCAP file.
@@ -436,12 +440,12 @@ impl McapReader {
             if self.done {
                 return Ok(false);
             }
-            if let Cursor::Chunk { pos } = self.cursor {
-                if pos >= self.chunk.len() {
+            if let Cursor::Chunk { pos, end } = self.cursor {
+                if pos >= end {
                     self.cursor = Cursor::Records;
                     continue;
                 }
-                let mut f = Fields::new(&self.chunk[pos..]);
+                let mut f = Fields::new(&self.chunk[pos..end]);
                 let at = self.offset;
                 let parsed = (|| -> Result<(u8, usize), String> {
                     let opcode = f.u8()?;
@@ -452,9 +456,12 @@ impl McapReader {
                     self.malformed("chunk", at, format!("inner record at {pos}: {r}"))
                 })?;
                 let start = pos + 9;
-                let end = start + n;
-                self.cursor = Cursor::Chunk { pos: end };
-                if self.record(opcode, true, start, end, at)? {
+                let record_end = start + n;
+                self.cursor = Cursor::Chunk {
+                    pos: record_end,
+                    end,
+                };
+                if self.record(opcode, true, start, record_end, at)? {
                     return Ok(true);
                 }
                 continue;
@@ -506,15 +513,24 @@ impl McapReader {
                     format!("{n} bytes is more than the {MAX_RECORD}-byte limit"),
                 ));
             }
-            self.body.resize(n as usize, 0);
-            let file = &mut self.file;
-            file.read_exact(&mut self.body).map_err(|e| McapError::Io {
-                path: self.path.clone(),
-                source: e,
-            })?;
+            // Read without zero-filling the buffer first.
+            self.body.clear();
+            let read = (&mut self.file)
+                .take(n)
+                .read_to_end(&mut self.body)
+                .map_err(|e| McapError::Io {
+                    path: self.path.clone(),
+                    source: e,
+                })?;
+            if read as u64 != n {
+                return Err(McapError::Truncated {
+                    path: self.path.clone(),
+                    offset: at,
+                });
+            }
             if opcode == op::CHUNK {
-                self.decompress_chunk(at)?;
-                self.cursor = Cursor::Chunk { pos: 0 };
+                let (pos, end) = self.decompress_chunk(at)?;
+                self.cursor = Cursor::Chunk { pos, end };
                 continue;
             }
             if self.record(opcode, false, 0, n as usize, at)? {
@@ -559,8 +575,10 @@ impl McapReader {
         Ok(false)
     }
 
-    /// Decompresses the chunk whose body is in `self.body` into `self.chunk`.
-    fn decompress_chunk(&mut self, at: u64) -> Result<(), McapError> {
+    /// Decompresses the chunk whose body is in `self.body` into `self.chunk` (an
+    /// uncompressed chunk's body simply becomes `self.chunk`, without a copy); returns where
+    /// its records are in `self.chunk`.
+    fn decompress_chunk(&mut self, at: u64) -> Result<(usize, usize), McapError> {
         let mut f = Fields::new(&self.body);
         let parsed = (|| -> Result<_, String> {
             let _start = f.u64()?;
@@ -581,9 +599,21 @@ impl McapReader {
             ));
         }
         let size = size as usize;
+        if compression.is_empty() {
+            if records.len() != size {
+                return Err(self.malformed(
+                    "chunk",
+                    at,
+                    format!("{} bytes of records, the chunk says {size}", records.len()),
+                ));
+            }
+            check_crc(&self.path, at, crc, records)?;
+            let start = f.pos - records.len();
+            std::mem::swap(&mut self.chunk, &mut self.body);
+            return Ok((start, start + size));
+        }
         self.chunk.clear();
         match compression.as_str() {
-            "" => self.chunk.extend_from_slice(records),
             "zstd" => {
                 let mut dec = ruzstd::decoding::StreamingDecoder::new(records)
                     .map_err(|e| self.malformed("chunk", at, format!("zstd: {e}")))?;
@@ -618,18 +648,26 @@ impl McapReader {
                 ),
             ));
         }
-        if crc != 0 {
-            let found = crc32fast::hash(&self.chunk);
-            if found != crc {
-                return Err(McapError::Crc {
-                    path: self.path.clone(),
-                    offset: at,
-                    expected: crc,
-                    found,
-                });
-            }
-        }
+        check_crc(&self.path, at, crc, &self.chunk)?;
+        Ok((0, self.chunk.len()))
+    }
+}
+
+/// A chunk's CRC against its records (0: the writer recorded none).
+fn check_crc(path: &Path, at: u64, expected: u32, records: &[u8]) -> Result<(), McapError> {
+    if expected == 0 {
+        return Ok(());
+    }
+    let found = crc32fast::hash(records);
+    if found == expected {
         Ok(())
+    } else {
+        Err(McapError::Crc {
+            path: path.to_path_buf(),
+            offset: at,
+            expected,
+            found,
+        })
     }
 }
 

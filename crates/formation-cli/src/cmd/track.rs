@@ -199,6 +199,14 @@ pub fn run(args: &Args) -> Result<(), CliError> {
                 } else {
                     calibration
                 };
+                if let Some(path) = &args.mcap {
+                    mcap = Some(super::track_bag::McapOut::create(
+                        path,
+                        args,
+                        rig.clone(),
+                        calibration,
+                    )?);
+                }
                 pipeline.insert(build_pipeline(args, calibration, rig.clone(), mount, fps)?)
             }
         };
@@ -214,16 +222,8 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             Ok(done) => {
                 processed += 1;
                 write_frame(&mut out, args.json, index, &source, t, &done, None)?;
-                if let Some(path) = &args.mcap {
-                    let writer = match &mut mcap {
-                        Some(w) => w,
-                        None => mcap.insert(super::track_bag::McapOut::create(
-                            path,
-                            args,
-                            rig.clone(),
-                            calibration,
-                        )?),
-                    };
+                if let Some(writer) = &mut mcap {
+                    // Folders and y4m have no stamps: t from 0.
                     let stamp_ns = (t * 1e9).round() as u64;
                     writer.frame(index, stamp_ns, t, image, &done, pipeline.markers())?;
                 }

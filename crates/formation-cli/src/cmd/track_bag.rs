@@ -134,7 +134,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     let mut progress = super::progress::Progress::new("track", "frames", frames.len_hint());
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
-    let (mut broken, mut processed) = (0u64, 0u64);
+    let (mut broken, mut processed, mut bad_inputs) = (0u64, 0u64, 0u64);
     let mut first_stamp: Option<u64> = None;
     let mut fatal: Option<BagError> = None;
     loop {
@@ -148,7 +148,12 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             }
             Err(e) => {
                 progress.println(&format!("track: {e}"));
-                broken += 1;
+                // A bad input message leaves the previous inputs in force; a bad image
+                // message is a broken frame.
+                match &e {
+                    BagError::Message { topic, .. } if *topic != image_topic => bad_inputs += 1,
+                    _ => broken += 1,
+                }
                 continue;
             }
         };
@@ -229,7 +234,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     }
     let s = frames.stats();
     let mut summary = format!(
-        "{processed} frames tracked, {broken} broken; bag: {} image messages, {} reordered, {} out of order (dropped), {} missing, {} irregular intervals, {} late input messages",
+        "{processed} frames tracked, {broken} broken; bag: {} image messages, {} reordered, {} out of order (dropped), {} missing, {} irregular intervals, {} late input messages, {bad_inputs} unreadable input messages",
         s.messages, s.reordered, s.out_of_order_dropped, s.dropped, s.irregular, s.late_inputs
     );
     if let Some(e) = &fatal {
@@ -241,7 +246,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             None => format!("nothing tracked: {summary}").into(),
         });
     }
-    if broken > 0 || fatal.is_some() || s.out_of_order_dropped > 0 {
+    if broken > 0 || bad_inputs > 0 || fatal.is_some() || s.out_of_order_dropped > 0 {
         return Err(super::Partial(summary).into());
     }
     eprintln!("track: {summary}");
