@@ -54,7 +54,8 @@ for t in "${targets[@]}"; do
     cargo fuzz run -s none "$t" "corpus/$t" -- -max_total_time="$secs" -rss_limit_mb=2048 \
         -timeout=10 -print_final_stats=1 > "$log" 2>&1
     set -e
-    runs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1)
+    # -a: the log may hold raw input bytes; a log without the line gives "?".
+    runs=$(grep -ao 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1 || true)
     corpus=$(find "corpus/$t" -type f | wc -l)
     crashes=$(find "artifacts/$t" -type f \( -name 'crash-*' -o -name 'oom-*' -o -name 'timeout-*' \) | wc -l)
     echo "| $t | $secs | ${runs:-?} | $corpus | $crashes |"
