@@ -6,12 +6,15 @@
 
 use std::process::ExitCode;
 
+mod bags;
 mod bench_report;
 mod detector_accuracy;
+mod dictionaries;
 mod dictionary;
 mod dukf_table;
 mod figures;
 mod random_scenes;
+mod solvepnp;
 mod unused_deps;
 
 type Result<T = ()> = std::result::Result<T, Box<dyn std::error::Error>>;
@@ -25,6 +28,8 @@ commands:
   detector-accuracy  measure the marker detector on synthetic scenes and write
                    docs/detector-accuracy.md (--quick: fewer scenes)
   dictionary       regenerate crates/fiducial/data/dict-4x5-d6.txt (--check: only compare)
+  dictionaries     regenerate the standard families' tables (crates/fiducial/data/families/)
+                   and fixtures/markers/ from OpenCV in target/py-venv (--check: only compare)
   random-scenes    score 100 seeded random scenes, write docs/random-scenes.md
                    (--count N, --seed S; --check: only compare)
   dukf-table       run the dual-UKF reproduction over seeds 1..20 (with and without
@@ -32,6 +37,13 @@ commands:
                    (--scenario FILE: that scenario file against the baselines, printed)
   unused-deps      fail if a workspace crate declares a dependency its code never names
   figures          run the demo and copy its figures into docs/img/ (the README's)
+  solvepnp         OpenCV's single-marker poses (solvePnP IPPE_SQUARE) and lens projections
+                   for pose's tests, in a Python venv under target/py-venv; writes
+                   fixtures/opencv/ (--cases FILE: corner sets to use, --out FILE)
+  bags             write the fixture ROS 2 bags in fixtures/bags/ with the Python rosbags and
+                   mcap-ros2-support packages (venv in target/py-venv), the folder path's
+                   estimates on the same frames, and check our --mcap output with the
+                   Python mcap reader (--frames N: demo frames in demo_zstd.mcap, default 16)
 ";
 
 fn main() -> ExitCode {
@@ -40,11 +52,14 @@ fn main() -> ExitCode {
         Some("no-c") => no_c(),
         Some("bench-report") => bench_report::run(&args[1..]),
         Some("dictionary") => dictionary::run(&args[1..]),
+        Some("dictionaries") => dictionaries::run(&args[1..]),
         Some("random-scenes") => random_scenes::run(&args[1..]),
         Some("detector-accuracy") => detector_accuracy::run(&args[1..]),
         Some("dukf-table") => dukf_table::run(&args[1..]),
         Some("unused-deps") => unused_deps::run(&args[1..]),
         Some("figures") => figures::run(&args[1..]),
+        Some("solvepnp") => solvepnp::run(&args[1..]),
+        Some("bags") => bags::run(&args[1..]),
         _ => {
             eprint!("{USAGE}");
             return ExitCode::from(2);

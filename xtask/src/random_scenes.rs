@@ -29,6 +29,9 @@ pub fn run(args: &[String]) -> crate::Result {
     let mut seed = 2026u64;
     let mut check = false;
     let mut renoise = 5u64;
+    let mut only: Option<Vec<u64>> = None;
+    let mut dump: Option<PathBuf> = None;
+    let mut noise: Option<u64> = None;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -36,14 +39,30 @@ pub fn run(args: &[String]) -> crate::Result {
             "--seed" => seed = it.next().ok_or("--seed needs a number")?.parse()?,
             "--renoise" => renoise = it.next().ok_or("--renoise needs a number")?.parse()?,
             "--check" => check = true,
+            "--scenes" => {
+                let list = it.next().ok_or("--scenes needs a list such as 21,50,84")?;
+                only = Some(
+                    list.split(',')
+                        .map(|v| v.trim().parse::<u64>())
+                        .collect::<std::result::Result<_, _>>()?,
+                );
+            }
+            "--dump" => dump = Some(PathBuf::from(it.next().ok_or("--dump needs a folder")?)),
+            "--noise-seed" => {
+                noise = Some(it.next().ok_or("--noise-seed needs a number")?.parse()?);
+            }
             other => {
                 return Err(format!(
                     "unknown argument {other}; usage: cargo xtask random-scenes [--count N] \
-                     [--seed S] [--renoise K] [--check]"
+                     [--seed S] [--renoise K] [--check] [--scenes I,J.. [--dump DIR] \
+                     [--noise-seed K]]"
                 )
                 .into());
             }
         }
+    }
+    if let Some(only) = only {
+        return inspect(seed, &only, noise, dump.as_deref());
     }
     let reports = score_all(seed, count, |i| i)?;
     eprintln!("random-scenes: {count} scenes scored");
@@ -213,4 +232,217 @@ fn renoised_section(seed: u64, count: u64, runs: u64) -> crate::Result<String> {
         }
     }
     Ok(text)
+}
+
+/// `--scenes I,J..`: scores only those scenes of series `seed` (noise seed = scene number, or
+/// re-noised run `noise` when given) and prints every detection against the truth and every
+/// robot measured; with `--dump DIR` also writes each frame as `DIR/random-I.png`. Writes no
+/// document: this is for looking at single scenes quickly.
+fn inspect(
+    seed: u64,
+    only: &[u64],
+    noise: Option<u64>,
+    dump: Option<&std::path::Path>,
+) -> crate::Result {
+    let dict = Dictionary::paper();
+    let rig = RigModel::reference();
+    if let Some(dir) = dump {
+        std::fs::create_dir_all(dir)?;
+    }
+    for &i in only {
+        let mut spec = random_scene(seed, i);
+        spec.render.seed = noise.map_or(i, |k| renoised_seed(k, i));
+        let mut detector = default_detector(dict);
+        let e = evaluate_scene(
+            &spec,
+            &rig,
+            dict,
+            &mut detector,
+            &RobotConfig::default(),
+            None,
+        )
+        .map_err(|e| format!("{}: {e}", spec.name))?;
+        println!(
+            "== {} (seed {seed}, noise seed {}): pass {}",
+            spec.name, spec.render.seed, e.report.pass
+        );
+        for r in &spec.robots {
+            println!(
+                "  robot {} at x {:.3} y {:.3} theta {:.1} deg",
+                r.robot,
+                r.x,
+                r.y,
+                r.theta.to_degrees()
+            );
+        }
+        for t in &e.rendered.truth.robots {
+            for f in &t.faces {
+                if f.visible || f.off_axis_deg < 90.0 {
+                    println!(
+                        "  truth robot {} face {} idx {} visible {} readable {} off-axis {:.1} width {:?} corners {:?}",
+                        t.robot,
+                        f.face,
+                        f.index,
+                        f.visible,
+                        f.readable,
+                        f.off_axis_deg,
+                        f.width_px.map(|w| (w * 10.0).round() / 10.0),
+                        f.corners_px.map(|c| c.map(|p| [
+                            (p[0] * 100.0).round() / 100.0,
+                            (p[1] * 100.0).round() / 100.0
+                        ]))
+                    );
+                }
+            }
+        }
+        for d in &e.detections {
+            println!(
+                "  detected idx {} robot/face {:?} corners {:?}",
+                d.index,
+                rig.robot_face(d.index),
+                d.corners
+                    .map(|p| [(p.x * 100.0).round() / 100.0, (p.y * 100.0).round() / 100.0])
+            );
+        }
+        for m in &e.robots.robots {
+            println!(
+                "  measured robot {} faces {:?} rejected {:?} rms {:.3} l12 {:.4} heading {:.2} deg",
+                m.robot,
+                m.faces,
+                m.rejections,
+                m.reprojection_rms_px,
+                m.l12,
+                m.relative_heading().to_degrees()
+            );
+        }
+        for f in &e.robots.failures {
+            println!("  failure: {f}");
+        }
+        // Every required face not read: the nearest quad found and why it did not decode.
+        let truth = &e.rendered.truth;
+        let view = fiducial::GrayView::new(e.rendered.image.as_raw(), truth.width, truth.height)?;
+        detector.find_quads(&view);
+        for t in &truth.robots {
+            let report = e.report.robots.iter().find(|b| b.robot == t.robot);
+            for f in t.faces.iter().filter(|f| f.readable) {
+                if report.is_some_and(|b| b.faces_read.contains(&f.face)) {
+                    continue;
+                }
+                let Some(c) = f.corners_px else { continue };
+                let centre = c
+                    .iter()
+                    .fold([0.0, 0.0], |s, p| [s[0] + p[0] / 4.0, s[1] + p[1] / 4.0]);
+                let near: Vec<_> = detector
+                    .quads()
+                    .iter()
+                    .filter(|q| {
+                        let qc = q
+                            .corners
+                            .iter()
+                            .fold([0.0, 0.0], |s, p| [s[0] + p.x / 4.0, s[1] + p.y / 4.0]);
+                        (qc[0] - centre[0]).hypot(qc[1] - centre[1]) < 10.0
+                    })
+                    .collect();
+                println!(
+                    "  MISSED robot {} face {}: {} quads near",
+                    t.robot,
+                    f.face,
+                    near.len()
+                );
+                {
+                    use fiducial::contour::{Labeller, trace_outer};
+                    use fiducial::quad::{QuadLimits, fit_quad};
+                    let cfg = *detector.config();
+                    let bin = detector.binary().to_vec();
+                    let mut lab = Labeller::new();
+                    let comps: Vec<_> = lab.label(&bin, truth.width).to_vec();
+                    for comp in comps.iter().filter(|k| {
+                        let cx = f64::from(k.x_min + k.x_max) / 2.0;
+                        let cy = f64::from(k.y_min + k.y_max) / 2.0;
+                        (cx - centre[0]).hypot(cy - centre[1]) < 8.0 && k.pixels > 30
+                    }) {
+                        let mut contour = Vec::new();
+                        let ok = trace_outer(
+                            &bin,
+                            truth.width,
+                            comp.start_x,
+                            comp.y_min,
+                            10_000,
+                            &mut contour,
+                        );
+                        let limits = QuadLimits {
+                            min_side: cfg.min_side,
+                            min_angle_deg: cfg.min_angle_deg,
+                            line_tolerance: cfg.line_tolerance,
+                            line_tolerance_rel: cfg.line_tolerance_rel,
+                        };
+                        let coarse = fit_quad(&contour, &limits);
+                        let refined = coarse.and_then(|q| {
+                            fiducial::refine::Refiner::new().refine(
+                                &view,
+                                &q,
+                                &cfg.refine,
+                                cfg.min_angle_deg,
+                                7.0,
+                            )
+                        });
+                        println!(
+                            "    component {comp:?} traced {ok} ({} pts) coarse {coarse:?} refined {refined:?}",
+                            contour.len()
+                        );
+                    }
+                }
+                let (x0, x1) = (
+                    c[0][0].min(c[3][0]) as usize - 6,
+                    c[1][0].max(c[2][0]) as usize + 8,
+                );
+                let (y0, y1) = (
+                    c[0][1].min(c[1][1]) as usize - 4,
+                    c[2][1].max(c[3][1]) as usize + 5,
+                );
+                let raw = e.rendered.image.as_raw();
+                for y in y0..y1 {
+                    let row: String = (x0..x1)
+                        .map(|x| {
+                            if detector.binary()[y * truth.width + x] == 1 {
+                                '#'
+                            } else {
+                                '.'
+                            }
+                        })
+                        .collect();
+                    let grey: String = (x0..x1)
+                        .map(|x| format!("{:4}", raw[y * truth.width + x]))
+                        .collect();
+                    println!("    {y:3} {row}  {grey}");
+                }
+                for q in near {
+                    let r = fiducial::decode(
+                        &view,
+                        &q.corners,
+                        detector.dictionary(),
+                        &detector.config().decode,
+                    );
+                    println!(
+                        "    quad {:?} contrast {:.1}: {:?}",
+                        q.corners.map(|p| [
+                            (p.x * 100.0).round() / 100.0,
+                            (p.y * 100.0).round() / 100.0
+                        ]),
+                        q.contrast,
+                        r.map(|d| d.index)
+                    );
+                }
+            }
+        }
+        for b in &e.report.robots {
+            println!("  report {b:?}");
+        }
+        if let Some(dir) = dump {
+            e.rendered
+                .image
+                .save(dir.join(format!("{}.png", spec.name)))?;
+        }
+    }
+    Ok(())
 }

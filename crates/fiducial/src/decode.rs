@@ -204,7 +204,10 @@ impl CellReading {
 /// A marker read from an image.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Decoded {
-    /// Index of the entry in the dictionary.
+    /// Which dictionary the marker was read from: its position in the detector's list
+    /// ([`crate::Detector::dictionaries`]); always 0 from [`decode`].
+    pub dictionary: usize,
+    /// Index of the entry in the dictionary: the marker's id.
     pub index: usize,
     /// The entry's code (marker orientation).
     pub code: u64,
@@ -307,6 +310,61 @@ pub fn read_cells(
     family: MarkerFamily,
     params: &DecodeParams,
 ) -> Result<CellReading, Rejection> {
+    read_cells_with(image, corners, family, WhiteReference::QuietZone, params)
+}
+
+/// Where the white reference level of a reading comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WhiteReference {
+    /// The median of the ring of quiet-zone cells just outside the border (the paper's
+    /// markers, printed inside a white margin).
+    QuietZone,
+    /// The marker's own light cells: the border and data levels are split in two by Otsu's
+    /// criterion and the white reference is the median of the data cells above the split.
+    /// For markers that may be printed without a white margin (ArUco, AprilTag).
+    DataCells,
+}
+
+impl WhiteReference {
+    /// The reference a dictionary's markers are read with ([`Dictionary::uses_quiet_zone`]).
+    pub fn of(dictionary: &Dictionary) -> Self {
+        if dictionary.uses_quiet_zone() {
+            Self::QuietZone
+        } else {
+            Self::DataCells
+        }
+    }
+}
+
+/// Otsu's split of sorted `values`: the index `i` (1..len) maximising the between-class
+/// variance of `values[..i]` and `values[i..]`.
+fn otsu_split(values: &[f64]) -> usize {
+    let n = values.len();
+    let total: f64 = values.iter().sum();
+    let mut below = 0.0;
+    let (mut best, mut best_i) = (-1.0, n);
+    for i in 1..n {
+        below += values[i - 1];
+        let (w0, w1) = (i as f64, (n - i) as f64);
+        let d = below / w0 - (total - below) / w1;
+        let between = w0 * w1 * d * d;
+        if between > best {
+            best = between;
+            best_i = i;
+        }
+    }
+    best_i
+}
+
+/// [`read_cells`] with the white reference taken from `white` (the quiet zone is not read
+/// at all with [`WhiteReference::DataCells`]).
+pub fn read_cells_with(
+    image: &GrayView<'_>,
+    corners: &Corners,
+    family: MarkerFamily,
+    white_reference: WhiteReference,
+    params: &DecodeParams,
+) -> Result<CellReading, Rejection> {
     if !(params.sample_radius >= 0.0 && params.sample_radius <= 0.5) {
         return Err(Rejection::BadParams {
             reason: "sample_radius must be in [0, 0.5]",
@@ -358,17 +416,19 @@ pub fn read_cells(
     // Quiet-zone ring: white reference (cells outside the image are skipped).
     let mut quiet = [0.0f64; MAX_QUIET];
     let mut nq = 0;
-    for y in -1..=hc {
-        for x in -1..=wc {
-            let ring = x == -1 || y == -1 || x == wc || y == hc;
-            if let Some(v) = ring.then(|| sampler.cell(x, y)).flatten() {
-                quiet[nq] = v;
-                nq += 1;
+    if white_reference == WhiteReference::QuietZone {
+        for y in -1..=hc {
+            for x in -1..=wc {
+                let ring = x == -1 || y == -1 || x == wc || y == hc;
+                if let Some(v) = ring.then(|| sampler.cell(x, y)).flatten() {
+                    quiet[nq] = v;
+                    nq += 1;
+                }
             }
         }
-    }
-    if nq == 0 {
-        return Err(Rejection::QuietZoneOutside);
+        if nq == 0 {
+            return Err(Rejection::QuietZoneOutside);
+        }
     }
     // Data cells, read before sorting the border (the median reorders it).
     let mut data = [0.0f64; 64];
@@ -379,8 +439,36 @@ pub fn read_cells(
                 sampler.cell(c + 1, r + 1).ok_or(Rejection::OutsideImage)?;
         }
     }
+    let cells = (m * n) as usize;
+    let white = match white_reference {
+        WhiteReference::QuietZone => median(&mut quiet[..nq]),
+        WhiteReference::DataCells => {
+            let mut all = [0.0f64; MAX_BORDER + 64];
+            all[..nb].copy_from_slice(&border[..nb]);
+            all[nb..nb + cells].copy_from_slice(&data[..cells]);
+            let all = &mut all[..nb + cells];
+            all.sort_unstable_by(f64::total_cmp);
+            let i = otsu_split(all);
+            let split = if i < all.len() {
+                0.5 * (all[i - 1] + all[i])
+            } else {
+                f64::INFINITY
+            };
+            // The light data cells, gathered into the (no longer needed) quiet buffer.
+            let mut light = [0.0f64; 64];
+            let mut nl = 0;
+            for &v in data[..cells].iter().filter(|&&v| v > split) {
+                light[nl] = v;
+                nl += 1;
+            }
+            if nl == 0 {
+                f64::NAN
+            } else {
+                median(&mut light[..nl])
+            }
+        }
+    };
     let black = median(&mut border[..nb]);
-    let white = median(&mut quiet[..nq]);
     let contrast = white - black;
     if contrast.is_nan() || contrast < params.min_contrast.max(f64::MIN_POSITIVE) {
         return Err(Rejection::LowContrast {
@@ -399,7 +487,6 @@ pub fn read_cells(
     let mut code = 0u64;
     let mut margin = f64::INFINITY;
     let half = 0.5 * contrast;
-    let cells = (m * n) as usize;
     let mut scores = [0.0f64; 64];
     for (k, &v) in data.iter().take(cells).enumerate() {
         if v < threshold {
@@ -442,8 +529,29 @@ pub fn decode(
     dictionary: &Dictionary,
     params: &DecodeParams,
 ) -> Result<Decoded, Rejection> {
-    let family = dictionary.family();
-    let max = params.max_errors.min(dictionary.max_correctable());
+    let (s, reading) = read_oriented(
+        image,
+        corners,
+        dictionary.family(),
+        WhiteReference::of(dictionary),
+        params,
+    )?;
+    match_reading(corners, s, &reading, dictionary, params).ok_or_else(|| Rejection::NoMatch {
+        read: reading.code,
+        nearest: dictionary.nearest(reading.code).distance,
+        max: params.max_errors.min(dictionary.max_correctable()),
+    })
+}
+
+/// Reads the grid of `family` in the corner order that fits it (see the module docs): the
+/// corner shift used and the reading.
+pub(crate) fn read_oriented(
+    image: &GrayView<'_>,
+    corners: &Corners,
+    family: MarkerFamily,
+    white: WhiteReference,
+    params: &DecodeParams,
+) -> Result<(u8, CellReading), Rejection> {
     // Corner shifts to read: the grid maps onto itself under all quarter turns for a
     // square family (lookup covers them), under half turns otherwise (so also read with
     // the corners shifted by one).
@@ -455,7 +563,7 @@ pub fn decode(
     let mut first_rejection = None;
     for &s in shifts {
         let frame_corners: Corners = core::array::from_fn(|i| corners[(i + s as usize) % 4]);
-        match read_cells(image, &frame_corners, family, params) {
+        match read_cells_with(image, &frame_corners, family, white, params) {
             Ok(r) => {
                 if chosen.as_ref().is_none_or(|(_, c)| r.fit > c.fit) {
                     chosen = Some((s, r));
@@ -466,23 +574,27 @@ pub fn decode(
             }
         }
     }
-    let Some((s, reading)) = chosen else {
-        return Err(first_rejection.unwrap_or(Rejection::BadQuad {
-            reason: "no reading",
-        }));
-    };
-    let found = dictionary
+    chosen.ok_or(first_rejection.unwrap_or(Rejection::BadQuad {
+        reason: "no reading",
+    }))
+}
+
+/// Looks a reading (taken with the corners shifted by `s`) up in `dictionary`, with hard
+/// then soft correction; the decoded marker (dictionary 0) or `None`.
+pub(crate) fn match_reading(
+    corners: &Corners,
+    s: u8,
+    reading: &CellReading,
+    dictionary: &Dictionary,
+    params: &DecodeParams,
+) -> Option<Decoded> {
+    let max = params.max_errors.min(dictionary.max_correctable());
+    let m = dictionary
         .lookup_within(reading.code, max)
-        .or_else(|| soft_lookup(&reading, dictionary, params));
-    let Some(m) = found else {
-        return Err(Rejection::NoMatch {
-            read: reading.code,
-            nearest: dictionary.nearest(reading.code).distance,
-            max,
-        });
-    };
+        .or_else(|| soft_lookup(reading, dictionary, params))?;
     let rotation = (s + m.rotation) % 4;
-    Ok(Decoded {
+    Some(Decoded {
+        dictionary: 0,
         index: m.index,
         code: m.code,
         distance: m.distance,

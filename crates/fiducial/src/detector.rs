@@ -18,7 +18,10 @@
 use nalgebra::Point2;
 
 use crate::contour::{Labeller, trace_outer};
-use crate::decode::{DecodeParams, Decoded, decode};
+use crate::decode::{
+    CellReading, DecodeParams, Decoded, WhiteReference, match_reading, read_oriented,
+};
+use crate::error::FiducialError;
 use crate::dictionary::Dictionary;
 use crate::image::{Corners, GrayView};
 use crate::quad::{QuadLimits, fit_quad};
@@ -114,10 +117,20 @@ pub struct Quad {
 }
 
 /// The marker detector; reuse one per stream of frames.
+///
+/// It reads one or several dictionaries in one pass: each quad's cells are sampled once per
+/// distinct grid (family and white reference), and that reading is looked up in every
+/// dictionary of that grid (e.g. `DICT_6X6_250` and `tag36h11` share one reading). A quad
+/// that matches in several dictionaries is reported once, from the dictionary with the
+/// fewest corrected bits (the earlier one in the list on a tie).
 #[derive(Debug, Clone)]
 pub struct Detector {
     config: DetectorConfig,
-    dictionary: Dictionary,
+    dictionaries: Vec<Dictionary>,
+    /// For each dictionary, the first dictionary in the list read with the same grid.
+    grid_of: Vec<usize>,
+    /// Per dictionary, the reading of the current quad (valid where `grid_of[i] == i`).
+    readings: Vec<Option<(u8, CellReading)>>,
     binarizer: Binarizer,
     bin: Vec<u8>,
     labeller: Labeller,
@@ -142,9 +155,35 @@ impl Detector {
 
     /// A detector that reads codes of `dictionary`.
     pub fn with_dictionary(config: DetectorConfig, dictionary: Dictionary) -> Self {
+        Self::build(config, vec![dictionary])
+    }
+
+    /// A detector that reads every dictionary of `dictionaries` in one pass (see the type's
+    /// docs); [`Decoded::dictionary`] is the position in this list.
+    pub fn with_dictionaries(
+        config: DetectorConfig,
+        dictionaries: Vec<Dictionary>,
+    ) -> Result<Self, FiducialError> {
+        if dictionaries.is_empty() {
+            return Err(FiducialError::EmptyDictionary);
+        }
+        Ok(Self::build(config, dictionaries))
+    }
+
+    fn build(config: DetectorConfig, dictionaries: Vec<Dictionary>) -> Self {
+        let key = |d: &Dictionary| (d.family(), d.uses_quiet_zone());
+        let grid_of = (0..dictionaries.len())
+            .map(|i| {
+                (0..=i)
+                    .find(|&j| key(&dictionaries[j]) == key(&dictionaries[i]))
+                    .unwrap_or(i)
+            })
+            .collect();
         Self {
             config,
-            dictionary,
+            readings: vec![None; dictionaries.len()],
+            grid_of,
+            dictionaries,
             binarizer: Binarizer::default(),
             bin: Vec::new(),
             labeller: Labeller::default(),
@@ -154,9 +193,14 @@ impl Detector {
         }
     }
 
-    /// The dictionary codes are looked up in.
+    /// The (first) dictionary codes are looked up in.
     pub fn dictionary(&self) -> &Dictionary {
-        &self.dictionary
+        &self.dictionaries[0]
+    }
+
+    /// Every dictionary codes are looked up in, in the order given.
+    pub fn dictionaries(&self) -> &[Dictionary] {
+        &self.dictionaries
     }
 
     /// Finds and decodes the markers in `img` into `out` (cleared first; it keeps its
@@ -175,13 +219,37 @@ impl Detector {
     /// one with fewer bit errors, then higher contrast). Returns the number of quads examined.
     pub fn decode_quads(&mut self, img: &GrayView<'_>, out: &mut Vec<Decoded>) -> usize {
         out.clear();
+        let params = &self.config.decode;
         for q in &self.quads {
-            let Ok(d) = decode(img, &q.corners, &self.dictionary, &self.config.decode) else {
+            let mut best: Option<Decoded> = None;
+            for (i, dict) in self.dictionaries.iter().enumerate() {
+                let g = self.grid_of[i];
+                if g == i {
+                    self.readings[i] = read_oriented(
+                        img,
+                        &q.corners,
+                        dict.family(),
+                        WhiteReference::of(dict),
+                        params,
+                    )
+                    .ok();
+                }
+                let Some((s, reading)) = &self.readings[g] else {
+                    continue;
+                };
+                if let Some(mut d) = match_reading(&q.corners, *s, reading, dict, params)
+                    && best.is_none_or(|b| d.distance < b.distance)
+                {
+                    d.dictionary = i;
+                    best = Some(d);
+                }
+            }
+            let Some(d) = best else {
                 continue;
             };
             match out
                 .iter_mut()
-                .find(|o| o.index == d.index && overlaps(o, &d))
+                .find(|o| o.dictionary == d.dictionary && o.index == d.index && overlaps(o, &d))
             {
                 Some(o) => {
                     if (d.distance, -d.contrast) < (o.distance, -o.contrast) {
@@ -216,8 +284,13 @@ impl Detector {
     pub fn find_quads(&mut self, img: &GrayView<'_>) -> &[Quad] {
         self.quads.clear();
         let cfg = self.config;
-        let family = self.dictionary.family();
-        let cells_across = f64::from(family.width_cells().max(family.height_cells()));
+        // The most cells across of any dictionary: the narrowest border cell the edge
+        // profiles must stay within.
+        let cells_across = self
+            .dictionaries
+            .iter()
+            .map(|d| f64::from(d.family().width_cells().max(d.family().height_cells())))
+            .fold(0.0, f64::max);
         let (w, h) = (img.width(), img.height());
         // Reserve for the frame size once, so that later frames of this size do not grow
         // the buffers (the run list grows only past one run per 16 pixels).

@@ -24,6 +24,9 @@ use crate::family::MarkerFamily;
 /// The checked-in text of the paper's dictionary (4 x 5 cells, `d_min = 6`).
 pub const PAPER_DICTIONARY_TEXT: &str = include_str!("../data/dict-4x5-d6.txt");
 
+/// The name of the paper's (our own) dictionary, as [`Dictionary::name`] and the CLI give it.
+pub const PAPER_NAME: &str = "FORMATION_4X5";
+
 /// Parameters of [`Dictionary::generate`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct GenerateParams {
@@ -87,7 +90,12 @@ pub struct Match {
 }
 
 /// A set of codes with a guaranteed minimum Hamming distance over rotations.
-#[derive(Debug, Clone, PartialEq, Eq)]
+///
+/// Lookup does not scan the codes: every code under every rotation is kept in a sorted
+/// table, so an exact read is a binary search, and a read with `t` bit errors is found by
+/// searching the read with each set of at most `t` bits flipped (when there are fewer such
+/// sets than table entries; a scan otherwise).
+#[derive(Debug, Clone)]
 pub struct Dictionary {
     family: MarkerFamily,
     min_distance: u32,
@@ -95,6 +103,51 @@ pub struct Dictionary {
     /// `rotated[i][q]` = code `i` turned `q` clockwise quarter turns (unused slots for a
     /// non-square family hold the code itself and are never read).
     rotated: Vec<[u64; 4]>,
+    /// Most bit errors a lookup corrects ([`Dictionary::max_correctable`]).
+    correction: u32,
+    /// The standard name, for the paper's and the predefined dictionaries.
+    name: Option<&'static str>,
+    /// Whether markers of this dictionary are printed inside a white quiet zone that the
+    /// decoder may use as its white reference.
+    quiet_zone: bool,
+    /// `(code turned q, index * 4 + q)` for every entry and symmetry, sorted; of equal
+    /// codes only the lowest `index * 4 + q` is kept.
+    table: Vec<(u64, u32)>,
+}
+
+impl PartialEq for Dictionary {
+    /// Same family, codes, distance, correction and white reference; the name is a label
+    /// and does not take part (a regenerated paper dictionary equals [`Dictionary::paper`]).
+    fn eq(&self, other: &Self) -> bool {
+        self.family == other.family
+            && self.min_distance == other.min_distance
+            && self.codes == other.codes
+            && self.correction == other.correction
+            && self.quiet_zone == other.quiet_zone
+    }
+}
+
+impl Eq for Dictionary {}
+
+/// The sorted lookup table of [`Dictionary`].
+fn lookup_table(family: MarkerFamily, rotated: &[[u64; 4]]) -> Vec<(u64, u32)> {
+    let sym = family.symmetries();
+    let mut table = Vec::with_capacity(rotated.len() * sym.len());
+    for (i, r) in rotated.iter().enumerate() {
+        for &q in sym {
+            table.push((r[q as usize], (i as u32) << 2 | u32::from(q)));
+        }
+    }
+    table.sort_unstable();
+    table.dedup_by_key(|e| e.0);
+    table
+}
+
+/// `n choose k`, saturating.
+fn choose(n: u32, k: u32) -> u64 {
+    (0..k).fold(1u64, |acc, i| {
+        acc.saturating_mul(u64::from(n - i)) / u64::from(i + 1)
+    })
 }
 
 /// Hamming distance of two codes.
@@ -113,6 +166,7 @@ impl Dictionary {
             // crate's tests (parse + exact regeneration), so this cannot fail at run time.
             Dictionary::from_text(PAPER_DICTIONARY_TEXT)
                 .expect("embedded data/dict-4x5-d6.txt is valid (checked by tests)")
+                .named(PAPER_NAME)
         })
     }
 
@@ -168,11 +222,102 @@ impl Dictionary {
                 }
             }
         }
+        let table = lookup_table(family, &rotated);
         Ok(Self {
             family,
             min_distance,
             codes,
             rotated,
+            correction: (min_distance - 1) / 2,
+            name: None,
+            quiet_zone: true,
+            table,
+        })
+    }
+
+    /// A predefined dictionary from its checked-in table: `min_distance` is the table's
+    /// (generated and checked by tests, possibly 0 when two ids coincide up to rotation),
+    /// `correction` the default number of bits to correct.
+    pub(crate) fn from_standard(
+        name: &'static str,
+        family: MarkerFamily,
+        codes: Vec<u64>,
+        min_distance: u32,
+        correction: u32,
+    ) -> Result<Self, FiducialError> {
+        if codes.is_empty() {
+            return Err(FiducialError::EmptyDictionary);
+        }
+        let mut rotated = Vec::with_capacity(codes.len());
+        for &code in &codes {
+            family.check_code(code)?;
+            let mut r = [code; 4];
+            for &q in family.symmetries() {
+                r[q as usize] = family.rotate_unchecked(code, q);
+            }
+            rotated.push(r);
+        }
+        let table = lookup_table(family, &rotated);
+        Ok(Self {
+            family,
+            min_distance,
+            codes,
+            rotated,
+            correction: correction.min(min_distance.saturating_sub(1) / 2),
+            name: Some(name),
+            quiet_zone: false,
+            table,
+        })
+    }
+
+    /// This dictionary with at most `bits` bit errors corrected by lookups (capped at
+    /// `(d_min - 1) / 2`, so a corrected read is still the unique entry that close).
+    #[must_use]
+    pub fn with_correction(mut self, bits: u32) -> Self {
+        self.correction = bits.min(self.min_distance.saturating_sub(1) / 2);
+        self
+    }
+
+    /// The dictionary's standard name (`FORMATION_4X5` for the paper's, the OpenCV name for
+    /// a predefined one), or `None` for a generated or custom one.
+    pub fn name(&self) -> Option<&'static str> {
+        self.name
+    }
+
+    /// This dictionary under a standard name (used for the paper's dictionary).
+    pub(crate) fn named(mut self, name: &'static str) -> Self {
+        self.name = Some(name);
+        self
+    }
+
+    /// Whether the decoder takes its white reference from a white quiet zone around the
+    /// border (the paper's markers: yes), or from the marker's own white cells (the
+    /// predefined ArUco and AprilTag families, which may be printed without one).
+    pub fn uses_quiet_zone(&self) -> bool {
+        self.quiet_zone
+    }
+
+    /// This dictionary with the white reference taken from the quiet zone (`true`) or from
+    /// the marker's own white cells (`false`); see [`Dictionary::uses_quiet_zone`].
+    #[must_use]
+    pub fn with_quiet_zone(mut self, quiet_zone: bool) -> Self {
+        self.quiet_zone = quiet_zone;
+        self
+    }
+
+    /// The entry and rotation whose code is exactly `read`, if any.
+    #[inline]
+    fn exact(&self, read: u64) -> Option<Match> {
+        let i = self.table.partition_point(|e| e.0 < read);
+        let &(code, key) = self.table.get(i)?;
+        (code == read).then(|| {
+            let index = (key >> 2) as usize;
+            Match {
+                index,
+                code: self.codes[index],
+                distance: 0,
+                rotation: (key & 3) as u8,
+            }
         })
     }
 
@@ -235,10 +380,14 @@ impl Dictionary {
         self.min_distance
     }
 
-    /// Most bit errors a lookup corrects: `(d_min - 1) / 2`, the largest distance below
-    /// `d_min / 2`.
+    /// Most bit errors a lookup corrects: for a dictionary built here, `(d_min - 1) / 2`,
+    /// the largest distance below `d_min / 2`.
+    ///
+    /// A predefined dictionary corrects OpenCV's default instead: `maxCorrectionBits`
+    /// times OpenCV's `errorCorrectionRate` 0.6, rounded down (and never more than
+    /// `(d_min - 1) / 2`); [`Dictionary::with_correction`] changes it.
     pub fn max_correctable(&self) -> u32 {
-        (self.min_distance - 1) / 2
+        self.correction
     }
 
     /// Number of codes.
@@ -277,6 +426,33 @@ impl Dictionary {
     /// entry within `d_min / 2`.
     pub fn lookup_within(&self, read: u64, max_errors: u32) -> Option<Match> {
         let limit = max_errors.min(self.max_correctable());
+        if let Some(m) = self.exact(read) {
+            return Some(m);
+        }
+        if limit == 0 {
+            return None;
+        }
+        let bits = self.family.bits();
+        let flips: u64 = (1..=limit).map(|k| choose(bits, k)).sum();
+        if flips <= self.table.len() as u64 {
+            // Every set of 1..=limit flipped bits, fewest first (Gosper's hack); within the
+            // correction radius the match is unique.
+            for k in 1..=limit {
+                let mut set = (1u64 << k) - 1;
+                while bits == 64 || set < 1u64 << bits {
+                    if let Some(m) = self.exact(read ^ set) {
+                        return Some(Match { distance: k, ..m });
+                    }
+                    let c = set & set.wrapping_neg();
+                    let r = set.wrapping_add(c);
+                    if r == 0 {
+                        break;
+                    }
+                    set = (((r ^ set) >> 2) / c) | r;
+                }
+            }
+            return None;
+        }
         let sym = self.family.symmetries();
         let mut best: Option<Match> = None;
         for (index, r) in self.rotated.iter().enumerate() {

@@ -74,6 +74,14 @@ pub enum FiducialError {
         /// Data bits of the family.
         bits: u32,
     },
+    /// No dictionary of that name.
+    #[error("unknown marker dictionary `{name}`; known (case-insensitive): {known}")]
+    UnknownDictionary {
+        /// The name asked for.
+        name: String,
+        /// The names that exist, comma-separated.
+        known: String,
+    },
     /// A dictionary is empty.
     #[error("a dictionary needs at least one code")]
     EmptyDictionary,

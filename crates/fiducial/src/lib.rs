@@ -130,14 +130,21 @@ pub mod image;
 pub mod quad;
 pub mod refine;
 pub mod render;
+pub mod standard;
 pub mod threshold;
 
 pub use crate::cross_ratio::CrossRatioFrame;
-pub use crate::decode::{CellReading, DecodeParams, Decoded, Rejection, decode, read_cells};
+pub use crate::decode::{
+    CellReading, DecodeParams, Decoded, Rejection, WhiteReference, decode, read_cells,
+    read_cells_with,
+};
 pub use crate::detector::{Detector, DetectorConfig, Quad};
-pub use crate::dictionary::{Dictionary, GenerateParams, Match, hamming};
+pub use crate::dictionary::{Dictionary, GenerateParams, Match, PAPER_NAME, hamming};
 pub use crate::error::FiducialError;
 pub use crate::family::MarkerFamily;
 pub use crate::image::{Corners, GrayView, ImageError};
 pub use crate::render::{RenderOptions, RenderedMarker, render_marker, render_svg};
+pub use crate::standard::{
+    StandardDictionary, canonical_name, dictionary_by_name, dictionary_names, standard_dictionaries,
+};
 pub use crate::threshold::{Threshold, rgb_to_gray, rgba_to_gray};

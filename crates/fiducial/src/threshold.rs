@@ -41,6 +41,11 @@ impl Default for Threshold {
     }
 }
 
+/// How much darker (grey levels) the 1x3 or 3x1 box must be than the 3x3 box for a pixel
+/// to be cut on the narrow box: well above what sensor noise makes of their difference
+/// (about half the noise sigma), so that only a real line of dark pixels takes this path.
+const LINE_STEP: u32 = 12;
+
 /// Value of a dark pixel in the binary image (light pixels are 0).
 pub const DARK: u8 = 1;
 
@@ -48,6 +53,7 @@ pub const DARK: u8 = 1;
 #[derive(Debug, Default, Clone)]
 pub struct Binarizer {
     smooth: Vec<u8>,
+    fine: Vec<u8>,
     hsum: Vec<u16>,
     tile_min: Vec<u8>,
     tile_max: Vec<u8>,
@@ -76,7 +82,7 @@ impl Binarizer {
             } => self.adaptive(w, h, tile_size.clamp(2, 64), min_contrast, out),
             Threshold::Otsu => {
                 let t = otsu_level(&self.smooth);
-                for (o, &s) in out.iter_mut().zip(&self.smooth) {
+                for (o, &s) in out.iter_mut().zip(&self.fine) {
                     *o = u8::from(s <= t);
                 }
             }
@@ -93,6 +99,8 @@ impl Binarizer {
         let (w, h) = (img.width(), img.height());
         self.smooth.clear();
         self.smooth.resize(w * h, 0);
+        self.fine.clear();
+        self.fine.resize(w * h, 0);
         // Three rows of horizontal 3-sums, as a ring.
         self.hsum.clear();
         self.hsum.resize(3 * w, 0);
@@ -120,15 +128,34 @@ impl Binarizer {
         hrow(img.row(1.min(h - 1)), slots[2]);
         for y in 0..h {
             let out = &mut self.smooth[y * w..(y + 1) * w];
-            for (((o, a), b), c) in out
+            let fine = &mut self.fine[y * w..(y + 1) * w];
+            let (up, mid, down) = (
+                img.row(y.saturating_sub(1)),
+                img.row(y),
+                img.row((y + 1).min(h - 1)),
+            );
+            for (((((o, f), a), b), c), ((u, m), d)) in out
                 .iter_mut()
+                .zip(fine.iter_mut())
                 .zip(slots[0].iter())
                 .zip(slots[1].iter())
                 .zip(slots[2].iter())
+                .zip(up.iter().zip(mid).zip(down))
             {
                 let s = *a + *b + *c;
                 // s / 9 without a division (a 16-bit multiply-high): 7282 / 65536 = 0.11111.
                 *o = ((u32::from(s) * 7282) >> 16) as u8;
+                // The darkest of the 3x3 box and the 3x1 and 1x3 ones (sums times 3, so that
+                // all three compare on one scale): a dark line two pixels wide along either
+                // axis keeps its level in the 1x3 box along it, where the 3x3 box would mix
+                // in its light surround (see `Binarizer::binarize`).
+                let vert = u16::from(*u) + u16::from(*m) + u16::from(*d);
+                let least = (*b).min(vert);
+                *f = if 3 * u32::from(least) + 3 * 3 * LINE_STEP < u32::from(s) {
+                    (least / 3) as u8
+                } else {
+                    *o
+                };
             }
             if y + 1 < h {
                 slots.rotate_left(1);
@@ -207,7 +234,7 @@ impl Binarizer {
         }
         // Per tile row: expand the thresholds to one per pixel, then compare whole rows.
         for (j, (band, oband)) in self
-            .smooth
+            .fine
             .chunks(tile * w)
             .zip(out.chunks_mut(tile * w))
             .enumerate()

@@ -95,7 +95,7 @@ pub struct GreyImage {
 
 impl GreyImage {
     /// Resizes the buffer (reusing its allocation) and returns the pixels.
-    fn reshape(&mut self, width: usize, height: usize) -> &mut [u8] {
+    pub(crate) fn reshape(&mut self, width: usize, height: usize) -> &mut [u8] {
         self.width = width;
         self.height = height;
         self.data.resize(width * height, 0);
@@ -389,7 +389,29 @@ fn jpeg_is_complete(bytes: &[u8]) -> bool {
 /// Decodes an image file into the grey buffer (see [`read_grey`]).
 fn load_image(path: &Path, grey: &mut GreyImage, max_side: usize) -> Result<(), String> {
     let bytes = std::fs::read(path).map_err(|e| e.to_string())?;
-    let reader = image::ImageReader::new(std::io::Cursor::new(&bytes[..]))
+    decode_image(&bytes, grey, max_side)
+}
+
+/// Decodes the bytes of an image file (PNG, JPEG, or another format the `image` crate
+/// reads) as 8-bit grey, exactly as [`read_grey`] does for a file: for a caller whose image
+/// is already in memory (a message from a recording, a network buffer).
+///
+/// # Errors
+/// As [`read_grey`].
+pub fn decode_grey(bytes: &[u8], max_side: usize) -> Result<GreyImage, String> {
+    let mut grey = GreyImage::default();
+    decode_image(bytes, &mut grey, max_side)?;
+    Ok(grey)
+}
+
+/// Decodes an encoded image (PNG, JPEG, ...) held in memory into the grey buffer, with the
+/// checks of [`read_grey`] (shared by image files and compressed images in bags).
+pub(crate) fn decode_image(
+    bytes: &[u8],
+    grey: &mut GreyImage,
+    max_side: usize,
+) -> Result<(), String> {
+    let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| e.to_string())?;
     let format = reader.format().ok_or(
@@ -405,14 +427,12 @@ fn load_image(path: &Path, grey: &mut GreyImage, max_side: usize) -> Result<(), 
             "image size {w}x{h} is outside 1..={max_side} pixels a side (--max-side sets the limit)"
         ));
     }
-    if format == image::ImageFormat::Jpeg && !jpeg_is_complete(&bytes) {
+    if format == image::ImageFormat::Jpeg && !jpeg_is_complete(bytes) {
         return Err("truncated JPEG: the file ends before its end-of-image marker".into());
     }
     let img = image::DynamicImage::from_decoder(decoder).map_err(|e| e.to_string())?;
     let out = grey.reshape(w, h);
-    let luma = |r: u8, g: u8, b: u8| {
-        ((299 * u32::from(r) + 587 * u32::from(g) + 114 * u32::from(b) + 500) / 1000) as u8
-    };
+    let luma = bt601_luma;
     match &img {
         image::DynamicImage::ImageLuma8(g) => out.copy_from_slice(g.as_raw()),
         image::DynamicImage::ImageRgb8(c) => {
@@ -428,4 +448,10 @@ fn load_image(path: &Path, grey: &mut GreyImage, max_side: usize) -> Result<(), 
         other => out.copy_from_slice(other.to_luma8().as_raw()),
     }
     Ok(())
+}
+
+/// Grey from red, green and blue with the BT.601 weights, rounded: the one colour-to-grey
+/// conversion of every frame source (image files, and colour images in bags).
+pub(crate) fn bt601_luma(r: u8, g: u8, b: u8) -> u8 {
+    ((299 * u32::from(r) + 587 * u32::from(g) + 114 * u32::from(b) + 500) / 1000) as u8
 }

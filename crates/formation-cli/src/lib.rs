@@ -3,6 +3,9 @@
 //!
 //! - [`frames`]: frame sources (a folder of images, a y4m file, a y4m stream on stdin) read
 //!   into one reused grey buffer.
+//! - [`bag`]: ROS 2 bags (rosbag2 MCAP): images, camera calibration and follower inputs,
+//!   streamed.
+//! - [`mcap_out`], [`foxglove`]: an MCAP writer, and tracking results as Foxglove channels.
 //! - [`inputs`]: the follower's own inputs `(v2, w2)` and camera pan per frame, from a CSV.
 //!
 //! The subcommands themselves live beside `main.rs` in `cmd/`, one module per subcommand:
@@ -10,6 +13,9 @@
 //! and writes files; `main.rs` reports an error as one line with a non-zero exit code.
 #![deny(missing_docs)]
 
+pub mod bag;
+pub mod foxglove;
 pub mod frames;
 pub mod inputs;
+pub mod mcap_out;
 pub mod y4m;

@@ -38,3 +38,43 @@ fn render_command_writes_png_and_truth() {
     assert_eq!(err.trim().lines().count(), 1, "{err}");
     assert!(err.contains("7 to 11"), "{err}");
 }
+
+/// A render is long work for a large scene, so it is visible in a log: without a terminal it
+/// prints status lines counting the rows traced (here at every row,
+/// `FORMATION_TRACKER_STATUS_SECS=0`), the last one at the full height; `--quiet` prints none.
+#[test]
+fn render_progress_is_logged_and_quiet_silences_it() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("render-progress-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |quiet: bool| {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_formation-tracker"));
+        if quiet {
+            cmd.arg("--quiet");
+        }
+        let out = cmd
+            .args(["render", "--paper-fig", "7", "--out"])
+            .arg(dir.join(format!("fig7-{quiet}.png")))
+            .env("FORMATION_TRACKER_STATUS_SECS", "0")
+            .output()
+            .unwrap();
+        assert!(out.status.success());
+        String::from_utf8(out.stderr).unwrap()
+    };
+    let logged = run(false);
+    let rows: Vec<&str> = logged
+        .lines()
+        .filter(|l| l.starts_with("render: "))
+        .collect();
+    assert!(rows.len() > 100, "{logged}");
+    assert!(
+        logged.contains("render: 480/480 rows after "),
+        "the last row is reported: {logged}"
+    );
+    let quiet = run(true);
+    assert!(!quiet.contains("rows after"), "{quiet}");
+    assert!(
+        quiet.contains("render: wrote"),
+        "the result still prints: {quiet}"
+    );
+}

@@ -197,3 +197,17 @@ fn text_mode_prints_smoothed_lines() {
     let stdout = String::from_utf8(out.stdout).unwrap();
     assert!(!stdout.contains("smoothed"), "{stdout}");
 }
+
+#[test]
+fn smooth_with_bag_input_is_a_one_line_error() {
+    let dir = common::blank_frames("smooth-bag");
+    std::fs::write(dir.join("run.mcap"), b"not read").unwrap();
+    let out = common::run(&dir, &["track", "run.mcap", "--smooth"]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        stderr.contains("--smooth is not supported for bag input"),
+        "{stderr}"
+    );
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+}

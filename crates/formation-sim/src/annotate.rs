@@ -205,3 +205,95 @@ pub fn annotate(
     }
     Ok(img)
 }
+
+/// Height of one caption line under a tile of a [`contact_sheet`], pixels.
+pub const CAPTION_LINE: u32 = 20;
+
+/// Font size of the captions, pixels (readable at 100 % zoom).
+pub const CAPTION_SIZE: f32 = 16.0;
+
+/// Frames side by side, `cols` to a row, each scaled by `scale` (0 < scale <= 1) and with its
+/// caption (time, what was read, the track; lines separated by `\n`) written under it in
+/// black on white at [`CAPTION_SIZE`] pixels, so that the sheet can be read at 100 % zoom
+/// even where the labels drawn inside the scaled frames are small. The caption bar is as
+/// tall as the longest caption. `None` when there are no frames; all frames take the first
+/// one's size.
+///
+/// # Errors
+/// [`AnnotateError::Font`] if the embedded font does not load.
+pub fn contact_sheet(
+    frames: &[(RgbImage, String)],
+    cols: u32,
+    scale: f64,
+) -> Result<Option<RgbImage>, AnnotateError> {
+    let font = FontRef::try_from_slice(FONT_BYTES).map_err(|_| AnnotateError::Font)?;
+    let Some((first, _)) = frames.first() else {
+        return Ok(None);
+    };
+    let scale = if scale.is_finite() {
+        scale.clamp(0.05, 1.0)
+    } else {
+        1.0
+    };
+    let w = ((f64::from(first.width()) * scale).round() as u32).max(1);
+    let h = ((f64::from(first.height()) * scale).round() as u32).max(1);
+    let cols = cols.max(1);
+    let rows = (frames.len() as u32).div_ceil(cols);
+    let lines = frames
+        .iter()
+        .map(|(_, c)| c.lines().count() as u32)
+        .max()
+        .unwrap_or(0);
+    let tile_h = h + lines * CAPTION_LINE + 4;
+    let mut sheet = RgbImage::from_pixel(w * cols, tile_h * rows, Rgb([255, 255, 255]));
+    for (i, (frame, caption)) in frames.iter().enumerate() {
+        let small = image::imageops::resize(frame, w, h, image::imageops::FilterType::Triangle);
+        let (x, y) = ((i as u32 % cols) * w, (i as u32 / cols) * tile_h);
+        image::imageops::overlay(&mut sheet, &small, i64::from(x), i64::from(y));
+        for (k, line) in caption.lines().enumerate() {
+            draw_text_mut(
+                &mut sheet,
+                Rgb([0, 0, 0]),
+                x as i32 + 6,
+                (y + h + 2 + k as u32 * CAPTION_LINE) as i32,
+                CAPTION_SIZE,
+                &font,
+                line,
+            );
+        }
+    }
+    Ok(Some(sheet))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Whether any pixel of the rectangle is dark (text drawn there).
+    fn has_ink(img: &RgbImage, x0: u32, y0: u32, x1: u32, y1: u32) -> bool {
+        (y0..y1).any(|y| (x0..x1).any(|x| img.get_pixel(x, y).0[0] < 100))
+    }
+
+    #[test]
+    fn contact_sheet_captions_each_tile_below_its_frame() {
+        let frame = RgbImage::from_pixel(200, 100, Rgb([200, 200, 200]));
+        let frames = vec![
+            (frame.clone(), "t = 0.00 s   read 1/3\ntracking".to_owned()),
+            (frame.clone(), "t = 1.00 s".to_owned()),
+            (frame, String::new()),
+        ];
+        let sheet = contact_sheet(&frames, 2, 0.5).unwrap().unwrap();
+        // Tiles of 100 x 50 with a two-line caption bar, two tiles to a row, two rows.
+        let tile_h = 50 + 2 * CAPTION_LINE + 4;
+        assert_eq!(sheet.dimensions(), (200, 2 * tile_h));
+        // Both lines of the first caption, the second tile's one line, nothing for the third.
+        assert!(has_ink(&sheet, 0, 50, 100, 50 + CAPTION_LINE));
+        assert!(has_ink(&sheet, 0, 50 + CAPTION_LINE, 100, tile_h));
+        assert!(has_ink(&sheet, 100, 50, 200, 50 + CAPTION_LINE));
+        assert!(!has_ink(&sheet, 100, 50 + CAPTION_LINE, 200, tile_h));
+        assert!(!has_ink(&sheet, 0, tile_h + 50, 100, 2 * tile_h));
+        // The frames themselves are untouched by the captions.
+        assert!(!has_ink(&sheet, 0, 0, 200, 50));
+        assert!(contact_sheet(&[], 3, 0.5).unwrap().is_none());
+    }
+}

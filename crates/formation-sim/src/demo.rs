@@ -246,13 +246,24 @@ pub struct DemoSummary {
     pub seed: u64,
 }
 
+/// One annotated frame of the strip (robot 2's camera).
+#[derive(Debug, Clone)]
+pub struct StripFrame {
+    /// The step (frame number from 0).
+    pub step: usize,
+    /// The frame with the markers read and the measured rigs drawn over it.
+    pub image: image::RgbImage,
+    /// The markers read, as `robot/face` labels, in the order drawn.
+    pub labels: Vec<String>,
+}
+
 /// Everything a demo run produced.
 #[derive(Debug, Clone)]
 pub struct DemoRun {
     /// One trace per follower, robot 2 first.
     pub traces: Vec<FollowerTrace>,
-    /// Robot 2's annotated frames (step, image) for the strip.
-    pub strip: Vec<(usize, image::RgbImage)>,
+    /// Robot 2's annotated frames for the strip.
+    pub strip: Vec<StripFrame>,
     /// The figures of merit.
     pub summary: DemoSummary,
 }
@@ -383,7 +394,11 @@ fn run_demo_inner(
                 image: &image,
             });
             render_s += render;
-            strip.extend(annotated.map(|image| (step, image)));
+            strip.extend(annotated.map(|(image, labels)| StripFrame {
+                step,
+                image,
+                labels,
+            }));
             new_inputs.push(f.inputs);
         }
         progress(step, steps);
@@ -509,7 +524,14 @@ impl Follower {
         ctx: &StepContext<'_>,
         me: usize,
         leader_now: Inputs,
-    ) -> Result<(f64, Option<image::RgbImage>, image::GrayImage), DemoError> {
+    ) -> Result<
+        (
+            f64,
+            Option<(image::RgbImage, Vec<String>)>,
+            image::GrayImage,
+        ),
+        DemoError,
+    > {
         let ahead = me - 1;
         let d = world.mount.offset;
         let (width, height) = (world.camera.width, world.camera.height);
@@ -585,13 +607,14 @@ impl Follower {
         Ok((render_s, annotated, frame))
     }
 
-    /// The frame with the markers read and each measured robot's rig drawn over it.
+    /// The frame with the markers read and each measured robot's rig drawn over it, and the
+    /// markers' `robot/face` labels.
     fn annotate(
         &self,
         world: &World<'_>,
         frame: &image::GrayImage,
         robots: &[formation_tracker::robots::RobotMeasurement],
-    ) -> Result<image::RgbImage, DemoError> {
+    ) -> Result<(image::RgbImage, Vec<String>), DemoError> {
         let markers: Vec<MarkerLabel> = self
             .pipeline
             .markers()
@@ -606,13 +629,12 @@ impl Follower {
             })
             .collect();
         let rigs: Vec<RigOverlay> = robots.iter().map(RigOverlay::from).collect();
-        Ok(annotate(
-            frame,
-            &world.k.matrix(),
-            &world.rig,
-            &markers,
-            &rigs,
-        )?)
+        let labels = markers
+            .iter()
+            .map(|m| format!("{}/{}", m.robot, m.face))
+            .collect();
+        let image = annotate(frame, &world.k.matrix(), &world.rig, &markers, &rigs)?;
+        Ok((image, labels))
     }
 }
 

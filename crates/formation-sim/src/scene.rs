@@ -567,8 +567,20 @@ pub fn render_scene(
     rig: &RigModel,
     dictionary: &Dictionary,
 ) -> Result<RenderedScene, SceneError> {
+    render_scene_with_progress(spec, rig, dictionary, &|_, _| {})
+}
+
+/// As [`render_scene`], calling `progress(rows_done, rows)` as the renderer traces the rows
+/// of the image (see [`synthcam::render_with_progress`]).
+pub fn render_scene_with_progress(
+    spec: &SceneSpec,
+    rig: &RigModel,
+    dictionary: &Dictionary,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<RenderedScene, SceneError> {
     let built = build_scene(spec, rig, dictionary)?;
-    let out = synthcam::render(&built.scene, &built.camera, &built.settings)?;
+    let out =
+        synthcam::render_with_progress(&built.scene, &built.camera, &built.settings, progress)?;
     let truth = truth_from(spec, &out.truth, rig, dictionary)?;
     let (w, h) = (out.frame.width, out.frame.height);
     let image =

@@ -60,7 +60,7 @@ fn open_loop_tracks_through_the_occlusion() {
         .collect();
     assert!(hidden.last().unwrap() > &(1.5 * hidden[0]));
     assert_eq!(run.strip.len(), 3);
-    assert_eq!(run.strip[0].1.dimensions(), (640, 480));
+    assert_eq!(run.strip[0].image.dimensions(), (640, 480));
 }
 
 #[test]

@@ -12,8 +12,15 @@
 //! (more than [`RobotConfig::outlier_px`] and [`RobotConfig::outlier_factor`] times the
 //! median of the rest), the pose is solved leave-one-out and the face whose removal leaves
 //! the best fit is dropped; this repeats while a face stands out and at least two faces
-//! remain. With exactly two faces there is no majority: the smaller one in the image (the
-//! less reliable) is dropped and the robot is solved from the other face alone.
+//! remain. With exactly two faces there is no majority, so the rig's geometry decides: the
+//! faces' relative poses are known, so each face solved alone predicts where the other
+//! face's corners must be. A face cut by an occluder (a side running along the occluder's
+//! edge, a corner cut off) gives a wrong pose that misplaces every corner of the good face,
+//! while the good face's pose still places at least two corners of the cut face (those the
+//! occluder left alone) where they were read. The face whose pose explains the other face
+//! better is kept (by its second-best corner, so two agreeing corners suffice); only when
+//! neither single-face pose can be solved is the smaller face dropped. Every face dropped
+//! is reported with the reason ([`RobotMeasurement::rejections`]).
 //!
 //! A robot seen through a single face gets both planar candidates from `pose`; the better
 //! one is kept and the robot is marked `ambiguous` when the other's reprojection RMS is
@@ -81,12 +88,15 @@ pub struct RobotConfig {
 }
 
 impl Default for RobotConfig {
-    /// Outliers above 1 px (factor 3), ambiguity below 1.5, ground-plane refinement on;
+    /// Outliers above 0.5 px (factor 3), ambiguity below 1.5, ground-plane refinement on;
     /// poses rejected above 3 px reprojection RMS, beyond 20 m, or (free pose) more than
     /// 0.2 m off the floor.
     fn default() -> Self {
         Self {
-            outlier_px: 1.0,
+            // The detector's corners are good to about 0.1 px; a face cut by an occluder
+            // (a side along the occluder's edge) is off by a pixel or two at one side, which
+            // under a joint pose with good faces shows as 0.5-1 px.
+            outlier_px: 0.5,
             outlier_factor: 3.0,
             ambiguity_ratio: 1.5,
             ground_plane: true,
@@ -179,6 +189,16 @@ fn implausibility(
     None
 }
 
+/// A face that was read but not used for the pose, and why.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct FaceRejection {
+    /// Face number.
+    pub face: u8,
+    /// Why it was dropped, with the figures that decided (pixels), e.g.
+    /// `inconsistent with face 1 of the rig: its own pose misplaces face 1 by 6.2 px, face 1's pose misplaces it by 0.3 px`.
+    pub reason: String,
+}
+
 /// One robot measured in a frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RobotMeasurement {
@@ -188,6 +208,9 @@ pub struct RobotMeasurement {
     pub faces: Vec<u8>,
     /// Faces read but rejected as inconsistent with the others.
     pub rejected_faces: Vec<u8>,
+    /// The faces of `rejected_faces`, in the same order, each with the reason it was
+    /// dropped.
+    pub rejections: Vec<FaceRejection>,
     /// Rotation vector, rig frame to camera frame (radians).
     pub rotation: [f64; 3],
     /// Rig origin in the camera frame (metres).
@@ -337,7 +360,7 @@ fn joint(
 /// faces rejected (see the module documentation).
 struct Consistent {
     faces: Vec<FaceObs>,
-    rejected: Vec<u8>,
+    rejected: Vec<FaceRejection>,
     solution: pose::PoseSolution,
 }
 
@@ -352,16 +375,24 @@ fn consistent_faces(
     let mut rejected = Vec::new();
     let (mut sol, mut per_face) = joint(solver, &faces, robot)?;
     while faces.len() >= 2 && per_face.iter().any(|&r| r > config.outlier_px) {
-        let drop = if faces.len() == 2 {
-            // No majority: drop the smaller quad.
-            usize::from(area(&faces[0].image) >= area(&faces[1].image))
+        let worst = per_face.iter().copied().fold(0.0, f64::max);
+        let (drop, reason) = if faces.len() == 2 {
+            two_faces(solver, &faces, worst)
         } else {
             match face_to_leave_out(robot, &faces, solver, &sol, config) {
-                Some(i) => i,
+                Some((i, rest_rms)) => (
+                    i,
+                    format!(
+                        "inconsistent with the other faces of the rig: {:.2} px reprojection \
+                         under the joint pose of all faces, {rest_rms:.2} px without it",
+                        per_face[i]
+                    ),
+                ),
                 None => break,
             }
         };
-        rejected.push(faces.remove(drop).face);
+        let face = faces.remove(drop).face;
+        rejected.push(FaceRejection { face, reason });
         (sol, per_face) = joint(solver, &faces, robot)?;
     }
     Ok(Consistent {
@@ -371,15 +402,70 @@ fn consistent_faces(
     })
 }
 
-/// Leave one out: the face whose removal fits the rest best, if that is a clear improvement
-/// on the joint pose `sol`.
+/// How far the pose of `from` alone (its better planar candidate) places the corners of
+/// `other` from where they were read: the second smallest of the four distances (pixels),
+/// so that two corners in place suffice. `None` when `from` alone cannot be solved.
+fn misplacement(solver: &PoseSolver, from: &FaceObs, other: &FaceObs) -> Option<f64> {
+    let sol = solver.solve(&from.model, &from.image).ok()?;
+    let k = solver.intrinsics();
+    std::iter::once(sol.best)
+        .chain(sol.alternative)
+        .filter_map(|e| {
+            let mut d = [0.0; 4];
+            for (di, (m, i)) in d.iter_mut().zip(other.model.iter().zip(&other.image)) {
+                *di = (k.project(&e.pose.transform_point(m)).ok()? - i).norm();
+            }
+            d.sort_by(f64::total_cmp);
+            d[1].is_finite().then_some(d[1])
+        })
+        .reduce(f64::min)
+}
+
+/// Of two faces that disagree (`worst`: the larger per-face RMS under their joint pose), the
+/// one to drop and why: the face whose own pose explains the other face worse (see the
+/// module documentation); the smaller quad when neither can be solved alone.
+fn two_faces(solver: &PoseSolver, faces: &[FaceObs], worst: f64) -> (usize, String) {
+    let (a, b) = (&faces[0], &faces[1]);
+    match (misplacement(solver, a, b), misplacement(solver, b, a)) {
+        (Some(ab), Some(ba)) => {
+            // Drop the face whose pose misplaces the other more.
+            let (drop, keep, by_drop, by_keep) = if ba > ab {
+                (1, a.face, ba, ab)
+            } else {
+                (0, b.face, ab, ba)
+            };
+            (
+                drop,
+                format!(
+                    "inconsistent with face {keep} of the rig ({worst:.2} px reprojection under \
+                     their joint pose): its own pose misplaces face {keep} by {by_drop:.2} px, \
+                     face {keep}'s pose misplaces it by {by_keep:.2} px"
+                ),
+            )
+        }
+        _ => {
+            let drop = usize::from(area(&a.image) >= area(&b.image));
+            (
+                drop,
+                format!(
+                    "inconsistent with face {} of the rig ({worst:.2} px reprojection under \
+                     their joint pose) and the smaller of the two in the image",
+                    faces[1 - drop].face
+                ),
+            )
+        }
+    }
+}
+
+/// Leave one out: the face whose removal fits the rest best, with the RMS of the rest, if
+/// that is a clear improvement on the joint pose `sol`.
 fn face_to_leave_out(
     robot: u32,
     faces: &[FaceObs],
     solver: &PoseSolver,
     sol: &pose::PoseSolution,
     config: &RobotConfig,
-) -> Option<usize> {
+) -> Option<(usize, f64)> {
     let mut best: Option<(usize, f64)> = None;
     for i in 0..faces.len() {
         let rest: Vec<FaceObs> = faces
@@ -400,7 +486,7 @@ fn face_to_leave_out(
     }
     match best {
         Some((i, r)) if r < sol.rms() / config.outlier_factor || r <= config.outlier_px / 2.0 => {
-            Some(i)
+            Some((i, r))
         }
         _ => None,
     }
@@ -542,7 +628,7 @@ fn measure_robot(
     let cov = formation_covariance(&fit, config.ground_plane, mount).map_err(measurement)?;
     let mut face_numbers: Vec<u8> = faces.iter().map(|f| f.face).collect();
     face_numbers.sort_unstable();
-    rejected.sort_unstable();
+    rejected.sort_by_key(|r| r.face);
     let candidates = match (&faces[..], sol.alternative) {
         ([_], Some(alt)) if sol.coplanar => Some([sol.best, alt]),
         _ => None,
@@ -550,7 +636,8 @@ fn measure_robot(
     Ok(RobotMeasurement {
         robot,
         faces: face_numbers,
-        rejected_faces: rejected,
+        rejected_faces: rejected.iter().map(|r| r.face).collect(),
+        rejections: rejected,
         rotation: fit.rotation.scaled_axis().into(),
         translation: fit.translation.into(),
         reprojection_rms_px: fit.rms,
@@ -582,6 +669,7 @@ mod tests {
             robot: 1,
             faces: vec![0],
             rejected_faces: Vec::new(),
+            rejections: Vec::new(),
             rotation: rotation.scaled_axis().into(),
             translation: translation.into(),
             reprojection_rms_px: 0.2,

@@ -8,8 +8,16 @@
 //! image_height: 480
 //! camera_matrix: { rows: 3, cols: 3, data: [fx, s, cx, 0, fy, cy, 0, 0, 1] }
 //! distortion_coefficients: { rows: 1, cols: 5, data: [k1, k2, p1, p2, k3] }
-//! distortion_model: plumb_bob      # ROS only
+//! distortion_model: plumb_bob      # ROS; optional in OpenCV files
 //! ```
+//!
+//! The distortion model ([`DistortionModel`]) is the one `distortion_model` names
+//! (`plumb_bob`, `rational_polynomial`, `equidistant`; `fisheye` is taken for `equidistant`),
+//! or `equidistant` when the file says `fisheye_model: 1` (as OpenCV's calibration sample
+//! writes for `cv::fisheye`); without either, OpenCV's coefficient count decides: 4 or 5
+//! values are `plumb_bob`, 8 `rational_polynomial` (12 or 14 with the thin-prism and tilt
+//! terms zero). A fisheye calibration cannot be told from its 4 coefficients, so it must be
+//! named. An empty or absent coefficient vector is no distortion, except for a fisheye lens.
 //!
 //! OpenCV writes the matrices as `!!opencv-matrix` nodes with an extra `dt: d` entry and starts
 //! the file with `%YAML:1.0`. serde-saphyr 2 ignores unknown tags such as `!!opencv-matrix` (its
@@ -22,7 +30,8 @@
 //! A missing or malformed field gives [`CalibrationError::MissingField`] or
 //! [`CalibrationError::BadField`] naming it.
 
-use crate::{Distortion, Intrinsics};
+use crate::distortion::ProfileFault;
+use crate::{Distortion, DistortionModel, Intrinsics, PoseError};
 use nalgebra::Matrix3;
 use serde::Deserialize;
 use std::path::Path;
@@ -131,6 +140,7 @@ struct RawFile {
     camera_matrix: Option<RawMatrix>,
     distortion_coefficients: Option<RawMatrix>,
     distortion_model: Option<String>,
+    fisheye_model: Option<i64>,
 }
 
 impl Calibration {
@@ -210,11 +220,14 @@ impl Calibration {
         })?;
         let width = size(raw.image_width, "image_width")?;
         let height = size(raw.image_height, "image_height")?;
-        let cm = raw.camera_matrix.ok_or(CalibrationError::MissingField {
-            field: "camera_matrix",
-        })?;
+        let cm = raw
+            .camera_matrix
+            .as_ref()
+            .ok_or(CalibrationError::MissingField {
+                field: "camera_matrix",
+            })?;
         let k = matrix_data(
-            &cm,
+            cm,
             "camera_matrix",
             "camera_matrix.data",
             |r, c| r == 3 && c == 3,
@@ -228,35 +241,7 @@ impl Calibration {
             })?;
 
         let ros = raw.distortion_model.is_some();
-        if let Some(model) = &raw.distortion_model
-            && model != "plumb_bob"
-            && model != "rational_polynomial"
-        {
-            return Err(CalibrationError::BadField {
-                field: "distortion_model",
-                reason: format!("`{model}` is not supported (use plumb_bob)"),
-            });
-        }
-        let distortion = match &raw.distortion_coefficients {
-            None => Distortion::default(),
-            Some(d) => {
-                let data = matrix_data(
-                    d,
-                    "distortion_coefficients",
-                    "distortion_coefficients.data",
-                    |r, c| r == 1 || c == 1,
-                    "must be a row or column vector",
-                )?;
-                if data.is_empty() {
-                    Distortion::default()
-                } else {
-                    Distortion::from_slice(data).map_err(|e| CalibrationError::BadField {
-                        field: "distortion_coefficients",
-                        reason: e.to_string(),
-                    })?
-                }
-            }
-        };
+        let distortion = distortion(&raw)?;
         let has_dt = cm.dt.is_some()
             || raw
                 .distortion_coefficients
@@ -330,38 +315,78 @@ fn check_lens(
         x.hypot(y)
     })
     .fold(0.0, f64::max);
-    // March the undistorted radius r until its distorted image r_d(r) passes the corner;
-    // d r_d / d r must stay positive on the way.
-    let slope = |r: f64| {
-        let r2 = r * r;
-        1.0 + r2 * (3.0 * d.k1 + r2 * (5.0 * d.k2 + r2 * 7.0 * d.k3))
+    // March the undistorted radius (fisheye: the ray's angle) until its distorted image
+    // passes the corner; the profile's slope must stay positive on the way.
+    let (what, unit) = match d.model() {
+        DistortionModel::Equidistant => ("angle", " rad off the axis"),
+        _ => ("normalised radius", ""),
     };
-    let distorted = |r: f64| {
-        let r2 = r * r;
-        r * (1.0 + r2 * (d.k1 + r2 * (d.k2 + r2 * d.k3)))
-    };
-    let step = corner_radius / 1000.0;
-    let mut r = 0.0;
-    for _ in 0..100_000 {
-        if distorted(r) >= corner_radius {
-            return Ok(());
+    match d.check_monotonic(corner_radius) {
+        Ok(()) => Ok(()),
+        Err(ProfileFault::FoldsBack(t)) => Err(CalibrationError::BadField {
+            field: "distortion_coefficients",
+            reason: format!(
+                "the {} radial distortion folds back at {what} {t:.3}{unit}, inside the image (its corner is at normalised radius {corner_radius:.3}): not a lens",
+                d.model()
+            ),
+        }),
+        Err(ProfileFault::NeverReaches) => Err(CalibrationError::BadField {
+            field: "distortion_coefficients",
+            reason: format!(
+                "the {} radial distortion never reaches the image corner (normalised radius {corner_radius:.3}): not a lens",
+                d.model()
+            ),
+        }),
+    }
+}
+
+/// The distortion of a file: the model named by `distortion_model` (ROS, and OpenCV files that
+/// carry the key) or `fisheye_model: 1` (OpenCV's calibration sample), else the model that
+/// OpenCV's coefficient count implies (4 or 5: `plumb_bob`, 8: `rational_polynomial`).
+fn distortion(raw: &RawFile) -> Result<Distortion, CalibrationError> {
+    let named = match &raw.distortion_model {
+        Some(name) => {
+            Some(
+                DistortionModel::from_name(name).map_err(|e| CalibrationError::BadField {
+                    field: "distortion_model",
+                    reason: e.to_string(),
+                })?,
+            )
         }
-        if slope(r) <= 0.0 {
+        None => None,
+    };
+    let fisheye = raw.fisheye_model.is_some_and(|f| f != 0);
+    let model = match (named, fisheye) {
+        (Some(m), true) if m != DistortionModel::Equidistant => {
             return Err(CalibrationError::BadField {
-                field: "distortion_coefficients",
+                field: "distortion_model",
                 reason: format!(
-                    "the radial distortion folds back at normalised radius {r:.3}, inside the image (its corner is at {corner_radius:.3}): not a lens"
+                    "`{m}` contradicts `fisheye_model: 1` (the fisheye model is equidistant)"
                 ),
             });
         }
-        r += step;
-    }
-    Err(CalibrationError::BadField {
+        (None, true) => Some(DistortionModel::Equidistant),
+        (m, _) => m,
+    };
+    let data = match &raw.distortion_coefficients {
+        None => &[][..],
+        Some(d) => matrix_data(
+            d,
+            "distortion_coefficients",
+            "distortion_coefficients.data",
+            |r, c| r == 1 || c == 1,
+            "must be a row or column vector",
+        )?,
+    };
+    let bad = |e: PoseError| CalibrationError::BadField {
         field: "distortion_coefficients",
-        reason: format!(
-            "the radial distortion never reaches the image corner (normalised radius {corner_radius:.3}): not a lens"
-        ),
-    })
+        reason: e.to_string(),
+    };
+    match model {
+        Some(m) => Distortion::from_model(m, data).map_err(bad),
+        None if data.is_empty() => Ok(Distortion::NONE),
+        None => Distortion::from_opencv(data).map_err(bad),
+    }
 }
 
 fn size(v: Option<i64>, field: &'static str) -> Result<u32, CalibrationError> {

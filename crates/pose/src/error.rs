@@ -61,18 +61,21 @@ pub enum PoseError {
         /// Image height.
         height: u32,
     },
-    /// A distortion coefficient vector has too few values.
-    #[error(
-        "distortion needs 4 or 5 coefficients (k1, k2, p1, p2[, k3]), or more with the extra ones zero; got {count}"
-    )]
+    /// A distortion coefficient vector has a length its model does not take.
+    #[error("{model} distortion needs {accepted} coefficients; got {count}")]
     DistortionCount {
+        /// The model (`plumb_bob`, `rational_polynomial`, `equidistant`, or `OpenCV` for an
+        /// OpenCV vector whose model follows from its length).
+        model: &'static str,
         /// Values given.
         count: usize,
+        /// What the model accepts.
+        accepted: &'static str,
     },
-    /// A coefficient beyond k3 (the rational or thin-prism terms) is not zero: that is
-    /// another distortion model.
+    /// One of OpenCV's thin-prism (`s1..s4`, coefficients 8-11) or tilt (`tauX, tauY`,
+    /// 12-13) terms is not zero: those models are not supported.
     #[error(
-        "distortion coefficient {index} is {value}: only k1, k2, p1, p2, k3 (plumb_bob) are supported, coefficients 5 and beyond must be zero"
+        "distortion coefficient {index} is {value}: the thin-prism (s1..s4) and tilted-sensor (tauX, tauY) terms are not supported, coefficients 8 and beyond must be zero (plumb_bob takes k1, k2, p1, p2[, k3], rational_polynomial k1, k2, p1, p2, k3, k4, k5, k6)"
     )]
     UnsupportedDistortion {
         /// Position in the coefficient vector (0-based).
@@ -80,10 +83,31 @@ pub enum PoseError {
         /// Its value.
         value: f64,
     },
+    /// A distortion model name that is not one of ours.
+    #[error(
+        "unknown distortion model `{name}`: use plumb_bob, rational_polynomial or equidistant (fisheye)"
+    )]
+    UnknownDistortionModel {
+        /// The name given.
+        name: String,
+    },
+    /// A fisheye point whose ray is 90 degrees or more off the optical axis: it has no
+    /// pinhole (normalised) image, so no pose can use it.
+    #[error(
+        "distorted normalised point ({x}, {y}) is a ray {angle} rad off the optical axis (90 degrees or more): it has no pinhole image"
+    )]
+    BeyondPinholeView {
+        /// Distorted normalised x.
+        x: f64,
+        /// Distorted normalised y.
+        y: f64,
+        /// The ray's angle from the optical axis, radians.
+        angle: f64,
+    },
     /// A distortion coefficient is NaN or infinite.
     #[error("distortion coefficient {name} is not finite ({value})")]
     InvalidDistortion {
-        /// Coefficient name (k1, k2, p1, p2, k3).
+        /// Coefficient name (k1..k6, p1, p2).
         name: &'static str,
         /// Its value.
         value: f64,
@@ -102,6 +126,16 @@ pub enum PoseError {
         iterations: usize,
         /// Final residual in normalised units.
         residual: f64,
+    },
+    /// A marker size that is not positive and finite.
+    #[error(
+        "invalid marker size {width} x {height} m (need positive, finite side lengths in metres)"
+    )]
+    InvalidMarkerSize {
+        /// Width, metres.
+        width: f64,
+        /// Height, metres.
+        height: f64,
     },
     /// A point lies on or behind the camera plane (z <= 0 in the camera frame).
     #[error("point {index} is behind the camera (camera-frame z = {z})")]

@@ -1,5 +1,6 @@
 //! Camera models and 6-DOF pose from 2D-3D correspondences: pinhole intrinsics with skew, the
-//! OpenGL frustum of the synthetic camera, radial-tangential lens distortion, rotations by the
+//! OpenGL frustum of the synthetic camera, lens distortion (OpenCV's and ROS's `plumb_bob`,
+//! `rational_polynomial` and fisheye `equidistant` models), rotations by the
 //! exponential map, POSIT, IPPE and Levenberg-Marquardt (spec sections 2.1 and 4).
 //!
 //! # Design
@@ -35,6 +36,10 @@
 //! points, points behind the camera, non-finite numbers, singular intrinsics, undistortion that
 //! does not converge and an LM solve that runs out of iterations each have a [`PoseError`]
 //! variant; the last carries the estimate reached (`NotConverged { iterations, estimate }`).
+//!
+//! **One marker** ([`marker`]): [`PoseSolver::solve_square_marker`] gives what OpenCV's
+//! `solvePnP(..., SOLVEPNP_IPPE_SQUARE)` gives, in OpenCV's marker frame and corner order,
+//! with both candidates and the covariance.
 //!
 //! **Calibration files** (feature `calib`, on by default; pure Rust via `serde-saphyr`): OpenCV
 //! `FileStorage` YAML and ROS `camera_info` YAML, see [`calib`].
@@ -72,15 +77,17 @@ mod error;
 mod ippe;
 mod ldl;
 mod lm;
+pub mod marker;
 pub mod plane;
 mod posit;
 pub mod so3;
 mod solve;
 
 pub use camera::{Frustum, Intrinsics};
-pub use distortion::{Distortion, UNDISTORT_MAX_ITERATIONS, UNDISTORT_TOLERANCE};
+pub use distortion::{Distortion, DistortionModel, UNDISTORT_MAX_ITERATIONS, UNDISTORT_TOLERANCE};
 pub use error::PoseError;
 pub use lm::LmConfig;
+pub use marker::{MarkerPose, marker_corners};
 pub use plane::{PlanarEstimate, PlanarPose, PlaneFrame};
 pub use posit::{POSIT_MAX_ITERATIONS, POSIT_TOLERANCE, posit};
 pub use so3::Pose;
@@ -89,7 +96,7 @@ pub use solve::{Estimate, PoseSolution, PoseSolver, SolverOptions};
 /// The types most callers need.
 pub mod prelude {
     pub use crate::{
-        Distortion, Estimate, Frustum, Intrinsics, Pose, PoseError, PoseSolution, PoseSolver,
-        SolverOptions,
+        Distortion, DistortionModel, Estimate, Frustum, Intrinsics, MarkerPose, Pose, PoseError,
+        PoseSolution, PoseSolver, SolverOptions,
     };
 }

@@ -148,9 +148,10 @@ impl PoseSolver {
         }
     }
 
-    /// Undistort image points with this model before solving (zero coefficients are ignored).
+    /// Undistort image points with this model before solving (a model that is the identity,
+    /// see [`Distortion::is_identity`], is skipped).
     pub fn with_distortion(mut self, distortion: Distortion) -> Self {
-        self.distortion = if distortion.is_zero() {
+        self.distortion = if distortion.is_identity() {
             None
         } else {
             Some(distortion)

@@ -2,6 +2,7 @@
 #![cfg(feature = "calib")]
 
 use pose::calib::{Calibration, CalibrationError, CalibrationFormat};
+use pose::{Distortion, DistortionModel};
 use std::path::PathBuf;
 
 fn fixture(name: &str) -> PathBuf {
@@ -20,10 +21,9 @@ fn opencv_file_loads() {
     assert!((k.beta() - 553.125).abs() < 1e-9);
     assert!((k.theta() - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
     assert_eq!((k.u0(), k.v0()), (319.5, 239.5));
-    let d = c.distortion;
     assert_eq!(
-        (d.k1, d.k2, d.p1, d.p2, d.k3),
-        (-0.12, 0.035, 0.001, -0.0005, 0.0)
+        c.distortion,
+        Distortion::plumb_bob(-0.12, 0.035, 0.001, -0.0005, 0.0).unwrap()
     );
 }
 
@@ -43,7 +43,7 @@ fn opencv_header_with_skew_and_no_distortion() {
     let c = Calibration::from_yaml_str(text).unwrap();
     assert_eq!(c.format, CalibrationFormat::OpenCv);
     assert!((c.intrinsics.matrix()[(0, 1)] + 5.0).abs() < 1e-12);
-    assert!(c.distortion.is_zero());
+    assert!(c.distortion.is_identity());
 }
 
 #[test]
@@ -107,7 +107,7 @@ fn missing_file_is_an_io_error() {
 
 #[test]
 fn unsupported_distortion_model_is_named() {
-    let text = "image_width: 640\nimage_height: 480\ncamera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\ndistortion_model: equidistant\ndistortion_coefficients: {rows: 1, cols: 4, data: [0.1, 0, 0, 0]}\n";
+    let text = "image_width: 640\nimage_height: 480\ncamera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\ndistortion_model: kannala_brandt8\ndistortion_coefficients: {rows: 1, cols: 4, data: [0.1, 0, 0, 0]}\n";
     let e = Calibration::from_yaml_str(text).unwrap_err();
     assert!(
         matches!(
@@ -218,7 +218,7 @@ fn calibrations_no_camera_can_have_are_refused_with_the_field_named() {
         (
             opencv_yaml(k(554.0, 554.0, 319.5, 239.5), &[0.1, 0.2, 0.0]),
             "distortion_coefficients",
-            "4 or 5 coefficients",
+            "4 or 5 (plumb_bob: k1, k2, p1, p2[, k3]), 8 (rational_polynomial",
         ),
     ] {
         let e = Calibration::from_yaml_str(&text).unwrap_err();
@@ -228,4 +228,135 @@ fn calibrations_no_camera_can_have_are_refused_with_the_field_named() {
         }
         assert!(e.to_string().contains(says), "{e}");
     }
+}
+
+#[test]
+fn rational_polynomial_files_load_in_both_formats() {
+    let ros = Calibration::from_file(fixture("ros_rational_polynomial.yaml")).unwrap();
+    let cv = Calibration::from_file(fixture("opencv_rational_1280x720.yaml")).unwrap();
+    assert_eq!(
+        (ros.format, cv.format),
+        (CalibrationFormat::Ros, CalibrationFormat::OpenCv)
+    );
+    let expected =
+        Distortion::rational_polynomial([0.1, -0.02, 0.0006, -0.0004, 0.001, 0.35, 0.01, 0.001])
+            .unwrap();
+    assert_eq!(ros.distortion, expected);
+    assert_eq!(cv.distortion, expected);
+    assert_eq!((ros.width, ros.height), (1280, 720));
+}
+
+#[test]
+fn fisheye_files_load_in_both_formats() {
+    let ros = Calibration::from_file(fixture("ros_equidistant.yaml")).unwrap();
+    let cv = Calibration::from_file(fixture("opencv_fisheye_1280x800.yaml")).unwrap();
+    let expected = Distortion::equidistant(0.05, -0.01, 0.002, -0.0003).unwrap();
+    assert_eq!(ros.distortion, expected);
+    assert_eq!(cv.distortion, expected);
+    assert_eq!(cv.format, CalibrationFormat::OpenCv);
+    assert!((ros.intrinsics.matrix() - cv.intrinsics.matrix()).amax() < 1e-12);
+    // Without `fisheye_model: 1` the same four numbers are OpenCV's plumb bob: a fisheye file
+    // must say what it is.
+    let text = std::fs::read_to_string(fixture("opencv_fisheye_1280x800.yaml"))
+        .unwrap()
+        .replace("fisheye_model: 1\n", "");
+    let plain = Calibration::from_yaml_str(&text).unwrap();
+    assert_eq!(plain.distortion.model(), DistortionModel::PlumbBob);
+    // An OpenCV file may name the model as ROS does.
+    let named = text.replace("image_width", "distortion_model: equidistant\nimage_width");
+    assert_eq!(
+        Calibration::from_yaml_str(&named).unwrap().distortion,
+        expected
+    );
+    // A contradiction is named.
+    let both = std::fs::read_to_string(fixture("opencv_fisheye_1280x800.yaml"))
+        .unwrap()
+        .replace("image_width", "distortion_model: plumb_bob\nimage_width");
+    let e = Calibration::from_yaml_str(&both).unwrap_err();
+    assert!(
+        matches!(&e, CalibrationError::BadField { field: "distortion_model", reason } if reason.contains("fisheye_model")),
+        "{e}"
+    );
+}
+
+#[test]
+fn lens_sanity_checks_hold_for_every_model() {
+    let ros = |model: &str, d: &[f64]| {
+        format!(
+            "image_width: 1280\nimage_height: 800\ncamera_matrix: {{rows: 3, cols: 3, data: [430, 0, 639.5, 0, 430, 399.5, 0, 0, 1]}}\ndistortion_model: {model}\ndistortion_coefficients: {{rows: 1, cols: {}, data: [{}]}}\n",
+            d.len(),
+            d.iter()
+                .map(|v| v.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    };
+    // Sensible lenses of each model load.
+    for (model, d) in [
+        ("plumb_bob", &[-0.05, 0.01, 0.0, 0.0, 0.0][..]),
+        (
+            "rational_polynomial",
+            &[0.3, 0.05, 0.0, 0.0, 0.0, 0.35, 0.04, 0.0][..],
+        ),
+        ("equidistant", &[0.05, -0.01, 0.002, -0.0003][..]),
+    ] {
+        let c = Calibration::from_yaml_str(&ros(model, d)).unwrap();
+        assert_eq!(c.distortion.model().name(), model);
+    }
+    // Profiles that fold back inside the image are refused, named by model.
+    for (model, d, says) in [
+        (
+            "rational_polynomial",
+            &[-2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0][..],
+            "folds back at normalised radius",
+        ),
+        (
+            "rational_polynomial",
+            &[0.0, 0.0, 0.0, 0.0, 0.0, 5.0, 0.0, 0.0][..],
+            "folds back at normalised radius 0.44",
+        ),
+        (
+            "equidistant",
+            &[-0.5, 0.0, 0.0, 0.0][..],
+            "folds back at angle",
+        ),
+    ] {
+        let e = Calibration::from_yaml_str(&ros(model, d)).unwrap_err();
+        match &e {
+            CalibrationError::BadField { field, reason } => {
+                assert_eq!(*field, "distortion_coefficients", "{e}");
+                assert!(reason.contains(says) && reason.contains(model), "{e}");
+            }
+            other => panic!("{other}"),
+        }
+    }
+    // An f-theta lens with a 100 px focal length would need rays beyond 180 degrees to fill a
+    // 1280x800 image.
+    let e = Calibration::from_yaml_str(
+        &ros("equidistant", &[0.0; 4])
+            .replace("[430, 0, 639.5, 0, 430,", "[100, 0, 639.5, 0, 100,"),
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string().contains("never reaches the image corner"),
+        "{e}"
+    );
+    // A focal length no lens has is refused whatever the model.
+    let e = Calibration::from_yaml_str(
+        &ros("equidistant", &[0.0; 4])
+            .replace("[430, 0, 639.5, 0, 430,", "[1e-9, 0, 639.5, 0, 430,"),
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string().contains("fx = 1e-9 px is not a focal length"),
+        "{e}"
+    );
+    // The wrong count for a named model lists what that model takes.
+    let e =
+        Calibration::from_yaml_str(&ros("equidistant", &[0.1, 0.0, 0.0, 0.0, 0.0])).unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("equidistant distortion needs 4 (k1, k2, k3, k4)"),
+        "{e}"
+    );
 }

@@ -39,7 +39,7 @@ fn solves_do_not_allocate() {
     let rig = three_faces_model();
     let rig_pose = random_rig_pose(&mut rng);
     let rig_px = project_all(&k, &rig_pose, &rig);
-    let d = Distortion::new(-0.1, 0.02, 0.001, 0.0, 0.0).unwrap();
+    let d = Distortion::plumb_bob(-0.1, 0.02, 0.001, 0.0, 0.0).unwrap();
     let rig_px_distorted: Vec<_> = rig_px.iter().map(|m| d.distort_pixel(&k, m)).collect();
     let solver = PoseSolver::new(k);
     let with_lens = PoseSolver::new(k).with_distortion(d);

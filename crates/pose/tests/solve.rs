@@ -84,7 +84,7 @@ proptest! {
     fn distorted_pixels_are_undistorted(seed in any::<u64>()) {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let k = camera();
-        let d = Distortion::new(-0.12, 0.035, 0.001, -0.0005, 0.0).unwrap();
+        let d = Distortion::plumb_bob(-0.12, 0.035, 0.001, -0.0005, 0.0).unwrap();
         let truth = random_rig_pose(&mut rng);
         let model = three_faces_model();
         let image: Vec<_> = project_all(&k, &truth, &model).iter().map(|m| d.distort_pixel(&k, m)).collect();
@@ -94,6 +94,25 @@ proptest! {
         // Without the distortion model the same pixels give a worse fit.
         let plain = PoseSolver::new(k).solve(&model, &image).unwrap();
         prop_assert!(plain.rms() > sol.rms());
+    }
+
+    /// The same through the rational and fisheye models: the solver undistorts with whatever
+    /// model the calibration has.
+    #[test]
+    fn rational_and_fisheye_pixels_are_undistorted(seed in any::<u64>()) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let k = camera();
+        let truth = random_rig_pose(&mut rng);
+        let model = three_faces_model();
+        for d in [
+            Distortion::rational_polynomial([0.1, -0.02, 0.0006, -0.0004, 0.001, 0.35, 0.01, 0.001]).unwrap(),
+            Distortion::equidistant(0.05, -0.01, 0.002, -0.0003).unwrap(),
+        ] {
+            let image: Vec<_> = project_all(&k, &truth, &model).iter().map(|m| d.distort_pixel(&k, m)).collect();
+            let sol = PoseSolver::new(k).with_distortion(d).solve(&model, &image).unwrap();
+            prop_assert!(sol.pose().rotation_angle_to(&truth) < 1e-6, "{d:?}");
+            prop_assert!(translation_error(&sol.pose(), &truth) < 1e-6, "{d:?}");
+        }
     }
 }
 
@@ -360,7 +379,7 @@ fn three_faces_noise_rotation_error_small() {
 fn undistortion_failure_is_reported_by_the_solver() {
     let (model, mut image) = square_points();
     image[1] = Point2::new(0.0, 0.0); // the image corner lies beyond the fold of k1 = -1
-    let d = Distortion::new(-1.0, 0.0, 0.0, 0.0, 0.0).unwrap();
+    let d = Distortion::plumb_bob(-1.0, 0.0, 0.0, 0.0, 0.0).unwrap();
     let e = PoseSolver::new(camera())
         .with_distortion(d)
         .solve(&model, &image)

@@ -5,6 +5,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use crate::camera::Camera;
 use crate::error::{SynthError, finite, finite_vec, in_range};
@@ -202,6 +203,22 @@ pub fn render(
     camera: &Camera,
     settings: &RenderSettings,
 ) -> Result<Rendered, SynthError> {
+    render_with_progress(scene, camera, settings, &|_, _| {})
+}
+
+/// As [`render`], calling `progress(rows_done, rows)` each time a row of the image has been
+/// traced (from the worker threads, in no particular order; `rows_done` only grows), so that
+/// a caller can show how far a large frame has come. Tracing is nearly all of the time; the
+/// blur and quantisation after the last call are quick.
+///
+/// # Errors
+/// As [`render`].
+pub fn render_with_progress(
+    scene: &Scene,
+    camera: &Camera,
+    settings: &RenderSettings,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Rendered, SynthError> {
     scene.validate()?;
     settings.validate()?;
     let light = settings.shading.map(|s| Light {
@@ -211,7 +228,7 @@ pub fn render(
     });
     let prepared = Prepared::new(scene, camera, light.as_ref())?;
     let truth = ground_truth_prepared(scene, camera, &prepared)?;
-    let mut radiance = trace_image(&prepared, camera, settings);
+    let mut radiance = trace_image(&prepared, camera, settings, progress);
     let (w, h) = (camera.width(), camera.height());
     if settings.blur_sigma > 0.0 {
         gaussian_blur(&mut radiance, w, h, settings.blur_sigma);
@@ -241,8 +258,14 @@ fn light_plane(settings: &RenderSettings, w: usize, h: usize) -> [f64; 3] {
 }
 
 /// Radiance in grey levels (`255 * albedo * light`), row-major `f32`, not clamped.
-fn trace_image(prepared: &Prepared<'_>, camera: &Camera, settings: &RenderSettings) -> Vec<f32> {
+fn trace_image(
+    prepared: &Prepared<'_>,
+    camera: &Camera,
+    settings: &RenderSettings,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Vec<f32> {
     let (w, h) = (camera.width(), camera.height());
+    let rows_done = AtomicUsize::new(0);
     let kinv = *camera.k_inv();
     let (c0, c1, c2) = (
         kinv.column(0).into_owned(),
@@ -290,6 +313,7 @@ fn trace_image(prepared: &Prepared<'_>, camera: &Camera, settings: &RenderSettin
             let light = (lp[0] + lp[1] * uf + lp[2] * vf) as f32;
             *px = acc * weight * light;
         }
+        progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1, h);
     });
     out
 }

@@ -22,8 +22,9 @@ const FIGURE_SIZE: (u32, u32) = (1000, 750);
 /// and re-acquisition), series.csv (one row per frame: true / measured / estimated
 /// formation variables and velocities, status, markers, timing), fig12.svg/png and
 /// fig13.svg/png (Figs. 12-13 from the vision measurements), frames/frame-NNNN.png
-/// (annotated frames, one a second) and strip.png (those frames side by side); prints a
-/// summary.
+/// (annotated frames, one a second), strip.png (those frames side by side) and demo.mcap
+/// (robot 2's camera with its markers, reprojected rigs and estimates, for Foxglove);
+/// prints a summary.
 #[derive(Debug, ClapArgs)]
 pub struct Args {
     /// Directory to write the demo's outputs into (created if missing).
@@ -61,6 +62,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         .as_deref()
         .map(FrameSaver::new)
         .transpose()?;
+    let mut mcap = McapSaver::new(&args.out.join("demo.mcap"), config.dt)?;
     let started = std::time::Instant::now();
     eprintln!(
         "demo: rendering and tracking {} s at 30 frames/s, {} robot(s){}...",
@@ -83,14 +85,16 @@ pub fn run(args: Args) -> Result<(), CliError> {
             if let Some(saver) = &mut saver {
                 saver.save(frame);
             }
+            mcap.save(frame);
         },
     )?;
     progress.finish();
     if let Some(saver) = saver {
         saver.finish()?;
     }
+    mcap.finish()?;
     super::prepare_out_dir(&args.out.join("frames"))?;
-    write_outputs(&args.out, &run, config.occlusion)?;
+    write_outputs(&args.out, &run, config.occlusion, config.dt)?;
     super::write_stdout(format_args!(
         "{}",
         summary_text(&run.summary, started.elapsed().as_secs_f64())
@@ -103,7 +107,12 @@ fn write_file(path: &Path, bytes: &[u8]) -> Result<(), CliError> {
     std::fs::write(path, bytes).map_err(|e| format!("cannot write {}: {e}", path.display()).into())
 }
 
-fn write_outputs(out: &Path, run: &DemoRun, occlusion: Option<(f64, f64)>) -> Result<(), CliError> {
+fn write_outputs(
+    out: &Path,
+    run: &DemoRun,
+    occlusion: Option<(f64, f64)>,
+    dt: f64,
+) -> Result<(), CliError> {
     let json = serde_json::to_string_pretty(&run.summary)? + "\n";
     write_file(&out.join("summary.json"), json.as_bytes())?;
     write_file(&out.join("series.csv"), series_csv(run).as_bytes())?;
@@ -124,13 +133,16 @@ fn write_outputs(out: &Path, run: &DemoRun, occlusion: Option<(f64, f64)>) -> Re
         write_svg(&out.join(format!("fig13{suffix}.svg")), &fig13, FIGURE_SIZE)?;
         write_png(&out.join(format!("fig13{suffix}.png")), &fig13, FIGURE_SIZE)?;
     }
-    for (step, image) in &run.strip {
-        let path = out.join("frames").join(format!("frame-{step:04}.png"));
-        image
+    for frame in &run.strip {
+        let path = out
+            .join("frames")
+            .join(format!("frame-{:04}.png", frame.step));
+        frame
+            .image
             .save(&path)
             .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
     }
-    if let Some(strip) = contact_sheet(&run.strip) {
+    if let Some(strip) = contact_sheet(run, dt)? {
         let path = out.join("strip.png");
         strip
             .save(&path)
@@ -139,20 +151,41 @@ fn write_outputs(out: &Path, run: &DemoRun, occlusion: Option<(f64, f64)>) -> Re
     Ok(())
 }
 
-/// The strip's frames at half size, three to a row.
-fn contact_sheet(frames: &[(usize, image::RgbImage)]) -> Option<image::RgbImage> {
-    let (w, h) = frames
-        .first()
-        .map(|(_, f)| (f.width() / 2, f.height() / 2))?;
-    let cols = 3u32;
-    let rows = (frames.len() as u32).div_ceil(cols);
-    let mut sheet = image::RgbImage::from_pixel(w * cols, h * rows, image::Rgb([255, 255, 255]));
-    for (i, (_, frame)) in frames.iter().enumerate() {
-        let small = image::imageops::resize(frame, w, h, image::imageops::FilterType::Triangle);
-        let (c, r) = (i as u32 % cols, i as u32 / cols);
-        image::imageops::overlay(&mut sheet, &small, i64::from(c * w), i64::from(r * h));
-    }
-    Some(sheet)
+/// The strip's frames at half size, three to a row, each captioned with its time and what the
+/// frame gave: the markers read and the leader's track (or that the leader was hidden).
+fn contact_sheet(run: &DemoRun, dt: f64) -> Result<Option<image::RgbImage>, CliError> {
+    let records = run.traces.first().map_or(&[][..], |t| &t.records[..]);
+    let frames: Vec<(image::RgbImage, String)> = run
+        .strip
+        .iter()
+        .map(|f| (f.image.clone(), strip_caption(f, dt, records)))
+        .collect();
+    Ok(formation_sim::annotate::contact_sheet(&frames, 3, 0.5)?)
+}
+
+/// Two lines: `t = 2.00 s   read 1/3, 1/4` (or `leader hidden`) and `tracking   l12 1.031 m`,
+/// from the frame and the record of its step (the first frame has none: it only starts the
+/// track).
+fn strip_caption(
+    frame: &formation_sim::demo::StripFrame,
+    dt: f64,
+    records: &[formation_sim::demo::DemoRecord],
+) -> String {
+    let t = frame.step as f64 * dt;
+    let record = records.iter().find(|r| (r.step.t - t).abs() < dt / 2.0);
+    let seen = if record.is_some_and(|r| r.occluded) {
+        "leader hidden".to_owned()
+    } else if frame.labels.is_empty() {
+        "no marker read".to_owned()
+    } else {
+        format!("read {}", frame.labels.join(", "))
+    };
+    let track = match record.map(|r| (r.status, r.step.estimated[0])) {
+        Some((Some(s), l12)) => format!("{}   l12 {l12:.3} m", format!("{s:?}").to_lowercase()),
+        Some((None, _)) => "no track".to_owned(),
+        None => "first frame: the track starts".to_owned(),
+    };
+    format!("t = {t:.2} s   {seen}\n{track}")
 }
 
 fn series_csv(run: &DemoRun) -> String {
@@ -352,5 +385,135 @@ impl FrameSaver {
             self.dir.display()
         );
         Ok(())
+    }
+}
+
+/// Writes robot 2's camera, tracked as `track` would track its saved frames, to
+/// `demo.mcap` (`docs/bags.md`): the frames, marker outlines and reprojected rigs, camera to
+/// leader transforms and the estimates. The first error is kept and reported at the end.
+struct McapSaver {
+    path: PathBuf,
+    dt: f64,
+    pipeline: formation_tracker::pipeline::Pipeline,
+    writer:
+        Option<formation_tracker_cli::foxglove::FoxgloveWriter<std::io::BufWriter<std::fs::File>>>,
+    error: Option<String>,
+}
+
+impl McapSaver {
+    fn new(path: &Path, dt: f64) -> Result<Self, CliError> {
+        use fiducial::{Detector, DetectorConfig, Dictionary};
+        use formation_tracker::mount::CameraMount;
+        use formation_tracker::tracker::{Tracker, TrackerConfig};
+        let camera = formation_sim::scene::CameraSpec::default();
+        let (w, h) = (camera.width as u32, camera.height as u32);
+        let intrinsics = pose::Intrinsics::from_hfov(camera.hfov_deg.to_radians(), w, h)?;
+        let calibration = pose::calib::Calibration {
+            intrinsics,
+            distortion: pose::Distortion::default(),
+            width: w,
+            height: h,
+            format: pose::calib::CalibrationFormat::Ros,
+        };
+        let rig = formation_tracker::rig::RigModel::reference();
+        let tracker = Tracker::new(TrackerConfig::reference(CameraMount::default().offset, dt))?;
+        let pipeline = formation_tracker::pipeline::Pipeline::new(
+            Detector::with_dictionary(DetectorConfig::default(), Dictionary::paper().clone()),
+            pose::PoseSolver::new(intrinsics),
+            (w, h),
+            rig.clone(),
+            formation_tracker::robots::RobotConfig::default(),
+            tracker,
+        );
+        let file = std::fs::File::create(path)
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        let writer = formation_tracker_cli::foxglove::FoxgloveWriter::new(
+            std::io::BufWriter::new(file),
+            rig,
+            calibration,
+            true,
+        )
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            dt,
+            pipeline,
+            writer: Some(writer),
+            error: None,
+        })
+    }
+
+    fn save(&mut self, frame: &DemoFrame<'_>) {
+        if frame.robot != 2 || self.error.is_some() {
+            return;
+        }
+        let Some(writer) = self.writer.as_mut() else {
+            return;
+        };
+        let t = frame.step as f64 * self.dt;
+        let (w, h) = (frame.image.width() as usize, frame.image.height() as usize);
+        let done = match self.pipeline.process(
+            frame.image.as_raw(),
+            w,
+            h,
+            t,
+            frame.inputs,
+            formation_tracker::mount::CameraMount::default(),
+        ) {
+            Ok(done) => done,
+            Err(e) => {
+                self.error = Some(format!("demo.mcap: frame {}: {e}", frame.step));
+                return;
+            }
+        };
+        let out = formation_tracker_cli::foxglove::FrameOut {
+            frame: frame.step as u64,
+            stamp_ns: (t * 1e9).round() as u64,
+            t,
+            image: Some((frame.image.as_raw(), w, h)),
+            result: &done,
+            markers: self.pipeline.markers(),
+        };
+        if let Err(e) = writer.frame(&out) {
+            self.error = Some(format!("cannot write {}: {e}", self.path.display()));
+        }
+    }
+
+    fn finish(mut self) -> Result<(), CliError> {
+        if let Some(e) = self.error {
+            return Err(e.into());
+        }
+        if let Some(w) = self.writer.take() {
+            w.finish()
+                .map_err(|e| format!("cannot write {}: {e}", self.path.display()))?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn strip_captions_say_time_markers_and_track() {
+        let frame = formation_sim::demo::StripFrame {
+            step: 0,
+            image: image::RgbImage::new(1, 1),
+            labels: vec!["1/3".into(), "1/4".into()],
+        };
+        assert_eq!(
+            strip_caption(&frame, 1.0 / 30.0, &[]),
+            "t = 0.00 s   read 1/3, 1/4\nfirst frame: the track starts"
+        );
+        let no_markers = formation_sim::demo::StripFrame {
+            step: 60,
+            labels: Vec::new(),
+            ..frame
+        };
+        assert_eq!(
+            strip_caption(&no_markers, 1.0 / 30.0, &[]),
+            "t = 2.00 s   no marker read\nfirst frame: the track starts"
+        );
     }
 }

@@ -172,3 +172,4 @@ pub mod render;
 pub mod reproduce;
 pub mod reproduce_scenes;
 pub mod track;
+pub mod track_bag;

@@ -2,13 +2,15 @@
 //! with its ground truth as JSON.
 
 use std::path::PathBuf;
+use std::sync::Mutex;
 
 use clap::Args as ClapArgs;
 use fiducial::Dictionary;
 use formation_sim::paper::paper_scene;
-use formation_sim::scene::{SceneSpec, render_scene};
+use formation_sim::scene::{SceneSpec, render_scene_with_progress};
 
 use super::CliError;
+use super::progress::Progress;
 
 /// Arguments of `formation-tracker render`.
 #[derive(Debug, ClapArgs)]
@@ -44,7 +46,21 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     if let Some(truth) = &args.truth {
         super::prepare_out_file(truth)?;
     }
-    let rendered = render_scene(&spec, &rig, dict)?;
+    // A large scene takes minutes to trace: progress by rows (a bar on a terminal, status
+    // lines in a log, nothing with --quiet).
+    let progress = Mutex::new(Progress::new(
+        "render",
+        "rows",
+        Some(spec.camera.height as u64),
+    ));
+    let rendered = render_scene_with_progress(&spec, &rig, dict, &|done, _| {
+        if let Ok(mut p) = progress.lock() {
+            p.set(done as u64);
+        }
+    })?;
+    if let Ok(p) = progress.into_inner() {
+        p.finish();
+    }
     rendered
         .image
         .save_with_format(&args.out, image::ImageFormat::Png)

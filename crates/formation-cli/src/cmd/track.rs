@@ -22,69 +22,91 @@ use super::CliError;
 
 /// Track leader robots through a stream of camera frames.
 ///
-/// INPUT is a folder of PNG/JPEG images (sorted by name), a y4m file, or `-` for a y4m stream
-/// on stdin, e.g. `ffmpeg -i video.mp4 -f yuv4mpegpipe -pix_fmt yuv420p - | formation-tracker
-/// track - --camera cam.yaml`. Prints one line per frame on stdout (JSON with --json).
+/// INPUT is a folder of PNG/JPEG images (sorted by name), a y4m file, `-` for a y4m stream
+/// on stdin (e.g. `ffmpeg -i video.mp4 -f yuv4mpegpipe -pix_fmt yuv420p - | formation-tracker
+/// track - --camera cam.yaml`), or a ROS 2 bag: a rosbag2 `.mcap` file or folder, whose images,
+/// CameraInfo and odometry are used as recorded (docs/bags.md). Prints one line per frame on
+/// stdout (JSON with --json); --mcap also writes a file that opens in Foxglove.
 #[derive(Debug, ClapArgs)]
 pub struct Args {
-    /// A folder of images, a y4m file, or `-` for y4m on stdin.
+    /// A folder of images, a y4m file, `-` for y4m on stdin, or a ROS 2 bag (.mcap file or
+    /// rosbag2 folder).
     #[arg(value_name = "INPUT")]
-    input: PathBuf,
-    /// Camera calibration (OpenCV YAML or ROS camera_info).
+    pub(super) input: PathBuf,
+    /// Camera calibration (OpenCV YAML or ROS camera_info); for a bag, default: its
+    /// CameraInfo.
     #[arg(long, value_name = "FILE")]
-    camera: PathBuf,
+    pub(super) camera: Option<PathBuf>,
+    /// Bag input: the image topic (sensor_msgs/msg/Image or CompressedImage); default: the
+    /// bag's only image topic.
+    #[arg(long, value_name = "TOPIC")]
+    pub(super) image_topic: Option<String>,
+    /// Bag input: the follower's inputs topic (nav_msgs/msg/Odometry, geometry_msgs/msg/Twist
+    /// or TwistStamped); default: the bag's only one (Odometry first). --inputs CSV wins.
+    #[arg(long, value_name = "TOPIC")]
+    pub(super) inputs_topic: Option<String>,
+    /// Also write the results as MCAP for Foxglove: images, marker and rig annotations,
+    /// camera-to-leader transforms and the formation estimate (docs/outputs.md).
+    #[arg(long, value_name = "OUT.mcap")]
+    pub(super) mcap: Option<PathBuf>,
+    /// With --mcap: leave the images out (annotations, transforms and estimates only).
+    #[arg(long, requires = "mcap")]
+    pub(super) no_images: bool,
     /// Rig file (YAML/JSON); default: the reference rig.
     #[arg(long, value_name = "FILE")]
-    rig: Option<PathBuf>,
+    pub(super) rig: Option<PathBuf>,
     /// Follower inputs per frame: CSV with `frame` or `t`, `v2`, `w2`, optional `pan`.
     #[arg(long, value_name = "CSV")]
-    inputs: Option<PathBuf>,
+    pub(super) inputs: Option<PathBuf>,
     /// Frame rate, 0.001 to 10000 frames/s; default: the y4m header's, else 30.
     #[arg(long, value_name = "F", value_parser = super::numbers::fps)]
-    fps: Option<f64>,
+    pub(super) fps: Option<f64>,
     /// One JSON object per frame instead of a text line.
     #[arg(long)]
-    json: bool,
+    pub(super) json: bool,
     /// Camera offset ahead of the follower's axle, metres (the paper's d).
     #[arg(long, value_name = "M", default_value_t = CameraMount::default().offset,
           value_parser = super::numbers::non_negative, allow_hyphen_values = true)]
-    mount_offset: f64,
+    pub(super) mount_offset: f64,
     /// Camera height above the ground, metres.
     #[arg(long, value_name = "M", default_value_t = CameraMount::default().height,
           value_parser = super::numbers::finite, allow_hyphen_values = true)]
-    mount_height: f64,
+    pub(super) mount_height: f64,
     /// Camera tilt below the horizontal, radians.
     #[arg(long, value_name = "RAD", default_value_t = 0.0,
           value_parser = super::numbers::finite, allow_hyphen_values = true)]
-    mount_tilt: f64,
+    pub(super) mount_tilt: f64,
     /// Camera pan (left positive), radians, when the inputs CSV has no `pan` column.
     #[arg(long, value_name = "RAD", default_value_t = 0.0,
           value_parser = super::numbers::finite, allow_hyphen_values = true)]
-    pan: f64,
+    pub(super) pan: f64,
     /// Accept frames whose size differs from the calibration's by scaling the intrinsics
     /// (frames resized from the calibrated camera's, same aspect ratio). Without it such
     /// frames are errors: their poses would be wrong by the scale.
     #[arg(long = "scale-calibration")]
-    scale_calibration: bool,
+    pub(super) scale_calibration: bool,
     /// Largest image side accepted, pixels; larger frames are refused from their header,
     /// before they are decoded.
     #[arg(long, value_name = "PX", default_value_t = formation_tracker_cli::frames::MAX_SIDE,
           value_parser = super::numbers::max_side)]
-    max_side: usize,
+    pub(super) max_side: usize,
     /// Seconds without a measurement before a track is dropped.
     #[arg(long, value_name = "S", default_value_t = 2.0, value_parser = super::numbers::positive)]
-    lost_after: f64,
+    pub(super) lost_after: f64,
     /// After the causal pass, smooth every track over the whole recording (fixed-interval
     /// unscented RTS smoother, docs/smoothing.md) and print one more line per frame and
     /// leader (`"smoothed": true` with --json; see docs/outputs.md). Keeps every filter step
     /// in memory until the end.
     #[arg(long)]
-    smooth: bool,
+    pub(super) smooth: bool,
 }
 
 #[derive(Serialize)]
 struct Line<'a> {
     frame: u64,
+    /// Bag input only: where the frame came from in the bag, and the time gaps before it.
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    bag: Option<BagLine>,
     /// Where the frame came from: the image file, or `INPUT#N` for frame N of a y4m stream.
     source: &'a str,
     t: f64,
@@ -92,6 +114,17 @@ struct Line<'a> {
     markers: usize,
     failures: &'a [String],
     timing: TimingOut,
+}
+
+/// The bag fields of a JSON line (`docs/outputs.md`).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub(super) struct BagLine {
+    /// The message's `header.stamp`, nanoseconds since the epoch.
+    pub(super) stamp_ns: u64,
+    /// The message's index on the image topic, from 0, in file order.
+    pub(super) message: u64,
+    /// Frames missing just before this one (a gap of about n frame periods counts n - 1).
+    pub(super) missing_before: u64,
 }
 
 #[derive(Serialize)]
@@ -104,7 +137,21 @@ struct TimingOut {
 
 /// Runs `track`.
 pub fn run(args: &Args) -> Result<(), CliError> {
-    let calibration = Calibration::from_file(&args.camera)?;
+    if formation_tracker_cli::bag::is_bag(&args.input) {
+        if args.smooth {
+            return Err(
+                "--smooth is not supported for bag input yet (image folders and y4m only)".into(),
+            );
+        }
+        return super::track_bag::run(args);
+    }
+    if args.image_topic.is_some() || args.inputs_topic.is_some() {
+        return Err("--image-topic and --inputs-topic are for bag input (.mcap)".into());
+    }
+    let camera = args.camera.as_ref().ok_or(
+        "--camera FILE is required for image folders and y4m input (a bag can give its own CameraInfo)",
+    )?;
+    let calibration = Calibration::from_file(camera)?;
     let dict = Dictionary::paper();
     let rig = super::load_rig(args.rig.as_deref(), dict)?;
     let mut frames = FrameSource::open_with_max_side(&args.input, args.max_side)?;
@@ -132,6 +179,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
     let (mut broken, mut processed) = (0u64, 0u64);
+    let mut mcap: Option<super::track_bag::McapOut> = None;
     loop {
         let frame = match frames.next_frame() {
             Ok(Some(frame)) => frame,
@@ -176,7 +224,20 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         match result {
             Ok(done) => {
                 processed += 1;
-                write_frame(&mut out, args.json, index, &source, t, &done)?;
+                write_frame(&mut out, args.json, index, &source, t, &done, None)?;
+                if let Some(path) = &args.mcap {
+                    let writer = match &mut mcap {
+                        Some(w) => w,
+                        None => mcap.insert(super::track_bag::McapOut::create(
+                            path,
+                            args,
+                            rig.clone(),
+                            calibration,
+                        )?),
+                    };
+                    let stamp_ns = (t * 1e9).round() as u64;
+                    writer.frame(index, stamp_ns, t, image, &done, pipeline.markers())?;
+                }
             }
             Err(e) => {
                 broken += 1;
@@ -196,6 +257,9 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     }
     out.flush().map_err(super::StdoutError)?;
     progress.finish();
+    if let Some(w) = mcap {
+        w.finish()?;
+    }
     let truncated = if frames.truncated() {
         "; the stream ended inside a frame (truncated), which was dropped"
     } else {
@@ -226,7 +290,7 @@ fn frame_rate(args: &Args, frames: &FrameSource) -> Result<f64, CliError> {
 }
 
 /// The detector, the calibrated solver, the rig and the tracker, in one pipeline.
-fn build_pipeline(
+pub(super) fn build_pipeline(
     args: &Args,
     calibration: Calibration,
     rig: RigModel,
@@ -300,13 +364,15 @@ fn write_smoothed(
 }
 
 /// One frame's line: JSON with `--json`, else text.
-fn write_frame(
+#[allow(clippy::too_many_arguments)]
+pub(super) fn write_frame(
     out: &mut impl Write,
     json: bool,
     index: u64,
     source: &str,
     t: f64,
     done: &PipelineFrame,
+    bag: Option<BagLine>,
 ) -> Result<(), CliError> {
     use std::fmt::Write as _;
     let mut text = String::new();
@@ -319,6 +385,7 @@ fn write_frame(
     if json {
         let line = Line {
             frame: index,
+            bag,
             source,
             t,
             leaders: &done.report.leaders,

@@ -1,0 +1,264 @@
+//! `formation-tracker track BAG`: the `track` loop over a ROS 2 bag (images, CameraInfo and
+//! the follower's inputs as recorded, each frame at its `header.stamp`), and the `--mcap`
+//! output shared with the other inputs.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use fiducial::Dictionary;
+use formation_tracker::mount::CameraMount;
+use formation_tracker::pipeline::{Pipeline, PipelineError, PipelineFrame};
+use formation_tracker::rig::RigModel;
+use formation_tracker::robots::MarkerObservation;
+use formation_tracker_cli::bag::{Bag, BagError};
+use formation_tracker_cli::foxglove::{FoxgloveWriter, FrameOut};
+use formation_tracker_cli::frames::GreyImage;
+use formation_tracker_cli::inputs::FollowerInputs;
+use pose::calib::Calibration;
+use unicycle::Inputs;
+
+use super::CliError;
+use super::track::{Args, BagLine, build_pipeline, write_frame};
+
+/// The `--mcap` output file.
+#[derive(Debug)]
+pub struct McapOut {
+    path: PathBuf,
+    writer: FoxgloveWriter<std::io::BufWriter<std::fs::File>>,
+    images: bool,
+}
+
+impl McapOut {
+    /// Creates the file.
+    pub fn create(
+        path: &Path,
+        args: &Args,
+        rig: RigModel,
+        calibration: Calibration,
+    ) -> Result<Self, CliError> {
+        super::prepare_out_file(path)?;
+        let file = std::fs::File::create(path)
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        let writer = FoxgloveWriter::new(
+            std::io::BufWriter::new(file),
+            rig,
+            calibration,
+            !args.no_images,
+        )
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            writer,
+            images: !args.no_images,
+        })
+    }
+
+    /// Writes one frame.
+    pub fn frame(
+        &mut self,
+        frame: u64,
+        stamp_ns: u64,
+        t: f64,
+        image: &GreyImage,
+        result: &PipelineFrame,
+        markers: &[MarkerObservation],
+    ) -> Result<(), CliError> {
+        let out = FrameOut {
+            frame,
+            stamp_ns,
+            t,
+            image: self
+                .images
+                .then_some((&image.data[..], image.width, image.height)),
+            result,
+            markers,
+        };
+        self.writer
+            .frame(&out)
+            .map_err(|e| format!("cannot write {}: {e}", self.path.display()).into())
+    }
+
+    /// Ends the file.
+    pub fn finish(self) -> Result<(), CliError> {
+        self.writer
+            .finish()
+            .and_then(|mut w| w.flush())
+            .map_err(|e| format!("cannot write {}: {e}", self.path.display()))?;
+        Ok(())
+    }
+}
+
+/// Runs `track` on a bag.
+pub fn run(args: &Args) -> Result<(), CliError> {
+    let bag = Bag::open(&args.input)?;
+    let image_topic = bag.image_topic(args.image_topic.as_deref())?;
+    let calibration = match &args.camera {
+        Some(path) => Calibration::from_file(path)?,
+        None => {
+            let topic = bag.camera_info_topic(&image_topic)?;
+            let c = bag.calibration(&topic)?;
+            eprintln!("track: calibration from {topic} ({}x{})", c.width, c.height);
+            c
+        }
+    };
+    let dict = Dictionary::paper();
+    let rig = super::load_rig(args.rig.as_deref(), dict)?;
+    let csv = args
+        .inputs
+        .as_ref()
+        .map(|p| FollowerInputs::from_path(p))
+        .transpose()?;
+    let inputs_topic = if csv.is_some() {
+        None
+    } else {
+        bag.inputs_topic(args.inputs_topic.as_deref())?
+    };
+    match (&csv, &inputs_topic) {
+        (None, None) => eprintln!(
+            "track: no --inputs and no odometry or twist topic in the bag: assuming the follower \
+             stands still (v2 = w2 = 0, pan {})",
+            args.pan
+        ),
+        (None, Some(topic)) => eprintln!("track: follower inputs from {topic}"),
+        _ => {}
+    }
+    let mut frames = bag.frames(&image_topic, inputs_topic.as_deref(), args.max_side);
+    let mount = CameraMount {
+        offset: args.mount_offset,
+        height: args.mount_height,
+        pan: args.pan,
+        tilt: args.mount_tilt,
+    };
+    let mut pipeline: Option<Pipeline> = None;
+    let mut mcap: Option<McapOut> = None;
+    let mut progress = super::progress::Progress::new("track", "frames", frames.len_hint());
+    let stdout = std::io::stdout();
+    let mut out = std::io::BufWriter::new(stdout.lock());
+    let (mut broken, mut processed) = (0u64, 0u64);
+    let mut first_stamp: Option<u64> = None;
+    let mut fatal: Option<BagError> = None;
+    loop {
+        let frame = match frames.next_frame() {
+            Ok(Some(frame)) => frame,
+            Ok(None) => break,
+            Err(e) if e.is_fatal() => {
+                // Reported once, at the end; frames already read are still handed out.
+                fatal = Some(e);
+                continue;
+            }
+            Err(e) => {
+                progress.println(&format!("track: {e}"));
+                broken += 1;
+                continue;
+            }
+        };
+        progress.inc();
+        let first = *first_stamp.get_or_insert(frame.stamp_ns);
+        let t = (frame.stamp_ns - first) as f64 * 1e-9;
+        let index = frame.index;
+        let (follower, pan) = match &csv {
+            Some(csv) => match csv.at(index, t) {
+                Some(s) => (s.inputs, s.pan.unwrap_or(args.pan)),
+                None => (Inputs::new(0.0, 0.0), args.pan),
+            },
+            None => (frame.inputs.unwrap_or(Inputs::new(0.0, 0.0)), args.pan),
+        };
+        let image = frame.image;
+        let message = frame.message;
+        let stamp_ns = frame.stamp_ns;
+        let pipeline = match &mut pipeline {
+            Some(p) => p,
+            None => {
+                let calibration = if args.scale_calibration {
+                    calibration.scaled_to(image.width as u32, image.height as u32)?
+                } else {
+                    calibration
+                };
+                let fps = bag_fps(args, frame.period_s)?;
+                if let Some(path) = &args.mcap {
+                    mcap = Some(McapOut::create(path, args, rig.clone(), calibration)?);
+                }
+                pipeline.insert(build_pipeline(args, calibration, rig.clone(), mount, fps)?)
+            }
+        };
+        let result = pipeline.process(
+            &image.data,
+            image.width,
+            image.height,
+            t,
+            follower,
+            CameraMount { pan, ..mount },
+        );
+        match result {
+            Ok(done) => {
+                processed += 1;
+                let source = format!("{}#{message}", image_topic);
+                let bag_line = BagLine {
+                    stamp_ns,
+                    message,
+                    missing_before: frame.missing_before,
+                };
+                write_frame(
+                    &mut out,
+                    args.json,
+                    index,
+                    &source,
+                    t,
+                    &done,
+                    Some(bag_line),
+                )?;
+                if let Some(w) = &mut mcap {
+                    w.frame(index, stamp_ns, t, image, &done, pipeline.markers())?;
+                }
+            }
+            Err(e) => {
+                broken += 1;
+                let hint = if matches!(e, PipelineError::SizeMismatch { .. }) {
+                    " (pass --scale-calibration if the frames were resized from the calibrated camera's)"
+                } else {
+                    ""
+                };
+                progress.println(&format!("track: frame {index}: {e}{hint}"));
+            }
+        }
+    }
+    out.flush().map_err(super::StdoutError)?;
+    progress.finish();
+    if let Some(w) = mcap {
+        w.finish()?;
+    }
+    let s = frames.stats();
+    let mut summary = format!(
+        "{processed} frames tracked, {broken} broken; bag: {} image messages, {} reordered, {} out of order (dropped), {} missing, {} irregular intervals, {} late input messages",
+        s.messages, s.reordered, s.out_of_order_dropped, s.dropped, s.irregular, s.late_inputs
+    );
+    if let Some(e) = &fatal {
+        summary.push_str(&format!("; stopped: {e}"));
+    }
+    if processed == 0 {
+        return Err(match fatal {
+            Some(e) => e.into(),
+            None => format!("nothing tracked: {summary}").into(),
+        });
+    }
+    if broken > 0 || fatal.is_some() || s.out_of_order_dropped > 0 {
+        return Err(super::Partial(summary).into());
+    }
+    eprintln!("track: {summary}");
+    Ok(())
+}
+
+/// `--fps`, else the bag's nominal frame rate (from its stamps), else 30 (said on stderr).
+fn bag_fps(args: &Args, period_s: Option<f64>) -> Result<f64, CliError> {
+    let fps = match (args.fps, period_s) {
+        (Some(f), _) => f,
+        // Stamps are whole nanoseconds, so 30 frames/s comes out as 29.99999997: the rate
+        // is rounded to 0.001 frames/s, as a frame rate is written.
+        (None, Some(p)) => (1.0 / p * 1000.0).round() / 1000.0,
+        (None, None) => {
+            eprintln!("track: no --fps and a single frame in the bag: assuming 30 frames/s");
+            30.0
+        }
+    };
+    Ok(super::numbers::check_fps(fps).map_err(|e| format!("the bag's frame rate: {e}"))?)
+}
