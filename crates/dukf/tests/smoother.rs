@@ -1,6 +1,7 @@
 //! The unscented RTS smoother: on linear-Gaussian models it must be the textbook linear RTS
 //! smoother; across the `pi` seam it must agree with the same smoother on unwrapped angles;
 //! bad histories are typed errors.
+#![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
 use dukf::{AngleMask, Euclidean, Gaussian, RtsSmoother, Ukf, UkfError, UtParams, wrap_angle};
 use nalgebra::{Matrix1, Matrix2, SMatrix, SVector, Vector1, Vector2};
@@ -10,6 +11,8 @@ const N: usize = 3;
 const M: usize = 2;
 type Mn = SMatrix<f64, N, N>;
 type Vn = SVector<f64, N>;
+/// A mean and covariance per step.
+type Moments = Vec<(Vn, Mn)>;
 
 fn matrix<const R: usize, const C: usize>(
     lo: f64,
@@ -64,7 +67,7 @@ fn case() -> impl Strategy<Value = Case> {
 }
 
 /// The textbook linear Kalman filter, keeping every filtered estimate and every prediction.
-fn kalman(c: &Case) -> (Vec<(Vn, Mn)>, Vec<(Vn, Mn)>) {
+fn kalman(c: &Case) -> (Moments, Moments) {
     let (mut x, mut p) = (c.x0, c.p0);
     let mut filtered = vec![(x, p)];
     let mut predicted = Vec::new();
@@ -84,7 +87,7 @@ fn kalman(c: &Case) -> (Vec<(Vn, Mn)>, Vec<(Vn, Mn)>) {
 }
 
 /// The textbook linear RTS smoother.
-fn rts(c: &Case, filtered: &[(Vn, Mn)], predicted: &[(Vn, Mn)]) -> Vec<(Vn, Mn)> {
+fn rts(c: &Case, filtered: &[(Vn, Mn)], predicted: &[(Vn, Mn)]) -> Moments {
     let mut out = filtered.to_vec();
     for k in (0..filtered.len() - 1).rev() {
         let (m, p) = filtered[k];

@@ -10,7 +10,7 @@ use formation_tracker::mount::CameraMount;
 use formation_tracker::pipeline::{Pipeline, PipelineError, PipelineFrame};
 use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotConfig;
-use formation_tracker::tracker::{LeaderReport, Tracker, TrackerConfig};
+use formation_tracker::tracker::{LeaderReport, SmoothedLeader, Tracker, TrackerConfig};
 use formation_tracker_cli::frames::FrameSource;
 use formation_tracker_cli::inputs::FollowerInputs;
 use pose::PoseSolver;
@@ -93,6 +93,12 @@ pub struct Args {
     /// Seconds without a measurement before a track is dropped.
     #[arg(long, value_name = "S", default_value_t = 2.0, value_parser = super::numbers::positive)]
     pub(super) lost_after: f64,
+    /// After the causal pass, smooth every track over the whole recording (fixed-interval
+    /// unscented RTS smoother, docs/smoothing.md) and print one more line per frame and
+    /// leader (`"smoothed": true` with --json; see docs/outputs.md). Keeps every filter step
+    /// in memory until the end.
+    #[arg(long)]
+    pub(super) smooth: bool,
 }
 
 #[derive(Serialize)]
@@ -132,6 +138,11 @@ struct TimingOut {
 /// Runs `track`.
 pub fn run(args: &Args) -> Result<(), CliError> {
     if formation_tracker_cli::bag::is_bag(&args.input) {
+        if args.smooth {
+            return Err(
+                "--smooth is not supported for bag input yet (image folders and y4m only)".into(),
+            );
+        }
         return super::track_bag::run(args);
     }
     if args.image_topic.is_some() || args.inputs_topic.is_some() {
@@ -239,6 +250,11 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             }
         }
     }
+    if args.smooth
+        && let Some(pipeline) = &pipeline
+    {
+        write_smoothed(&mut out, args.json, fps, pipeline.tracker())?;
+    }
     out.flush().map_err(super::StdoutError)?;
     progress.finish();
     if let Some(w) = mcap {
@@ -283,7 +299,8 @@ pub(super) fn build_pipeline(
 ) -> Result<Pipeline, CliError> {
     let mut config = TrackerConfig::reference(mount.offset, 1.0 / fps);
     config.lost_after = args.lost_after;
-    let tracker = Tracker::new(config)?;
+    let mut tracker = Tracker::new(config)?;
+    tracker.record_history(args.smooth);
     let solver = PoseSolver::new(calibration.intrinsics).with_distortion(calibration.distortion);
     Ok(Pipeline::new(
         Detector::with_dictionary(DetectorConfig::default(), Dictionary::paper().clone()),
@@ -293,6 +310,57 @@ pub(super) fn build_pipeline(
         RobotConfig::default(),
         tracker,
     ))
+}
+
+/// A smoothed leader's line with `--json`.
+#[derive(Serialize)]
+struct SmoothedLine<'a> {
+    smoothed: bool,
+    frame: u64,
+    #[serde(flatten)]
+    leader: &'a SmoothedLeader,
+}
+
+/// `--smooth`: the smoothed estimates of every track, one line per frame and leader,
+/// in track-segment order, after the causal lines.
+fn write_smoothed(
+    out: &mut impl Write,
+    json: bool,
+    fps: f64,
+    tracker: &Tracker,
+) -> Result<(), CliError> {
+    let smoothed = tracker
+        .smooth()
+        .map_err(|e| format!("track --smooth: the smoother failed: {e}"))?;
+    let mut text = String::new();
+    for l in &smoothed {
+        let frame = (l.t * fps).round() as u64;
+        if json {
+            let line = SmoothedLine {
+                smoothed: true,
+                frame,
+                leader: l,
+            };
+            text += &serde_json::to_string(&line)?;
+            text.push('\n');
+        } else {
+            use std::fmt::Write as _;
+            writeln!(
+                text,
+                "smoothed frame {frame} t {:.3}: robot {} l12 {:.3} alpha12 {:.3} beta12 {:.3} v1 {:.2} w1 {:.2}{}",
+                l.t,
+                l.robot,
+                l.l12,
+                l.alpha12,
+                l.beta12,
+                l.v1,
+                l.w1,
+                if l.measured { "" } else { " (not measured)" }
+            )?;
+        }
+    }
+    out.write_all(text.as_bytes()).map_err(super::StdoutError)?;
+    Ok(())
 }
 
 /// One frame's line: JSON with `--json`, else text.

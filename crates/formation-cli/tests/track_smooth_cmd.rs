@@ -1,0 +1,213 @@
+//! `track --smooth` end to end on frames rendered by the synthetic camera (the kind of
+//! sequence `demo --save-frames` writes): after the causal lines, one smoothed line per
+//! frame and leader, finite, and closer to the truth than the causal estimates.
+#![allow(clippy::unwrap_used)] // Tests may unwrap (house rules); helpers here are test code too.
+
+use std::path::PathBuf;
+
+use fiducial::Dictionary;
+use formation_sim::scenario::{ScenarioConfig, simulate};
+use formation_sim::scene::{CameraSpec, RenderSpec, RobotSpec, SceneSpec, render_scene};
+use formation_tracker::mount::CameraMount;
+use formation_tracker::rig::RigModel;
+use unicycle::{PolarModel, Pose};
+
+mod common;
+
+const FRAMES: usize = 30;
+
+struct Clip {
+    dir: PathBuf,
+    images: Vec<image::GrayImage>,
+    truth: Vec<[f64; 3]>,
+}
+
+/// The first frames of the reference scenario, rendered (2 x 2 samples per pixel to keep
+/// the test fast), with the follower inputs CSV and the calibration.
+fn clip(name: &str) -> Clip {
+    let dir = std::env::temp_dir().join(format!("ft-track-smooth-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("frames")).unwrap();
+    let scenario = simulate(&ScenarioConfig::reference(1)).unwrap();
+    let rig = RigModel::reference();
+    let mut csv = String::from("frame,v2,w2\n");
+    let (mut images, mut truth) = (Vec::new(), Vec::new());
+    for (k, s) in scenario.samples.iter().take(FRAMES).enumerate() {
+        let prev = &scenario.samples[k.saturating_sub(1)];
+        let leader = PolarModel::leader_pose(&s.truth);
+        let spec = SceneSpec {
+            name: String::new(),
+            camera_robot: Pose {
+                x: s.follower.x,
+                y: s.follower.y,
+                theta: s.follower.theta,
+            },
+            mount: CameraMount::default(),
+            camera: CameraSpec::default(),
+            render: RenderSpec {
+                supersampling: 2,
+                seed: k as u64,
+                ..RenderSpec::default()
+            },
+            robots: vec![RobotSpec {
+                robot: 1,
+                x: leader.x,
+                y: leader.y,
+                theta: leader.theta,
+            }],
+        };
+        let image = render_scene(&spec, &rig, Dictionary::paper())
+            .unwrap()
+            .image;
+        image
+            .save(dir.join("frames").join(format!("f{k:03}.png")))
+            .unwrap();
+        images.push(image);
+        let h = PolarModel::h(&s.truth);
+        truth.push([h[0], h[1], h[2]]);
+        csv += &format!(
+            "{k},{},{}\n",
+            prev.follower_inputs.v, prev.follower_inputs.w
+        );
+    }
+    std::fs::write(dir.join("inputs.csv"), csv).unwrap();
+    std::fs::write(dir.join("camera.yaml"), common::CAMERA).unwrap();
+    Clip { dir, images, truth }
+}
+
+fn json_lines(stdout: &str) -> Vec<serde_json::Value> {
+    stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+#[test]
+fn smoothed_lines_follow_the_causal_ones_and_are_closer_to_the_truth() {
+    let clip = clip("json");
+    let out = common::run(
+        &clip.dir,
+        &[
+            "track",
+            "frames",
+            "--camera",
+            "camera.yaml",
+            "--inputs",
+            "inputs.csv",
+            "--fps",
+            "30",
+            "--json",
+            "--smooth",
+        ],
+    );
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines = json_lines(&stdout);
+    let (causal, smoothed): (Vec<_>, Vec<_>) =
+        lines.iter().partition(|l| l.get("smoothed").is_none());
+    assert_eq!(causal.len(), FRAMES);
+    // Every smoothed line comes after every causal line.
+    let first_smoothed = lines
+        .iter()
+        .position(|l| l.get("smoothed").is_some())
+        .unwrap();
+    assert_eq!(first_smoothed, FRAMES);
+    // One smoothed line per frame that has a live track of robot 1.
+    let tracked: Vec<(u64, &serde_json::Value)> = causal
+        .iter()
+        .filter_map(|l| {
+            let leader = l["leaders"].as_array()?.iter().find(|x| x["robot"] == 1)?;
+            (leader["status"] != "lost").then(|| (l["frame"].as_u64().unwrap(), leader))
+        })
+        .collect();
+    assert!(
+        tracked.len() >= FRAMES - 2,
+        "tracked in {} frames",
+        tracked.len()
+    );
+    assert_eq!(smoothed.len(), tracked.len());
+    let (mut causal_err, mut smoothed_err) = (0.0, 0.0);
+    for ((frame, leader), s) in tracked.iter().zip(&smoothed) {
+        assert_eq!(s["smoothed"], true);
+        assert_eq!(s["frame"].as_u64().unwrap(), *frame);
+        assert_eq!(s["robot"], 1);
+        assert_eq!(s["segment"], 0);
+        for key in [
+            "t", "l12", "alpha12", "beta12", "v1", "w1", "l12_std", "v1_std",
+        ] {
+            assert!(s[key].as_f64().unwrap().is_finite(), "{key} in {s}");
+        }
+        let truth = clip.truth[*frame as usize];
+        causal_err += (leader["l12"].as_f64().unwrap() - truth[0]).powi(2);
+        smoothed_err += (s["l12"].as_f64().unwrap() - truth[0]).powi(2);
+    }
+    assert!(
+        smoothed_err < causal_err,
+        "l12 squared error: smoothed {smoothed_err} vs causal {causal_err}"
+    );
+    drop(clip.images);
+}
+
+#[test]
+fn text_mode_prints_smoothed_lines() {
+    let clip = clip("text");
+    let out = common::run(
+        &clip.dir,
+        &[
+            "track",
+            "frames",
+            "--camera",
+            "camera.yaml",
+            "--inputs",
+            "inputs.csv",
+            "--fps",
+            "30",
+            "--smooth",
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    let n = stdout
+        .lines()
+        .filter(|l| l.starts_with("smoothed frame "))
+        .count();
+    assert!(n >= FRAMES - 2, "{stdout}");
+    // Without --smooth there are none.
+    let out = common::run(
+        &clip.dir,
+        &[
+            "track",
+            "frames",
+            "--camera",
+            "camera.yaml",
+            "--inputs",
+            "inputs.csv",
+            "--fps",
+            "30",
+        ],
+    );
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(!stdout.contains("smoothed"), "{stdout}");
+}
+
+#[test]
+fn smooth_with_bag_input_is_a_one_line_error() {
+    let dir = common::blank_frames("smooth-bag");
+    std::fs::write(dir.join("run.mcap"), b"not read").unwrap();
+    let out = common::run(&dir, &["track", "run.mcap", "--smooth"]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        stderr.contains("--smooth is not supported for bag input"),
+        "{stderr}"
+    );
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+}
