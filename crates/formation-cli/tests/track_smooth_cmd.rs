@@ -198,16 +198,45 @@ fn text_mode_prints_smoothed_lines() {
     assert!(!stdout.contains("smoothed"), "{stdout}");
 }
 
+/// `--smooth` on a ROS 2 bag: after the causal lines, one smoothed line per frame in which
+/// the leader was tracked, named by the same frame numbers as the causal lines (the bag's
+/// stamps, not a frame rate, give the frames).
 #[test]
-fn smooth_with_bag_input_is_a_one_line_error() {
+fn smooth_with_bag_input_names_the_bag_frames() {
     let dir = common::blank_frames("smooth-bag");
-    std::fs::write(dir.join("run.mcap"), b"not read").unwrap();
-    let out = common::run(&dir, &["track", "run.mcap", "--smooth"]);
-    assert!(!out.status.success());
-    let stderr = String::from_utf8(out.stderr).unwrap();
-    assert!(
-        stderr.contains("--smooth is not supported for bag input"),
-        "{stderr}"
+    let bag =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/bags/demo_zstd.mcap");
+    let out = common::run(
+        &dir,
+        &["track", bag.to_str().unwrap(), "--smooth", "--json"],
     );
-    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<serde_json::Value> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let (smoothed, causal): (Vec<_>, Vec<_>) = lines
+        .iter()
+        .partition(|l| l.get("smoothed").is_some_and(|s| s == true));
+    let tracked: Vec<u64> = causal
+        .iter()
+        .filter(|l| l["leaders"].as_array().is_some_and(|a| !a.is_empty()))
+        .map(|l| l["frame"].as_u64().unwrap())
+        .collect();
+    let frames: Vec<u64> = smoothed
+        .iter()
+        .map(|l| l["frame"].as_u64().unwrap())
+        .collect();
+    assert!(tracked.len() >= 10, "{tracked:?}");
+    assert_eq!(frames, tracked);
+    for l in &smoothed {
+        for key in ["l12", "alpha12", "beta12", "v1", "w1", "l12_std"] {
+            assert!(l[key].as_f64().is_some_and(f64::is_finite), "{key} in {l}");
+        }
+    }
 }

@@ -138,11 +138,6 @@ struct TimingOut {
 /// Runs `track`.
 pub fn run(args: &Args) -> Result<(), CliError> {
     if formation_tracker_cli::bag::is_bag(&args.input) {
-        if args.smooth {
-            return Err(
-                "--smooth is not supported for bag input yet (image folders and y4m only)".into(),
-            );
-        }
         return super::track_bag::run(args);
     }
     if args.image_topic.is_some() || args.inputs_topic.is_some() {
@@ -253,7 +248,9 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     if args.smooth
         && let Some(pipeline) = &pipeline
     {
-        write_smoothed(&mut out, args.json, fps, pipeline.tracker())?;
+        write_smoothed(&mut out, args.json, pipeline.tracker(), |t| {
+            (t * fps).round() as u64
+        })?;
     }
     out.flush().map_err(super::StdoutError)?;
     progress.finish();
@@ -322,19 +319,20 @@ struct SmoothedLine<'a> {
 }
 
 /// `--smooth`: the smoothed estimates of every track, one line per frame and leader,
-/// in track-segment order, after the causal lines.
-fn write_smoothed(
+/// in track-segment order, after the causal lines; `frame_of` gives the frame number of a
+/// time handed to the tracker.
+pub(super) fn write_smoothed(
     out: &mut impl Write,
     json: bool,
-    fps: f64,
     tracker: &Tracker,
+    frame_of: impl Fn(f64) -> u64,
 ) -> Result<(), CliError> {
     let smoothed = tracker
         .smooth()
         .map_err(|e| format!("track --smooth: the smoother failed: {e}"))?;
     let mut text = String::new();
     for l in &smoothed {
-        let frame = (l.t * fps).round() as u64;
+        let frame = frame_of(l.t);
         if json {
             let line = SmoothedLine {
                 smoothed: true,

@@ -18,7 +18,7 @@ use pose::calib::Calibration;
 use unicycle::Inputs;
 
 use super::CliError;
-use super::track::{Args, BagLine, build_pipeline, write_frame};
+use super::track::{Args, BagLine, build_pipeline, write_frame, write_smoothed};
 
 /// The `--mcap` output file.
 #[derive(Debug)]
@@ -137,6 +137,9 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     let (mut broken, mut processed, mut bad_inputs) = (0u64, 0u64, 0u64);
     let mut first_stamp: Option<u64> = None;
     let mut fatal: Option<BagError> = None;
+    // With --smooth: each processed frame's time and number, in time order (stamps are
+    // reordered by the reader), so that the smoothed lines name the same frames.
+    let mut frame_times: Vec<(f64, u64)> = Vec::new();
     loop {
         let frame = match frames.next_frame() {
             Ok(Some(frame)) => frame,
@@ -197,6 +200,9 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         match result {
             Ok(done) => {
                 processed += 1;
+                if args.smooth {
+                    frame_times.push((t, index));
+                }
                 let source = format!("{}#{message}", image_topic);
                 let bag_line = BagLine {
                     stamp_ns,
@@ -226,6 +232,13 @@ pub fn run(args: &Args) -> Result<(), CliError> {
                 progress.println(&format!("track: frame {index}: {e}{hint}"));
             }
         }
+    }
+    if args.smooth
+        && let Some(pipeline) = &pipeline
+    {
+        write_smoothed(&mut out, args.json, pipeline.tracker(), |t| {
+            frame_of(&frame_times, t)
+        })?;
     }
     out.flush().map_err(super::StdoutError)?;
     progress.finish();
@@ -266,4 +279,38 @@ fn bag_fps(args: &Args, period_s: Option<f64>) -> Result<f64, CliError> {
         }
     };
     Ok(super::numbers::check_fps(fps).map_err(|e| format!("the bag's frame rate: {e}"))?)
+}
+
+/// The number of the processed frame whose time is nearest `t` (`times` in time order).
+fn frame_of(times: &[(f64, u64)], t: f64) -> u64 {
+    let i = times.partition_point(|&(ft, _)| ft < t);
+    let near = |j: usize| times.get(j).map(|&(ft, n)| ((ft - t).abs(), n));
+    match (i.checked_sub(1).and_then(near), near(i)) {
+        (Some((da, a)), Some((db, b))) => {
+            if da <= db {
+                a
+            } else {
+                b
+            }
+        }
+        (Some((_, n)), None) | (None, Some((_, n))) => n,
+        (None, None) => 0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::frame_of;
+
+    #[test]
+    fn smoothed_times_map_to_the_nearest_processed_frame() {
+        // Frame 2 was dropped; stamps are irregular.
+        let times = [(0.0, 0), (0.033, 1), (0.1, 3), (0.134, 4)];
+        assert_eq!(frame_of(&times, 0.0), 0);
+        assert_eq!(frame_of(&times, 0.033), 1);
+        assert_eq!(frame_of(&times, 0.1), 3);
+        assert_eq!(frame_of(&times, 0.1339999), 4);
+        assert_eq!(frame_of(&times, 9.0), 4);
+        assert_eq!(frame_of(&[], 1.0), 0);
+    }
 }
