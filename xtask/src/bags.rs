@@ -27,7 +27,7 @@ const PACKAGES: &[&str] = &[
     "rosbags==0.11.9",
     "mcap==1.6.0",
     "mcap-ros2-support==0.6.0",
-    "numpy",
+    crate::pyenv::NUMPY,
 ];
 
 /// The Duckietown frames used (a subset: the fixtures stay small).
@@ -67,28 +67,6 @@ fn check(status: std::process::ExitStatus, what: &str) -> Result {
     }
 }
 
-/// The venv's python, made if missing.
-fn venv(root: &Path) -> Result<PathBuf> {
-    let dir = root.join("target/py-venv");
-    let python = dir.join("bin/python");
-    if !python.exists() {
-        eprintln!("bags: making {}", dir.display());
-        check(
-            Command::new("python3")
-                .args(["-m", "venv"])
-                .arg(&dir)
-                .status()?,
-            "python3 -m venv",
-        )?;
-    }
-    let status = Command::new(&python)
-        .args(["-m", "pip", "install", "-q"])
-        .args(PACKAGES)
-        .status()?;
-    check(status, "pip install")?;
-    Ok(python)
-}
-
 /// `formation-tracker ARGS` through cargo (the dev build), stdout returned.
 fn tracker(root: &Path, args: &[&str]) -> Result<String> {
     let out = Command::new(env!("CARGO"))
@@ -126,7 +104,12 @@ pub fn run(args: &[String]) -> Result {
     let fixtures = root.join("fixtures/bags");
     std::fs::create_dir_all(&work)?;
     std::fs::create_dir_all(&fixtures)?;
-    let python = venv(&root)?;
+    let python = crate::pyenv::python(
+        &root,
+        "bags",
+        PACKAGES,
+        "import rosbags, mcap, mcap_ros2, numpy",
+    )?;
 
     // 1. The demo's frames.
     let seq = work.join("seq");

@@ -19,10 +19,6 @@ use std::process::Command;
 
 use fiducial::{MarkerFamily, hamming};
 
-/// The OpenCV wheel the tables come from (pinned so that `--check` is reproducible).
-const OPENCV_PIP: &str = "opencv-contrib-python-headless==5.0.0.93";
-const NUMPY_PIP: &str = "numpy==2.4.6";
-
 const SCRIPT: &str = include_str!("dictionaries.py");
 
 /// AprilTag's licence (the families `DICT_APRILTAG_*` are AprilTag's codes).
@@ -262,35 +258,6 @@ fn write_outputs(
     Ok(())
 }
 
-fn ensure_venv(venv: &Path) -> crate::Result<PathBuf> {
-    let python = venv.join("bin").join("python");
-    let ok = python.exists()
-        && Command::new(&python)
-            .args(["-c", "import cv2, numpy"])
-            .status()
-            .is_ok_and(|s| s.success());
-    if !ok {
-        eprintln!(
-            "dictionaries: creating {} (pip install {OPENCV_PIP})",
-            venv.display()
-        );
-        let st = Command::new("python3")
-            .args(["-m", "venv"])
-            .arg(venv)
-            .status()?;
-        if !st.success() {
-            return Err("python3 -m venv failed (is python3 with venv installed?)".into());
-        }
-        let st = Command::new(&python)
-            .args(["-m", "pip", "install", "-q", OPENCV_PIP, NUMPY_PIP])
-            .status()?;
-        if !st.success() {
-            return Err(format!("pip install {OPENCV_PIP} failed").into());
-        }
-    }
-    Ok(python)
-}
-
 /// Every file under `dir`, relative, sorted.
 fn files(dir: &Path) -> crate::Result<Vec<PathBuf>> {
     let mut out = Vec::new();
@@ -340,7 +307,12 @@ pub fn run(args: &[String]) -> crate::Result {
     let work = root.join("target").join("dictionaries");
     let _ = std::fs::remove_dir_all(&work);
     std::fs::create_dir_all(&work)?;
-    let python = ensure_venv(&root.join("target").join("py-venv"))?;
+    let python = crate::pyenv::python(
+        &root,
+        "dictionaries",
+        &[crate::pyenv::OPENCV, crate::pyenv::NUMPY],
+        "import cv2, numpy",
+    )?;
     let script = work.join("dictionaries.py");
     std::fs::write(&script, SCRIPT)?;
     let json_path = work.join("opencv.json");

@@ -13,6 +13,7 @@ mod dictionaries;
 mod dictionary;
 mod dukf_table;
 mod figures;
+mod pyenv;
 mod random_scenes;
 mod solvepnp;
 mod unused_deps;

@@ -28,7 +28,6 @@ use rand_chacha::ChaCha8Rng;
 use serde_json::{Value, json};
 
 /// The OpenCV package and version the reference data was made with.
-const OPENCV_PIP: &str = "opencv-contrib-python-headless==5.0.0.93";
 /// Corner noise of the synthetic cases, pixels (standard deviation).
 const NOISE_PX: f64 = 0.2;
 /// Seed of the synthetic cases.
@@ -62,7 +61,12 @@ pub fn run(args: &[String]) -> crate::Result {
             path
         }
     };
-    let python = venv(&root.join("target/py-venv"))?;
+    let python = crate::pyenv::python(
+        &root,
+        "solvepnp",
+        &[crate::pyenv::OPENCV, crate::pyenv::NUMPY],
+        "import cv2",
+    )?;
     let script = root.join("target/solvepnp.py");
     write(&script, SCRIPT)?;
     let status = Command::new(&python)
@@ -88,33 +92,6 @@ fn write(path: &Path, text: &str) -> crate::Result {
     }
     std::fs::write(path, text)?;
     Ok(())
-}
-
-/// The venv's python, creating the venv and installing OpenCV when needed.
-fn venv(dir: &Path) -> crate::Result<PathBuf> {
-    let python = dir.join("bin/python");
-    if !python.exists() {
-        let status = Command::new("python3")
-            .args(["-m", "venv"])
-            .arg(dir)
-            .status()?;
-        if !status.success() {
-            return Err(format!("python3 -m venv {} failed ({status})", dir.display()).into());
-        }
-    }
-    let have = Command::new(&python)
-        .args(["-c", "import cv2"])
-        .status()?
-        .success();
-    if !have {
-        let status = Command::new(&python)
-            .args(["-m", "pip", "install", "--quiet", OPENCV_PIP])
-            .status()?;
-        if !status.success() {
-            return Err(format!("pip install {OPENCV_PIP} failed ({status})").into());
-        }
-    }
-    Ok(python)
 }
 
 /// One synthetic camera: name, image size, K (row-major), lens.

@@ -1,0 +1,57 @@
+//! The one Python virtual environment of the xtask commands that run the peers (OpenCV for
+//! `dictionaries` and `solvepnp`, the ROS 2 bag packages for `bags`): `target/py-venv`, made
+//! on first use, each command's pinned packages pip-installed when its import probe fails.
+//! One place for the pins, so that the commands sharing the venv never ask pip for two
+//! versions of one package.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use crate::Result;
+
+/// OpenCV with the aruco module, pinned (the dictionaries' tables and the solvePnP
+/// references are generated with it; pinned so that `dictionaries --check` is
+/// reproducible).
+pub const OPENCV: &str = "opencv-contrib-python-headless==5.0.0.93";
+
+/// NumPy, pinned (OpenCV's and the bag writers' arrays).
+pub const NUMPY: &str = "numpy==2.4.6";
+
+/// The venv's python under `root/target/py-venv`, with `packages` installed when the Python
+/// line `probe` (imports) fails there. `who` names the command in the progress line.
+///
+/// # Errors
+/// `python3 -m venv` or `pip install` failed (the message says which).
+pub fn python(root: &Path, who: &str, packages: &[&str], probe: &str) -> Result<PathBuf> {
+    let dir = root.join("target").join("py-venv");
+    let python = dir.join("bin").join("python");
+    if !python.exists() {
+        eprintln!("{who}: making {}", dir.display());
+        let status = Command::new("python3")
+            .args(["-m", "venv"])
+            .arg(&dir)
+            .status()?;
+        if !status.success() {
+            return Err(format!(
+                "python3 -m venv {} failed ({status}; is python3 with venv installed?)",
+                dir.display()
+            )
+            .into());
+        }
+    }
+    let have = Command::new(&python)
+        .args(["-c", probe])
+        .status()
+        .is_ok_and(|s| s.success());
+    if !have {
+        eprintln!("{who}: pip install {}", packages.join(" "));
+        let status = Command::new(&python)
+            .args(["-m", "pip", "install", "-q"])
+            .args(packages)
+            .status()?;
+        if !status.success() {
+            return Err(format!("pip install {} failed ({status})", packages.join(" ")).into());
+        }
+    }
+    Ok(python)
+}
