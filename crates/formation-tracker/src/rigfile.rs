@@ -169,7 +169,10 @@ impl RigModel {
                     .map_err(|e| field("dictionary", e.to_string()))?;
                 (d, d.name().unwrap_or(fiducial::PAPER_NAME))
             }
-            None => (dictionary, dictionary.name().unwrap_or(fiducial::PAPER_NAME)),
+            None => (
+                dictionary,
+                dictionary.name().unwrap_or(fiducial::PAPER_NAME),
+            ),
         };
         let mut r = RigGeometry::reference();
         if file.dictionary.is_some() {

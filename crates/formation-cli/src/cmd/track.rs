@@ -226,8 +226,10 @@ fn build_pipeline(
     config.lost_after = args.lost_after;
     let tracker = Tracker::new(config)?;
     let solver = PoseSolver::new(calibration.intrinsics).with_distortion(calibration.distortion);
+    // The rig's dictionary: our own unless the rig file names another (e.g. tag36h11).
+    let dictionary = rig.marker_dictionary()?.clone();
     Ok(Pipeline::new(
-        Detector::with_dictionary(DetectorConfig::default(), Dictionary::paper().clone()),
+        Detector::with_dictionary(DetectorConfig::default(), dictionary),
         solver,
         (calibration.width, calibration.height),
         rig,
