@@ -21,8 +21,8 @@ use crate::contour::{Labeller, trace_outer};
 use crate::decode::{
     CellReading, DecodeParams, Decoded, WhiteReference, match_reading, read_oriented,
 };
-use crate::error::FiducialError;
 use crate::dictionary::Dictionary;
+use crate::error::FiducialError;
 use crate::image::{Corners, GrayView};
 use crate::quad::{QuadLimits, fit_quad};
 use crate::refine::{RefineConfig, Refiner};

@@ -111,7 +111,10 @@ impl StandardDictionary {
 
 fn parse_index() -> Vec<StandardDictionary> {
     let mut out = Vec::new();
-    for line in INDEX.lines().filter(|l| !l.starts_with('#') && !l.is_empty()) {
+    for line in INDEX
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.is_empty())
+    {
         let f: Vec<&'static str> = line.split_whitespace().collect();
         let num = |i: usize| f.get(i).and_then(|v| v.parse::<u32>().ok()).unwrap_or(0);
         out.push(StandardDictionary {
@@ -231,8 +234,7 @@ fn build(d: &StandardDictionary) -> Result<Dictionary, FiducialError> {
 /// or `own`, else a predefined one, built from its table on first use and kept.
 pub fn dictionary_by_name(name: &str) -> Result<&'static Dictionary, FiducialError> {
     const N: usize = 32;
-    static CACHE: [OnceLock<Result<Dictionary, FiducialError>>; N] =
-        [const { OnceLock::new() }; N];
+    static CACHE: [OnceLock<Result<Dictionary, FiducialError>>; N] = [const { OnceLock::new() }; N];
     let canonical = canonical_name(name)?;
     if canonical == PAPER_NAME {
         return Ok(Dictionary::paper());

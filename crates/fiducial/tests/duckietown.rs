@@ -49,7 +49,10 @@ fn duckietown_frames_read_no_wrong_id() {
         let mut got: Vec<usize> = out.iter().map(|d| d.index).collect();
         got.sort_unstable();
         for id in &got {
-            assert!(ids.contains(id), "{file}: id {id} is not one AprilTag 3 reads ({got:?})");
+            assert!(
+                ids.contains(id),
+                "{file}: id {id} is not one AprilTag 3 reads ({got:?})"
+            );
         }
         got.dedup();
         assert_eq!(got.len(), out.len(), "{file}: an id read twice: {out:?}");

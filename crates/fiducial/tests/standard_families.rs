@@ -167,7 +167,10 @@ fn names_resolve_case_insensitively_with_aliases() {
         Dictionary::paper()
     ));
     let err = canonical_name("tag99h1").unwrap_err().to_string();
-    assert!(err.contains("tag99h1") && err.contains("DICT_APRILTAG_36h11"), "{err}");
+    assert!(
+        err.contains("tag99h1") && err.contains("DICT_APRILTAG_36h11"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -182,12 +185,12 @@ fn index_distances_and_corrections_are_those_of_the_tables() {
             .map(|&c| core::array::from_fn(|q| f.rotate(c, q as u8).unwrap()))
             .collect();
         for (i, a) in rot.iter().enumerate() {
-            for q in 1..4 {
-                best = best.min(fiducial::hamming(a[0], a[q]));
+            for r in &a[1..] {
+                best = best.min(fiducial::hamming(a[0], *r));
             }
             for b in &rot[i + 1..] {
-                for q in 0..4 {
-                    best = best.min(fiducial::hamming(a[0], b[q]));
+                for r in b {
+                    best = best.min(fiducial::hamming(a[0], *r));
                 }
             }
         }
@@ -199,8 +202,16 @@ fn index_distances_and_corrections_are_those_of_the_tables() {
     }
     // OpenCV's defaults for the families users print most.
     assert_eq!(dictionary_by_name("tag36h11").unwrap().max_correctable(), 3);
-    assert_eq!(dictionary_by_name("DICT_4X4_50").unwrap().max_correctable(), 0);
-    assert_eq!(dictionary_by_name("DICT_6X6_250").unwrap().max_correctable(), 3);
+    assert_eq!(
+        dictionary_by_name("DICT_4X4_50").unwrap().max_correctable(),
+        0
+    );
+    assert_eq!(
+        dictionary_by_name("DICT_6X6_250")
+            .unwrap()
+            .max_correctable(),
+        3
+    );
 }
 
 #[test]
@@ -226,7 +237,10 @@ fn lookup_by_flips_equals_a_scan() {
             let brute = d.nearest(read);
             if brute.distance <= d.max_correctable() {
                 let m = fast.unwrap();
-                assert_eq!((m.index, m.rotation, m.distance), (brute.index, brute.rotation, brute.distance));
+                assert_eq!(
+                    (m.index, m.rotation, m.distance),
+                    (brute.index, brute.rotation, brute.distance)
+                );
             } else {
                 assert!(fast.is_none());
             }

@@ -241,18 +241,16 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         let t1 = Instant::now();
         detector.decode_quads(&view, &mut found);
         let t2 = Instant::now();
+        rig_markers.clear();
+        rig_markers.extend(
+            found
+                .iter()
+                .filter(|d| Some(d.dictionary) == rig_dict)
+                .copied(),
+        );
         let (robots, rejected) = match &stage {
             None => (Vec::new(), Vec::new()),
-            Some(stage) => match {
-                rig_markers.clear();
-                rig_markers.extend(
-                    found
-                        .iter()
-                        .filter(|d| Some(d.dictionary) == rig_dict)
-                        .copied(),
-                );
-                stage.measure(&rig_markers, w as u32, h as u32)
-            } {
+            Some(stage) => match stage.measure(&rig_markers, w as u32, h as u32) {
                 Ok((robots, failures)) => (
                     robots.iter().map(RobotOut::from).collect(),
                     failures

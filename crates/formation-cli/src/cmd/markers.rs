@@ -99,7 +99,7 @@ fn run_standard(args: &Args, name: &str, ids: &str) -> Result<(), CliError> {
     let canonical = dict.name().unwrap_or(fiducial::PAPER_NAME);
     let ids = parse_ids(ids, dict.len())?;
     let size_mm = args.size_mm.unwrap_or(100.0);
-    if !(size_mm > 0.0) {
+    if size_mm.is_nan() || size_mm <= 0.0 {
         return Err(format!("--size-mm {size_mm}: must be positive").into());
     }
     let family = dict.family();
