@@ -140,12 +140,12 @@ fn min_distance(family: MarkerFamily, codes: &[u64]) -> crate::Result<u32> {
     }
     let mut best = u32::MAX;
     for (i, ri) in rotated.iter().enumerate() {
-        for q in 1..4 {
-            best = best.min(hamming(ri[0], ri[q]));
+        for r in &ri[1..] {
+            best = best.min(hamming(ri[0], *r));
         }
         for rj in &rotated[i + 1..] {
-            for q in 0..4 {
-                best = best.min(hamming(ri[0], rj[q]));
+            for r in rj {
+                best = best.min(hamming(ri[0], *r));
             }
         }
     }

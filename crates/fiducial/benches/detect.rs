@@ -1,7 +1,8 @@
 //! Criterion benchmarks of the marker detector on seeded synthetic scenes.
 //!
 //! `fiducial/detect_*`: full detection (quads + decoding) of 8-marker scenes (20-120 px,
-//! blur 1, noise 3) at three frame sizes; `_clean` (noise 0) against `_noisy` (noise 10) at
+//! blur 1, noise 3) at three frame sizes; `_tag36h11` the 640x480 scene with tag36h11
+//! markers and a tag36h11 detector; `_clean` (noise 0) against `_noisy` (noise 10) at
 //! 640x480; clutter without markers. `fiducial/find_quads_640x480` is the quad phase alone
 //! and `fiducial/baseline_sum_640x480` a plain pass summing the frame's bytes, measured in
 //! the same run so that ratios survive a loaded machine.
@@ -16,6 +17,10 @@ use std::hint::black_box;
 mod common;
 
 fn scene(width: usize, height: usize, noise: f64) -> Vec<u8> {
+    scene_of(Dictionary::paper(), width, height, noise)
+}
+
+fn scene_of(dict: &Dictionary, width: usize, height: usize, noise: f64) -> Vec<u8> {
     let cfg = SceneConfig {
         width,
         height,
@@ -24,7 +29,7 @@ fn scene(width: usize, height: usize, noise: f64) -> Vec<u8> {
     };
     marker_scene(
         &cfg,
-        &common::entries(Dictionary::paper()),
+        &common::entries(dict),
         &mut ChaCha8Rng::seed_from_u64(42),
     )
     .expect("the benchmark scene fits its frame")
@@ -32,8 +37,25 @@ fn scene(width: usize, height: usize, noise: f64) -> Vec<u8> {
 }
 
 fn bench_detect(c: &mut Criterion, id: &str, pixels: &[u8], width: usize, height: usize) {
+    bench_with(
+        c,
+        id,
+        Detector::new(DetectorConfig::default()),
+        pixels,
+        width,
+        height,
+    );
+}
+
+fn bench_with(
+    c: &mut Criterion,
+    id: &str,
+    mut det: Detector,
+    pixels: &[u8],
+    width: usize,
+    height: usize,
+) {
     let img = GrayView::new(pixels, width, height).expect("valid frame");
-    let mut det = Detector::new(DetectorConfig::default());
     let mut out = Vec::new();
     c.bench_function(id, |b| {
         b.iter(|| {
@@ -46,6 +68,17 @@ fn bench_detect(c: &mut Criterion, id: &str, pixels: &[u8], width: usize, height
 fn benches(c: &mut Criterion) {
     let vga = scene(640, 480, 3.0);
     bench_detect(c, "fiducial/detect_640x480", &vga, 640, 480);
+    // The same scene (seed, sizes, blur, noise) with eight tag36h11 markers, read by a
+    // tag36h11 detector (587 codes, sorted-table lookup): compare with detect_640x480.
+    let tag = fiducial::dictionary_by_name("tag36h11").expect("tag36h11 exists");
+    bench_with(
+        c,
+        "fiducial/detect_640x480_tag36h11",
+        Detector::with_dictionary(DetectorConfig::default(), tag.clone()),
+        &scene_of(tag, 640, 480, 3.0),
+        640,
+        480,
+    );
     bench_detect(
         c,
         "fiducial/detect_1280x720",

@@ -6,7 +6,9 @@
 //! from the quad's side lengths, so the same code reads a 20-pixel and a 200-pixel marker.
 //!
 //! The border ring gives the black reference, the ring of quiet-zone cells just outside it
-//! the white reference (medians, so a few bad cells do not move them). Their difference is
+//! the white reference (medians, so a few bad cells do not move them). Markers printed
+//! without a white margin (the standard ArUco/AprilTag families,
+//! [`WhiteReference::DataCells`]) take white from their own light data cells instead. Their difference is
 //! the contrast; a data cell is black when darker than the midpoint. A quad is rejected
 //! when the contrast is too low, when more than a few border cells read light (the border
 //! must be dark), or when the code is not within the dictionary's correction radius.

@@ -63,6 +63,20 @@
 //! markers found, no wrong code, 2 codes read in 1000 marker-free clutter frames, none from
 //! 800 foreign (non-dictionary) markers. All defaults are in [`DetectorConfig::default`].
 //!
+//! # Standard families
+//!
+//! Besides our own 4 x 5 dictionary (the default), every predefined dictionary of OpenCV's
+//! `aruco` module reads under its OpenCV name and ids, and the AprilTag families also
+//! under AprilTag's names (`tag36h11` ...): [`dictionary_by_name`], [`standard`]. Their
+//! bit tables are generated from OpenCV by `cargo xtask dictionaries` and embedded; corner
+//! order and pixel convention are OpenCV's (first corner = the marker's top-left as
+//! printed, then clockwise; integer coordinates at pixel centres). Lookup is a binary
+//! search in a sorted table of every code under every rotation, not a scan. Their markers
+//! need no white quiet zone: the decoder's white reference comes from the marker's own
+//! light cells ([`WhiteReference::DataCells`]). [`Detector::with_dictionaries`] reads
+//! several dictionaries in one pass, sampling each quad once per distinct grid. See
+//! `docs/marker-families.md`.
+//!
 //! # Modules
 //!
 //! Markers (this part of the crate):
@@ -71,6 +85,7 @@
 //! - [`dictionary`]: Hamming dictionaries: generation, the checked-in paper dictionary
 //!   ([`Dictionary::paper`], 4 x 5, `d_min = 6`, 100 codes), lookup with correction and
 //!   orientation.
+//! - [`standard`]: the predefined OpenCV/AprilTag dictionaries by name.
 //! - [`render`]: exact grey rasters (integer pixels per cell, exact border corners) and
 //!   SVG for printing at a physical size.
 //! - [`cross_ratio`]: the image of marker coordinates `(a, b)` from the four corners.

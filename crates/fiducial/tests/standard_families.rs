@@ -185,12 +185,12 @@ fn index_distances_and_corrections_are_those_of_the_tables() {
             .map(|&c| core::array::from_fn(|q| f.rotate(c, q as u8).unwrap()))
             .collect();
         for (i, a) in rot.iter().enumerate() {
-            for q in 1..4 {
-                best = best.min(fiducial::hamming(a[0], a[q]));
+            for r in &a[1..] {
+                best = best.min(fiducial::hamming(a[0], *r));
             }
             for b in &rot[i + 1..] {
-                for q in 0..4 {
-                    best = best.min(fiducial::hamming(a[0], b[q]));
+                for r in b {
+                    best = best.min(fiducial::hamming(a[0], *r));
                 }
             }
         }

@@ -14,8 +14,9 @@
 //!
 //! [`RigModel`] is the single source of all of this: its [`RigGeometry`] (lengths and
 //! marker family), its faces (number and yaw; the reference rig has the five above) and its
-//! `(robot, face)` <-> dictionary-entry table. A rig file (`rigfile`, YAML/JSON) overrides
-//! any of it.
+//! `(robot, face)` <-> dictionary-entry table, in the dictionary it names (our own by
+//! default, or a predefined ArUco/AprilTag one, so a rig can be built from markers users
+//! already print). A rig file (`rigfile`, YAML/JSON) overrides any of it.
 
 use fiducial::{Dictionary, MarkerFamily};
 use nalgebra::{Point3, Vector3};
@@ -240,6 +241,10 @@ pub struct RigModel {
     pub faces: Vec<FaceSpec>,
     /// Explicit marker table (`None`: the default formula).
     pub markers: Option<Vec<(u32, u8, usize)>>,
+    /// The dictionary the markers' ids are entries of, by its standard name
+    /// ([`fiducial::PAPER_NAME`] for our own, or an OpenCV/AprilTag name such as
+    /// `DICT_APRILTAG_36h11`; see [`fiducial::standard`]).
+    pub dictionary: &'static str,
 }
 
 impl Default for RigModel {
@@ -255,7 +260,22 @@ impl RigModel {
             geometry: RigGeometry::reference(),
             faces: reference_faces(),
             markers: None,
+            dictionary: fiducial::PAPER_NAME,
         }
+    }
+
+    /// The dictionary the rig's markers come from (see [`RigModel::dictionary`]).
+    pub fn marker_dictionary(&self) -> Result<&'static Dictionary, RigError> {
+        Ok(fiducial::dictionary_by_name(self.dictionary)?)
+    }
+
+    /// The `(robot, face)` carrying entry `index` of the dictionary called `dictionary`
+    /// (any accepted spelling), if that is the rig's dictionary and the entry is on a face.
+    pub fn robot_face_in(&self, dictionary: &str, index: usize) -> Option<(u32, u8)> {
+        let name = fiducial::canonical_name(dictionary).ok()?;
+        (name == self.dictionary)
+            .then(|| self.robot_face(index))
+            .flatten()
     }
 
     /// The geometry of face number `face`.

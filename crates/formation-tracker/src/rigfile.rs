@@ -7,6 +7,7 @@
 //! e.g. `faces[2].yaw_deg`.
 //!
 //! ```yaml
+//! dictionary: FORMATION_4X5     # or tag36h11, DICT_6X6_250, ... (fiducial::standard)
 //! face_width_m: 0.18            # octagon face width
 //! marker_centre_height_m: 0.30  # marker centres above the ground
 //! cell_size_m: 0.02             # one marker cell
@@ -18,6 +19,7 @@
 //! markers:                      # default: entry (robot - 1) * faces + position of face
 //!   - { robot: 1, face: 1, index: 40 }
 //!   - { robot: 1, face: 3, code: 663209 }
+//!   - { robot: 2, face: 1, dictionary: FORMATION_4X5, id: 7 }   # (dictionary, id)
 //! ```
 //!
 //! Faces sit on the octagon (centred over the robot's reference point, at the apothem of
@@ -68,15 +70,22 @@ pub enum RigFileError {
     Rig(#[from] RigError),
 }
 
-/// One `(robot, face)` -> marker assignment of a rig file: either a dictionary `index` or
-/// the `code` itself (looked up in the dictionary).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+/// One `(robot, face)` -> marker assignment of a rig file: a dictionary entry (`index`, or
+/// `id` with an optional `dictionary`, i.e. `(dictionary, id)`) or the `code` itself (looked
+/// up in the dictionary).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MarkerSpec {
     /// Robot number, from 1.
     pub robot: u32,
     /// Face number, one of the rig's faces.
     pub face: u8,
+    /// The marker's dictionary (any accepted name); must be the rig's `dictionary`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dictionary: Option<String>,
+    /// The marker's id in that dictionary (same as `index`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub id: Option<usize>,
     /// Dictionary entry.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub index: Option<usize>,
@@ -89,6 +98,11 @@ pub struct MarkerSpec {
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RigFile {
+    /// The dictionary of the rig's markers, by name (default: our own, `FORMATION_4X5`;
+    /// e.g. `tag36h11`, `DICT_6X6_250`; case-insensitive). `data_rows`/`data_cols` default
+    /// to its grid.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dictionary: Option<String>,
     /// Width of each face, metres.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub face_width_m: Option<f64>,
@@ -145,8 +159,26 @@ impl RigModel {
     }
 
     /// Checks a parsed rig file and fills in the reference values.
+    ///
+    /// `dictionary` is the one the caller reads with; a file that names its own
+    /// `dictionary` uses that one instead.
     pub fn from_file(file: &RigFile, dictionary: &Dictionary) -> Result<Self, RigFileError> {
-        let r = RigGeometry::reference();
+        let (dictionary, name) = match &file.dictionary {
+            Some(name) => {
+                let d = fiducial::dictionary_by_name(name)
+                    .map_err(|e| field("dictionary", e.to_string()))?;
+                (d, d.name().unwrap_or(fiducial::PAPER_NAME))
+            }
+            None => (
+                dictionary,
+                dictionary.name().unwrap_or(fiducial::PAPER_NAME),
+            ),
+        };
+        let mut r = RigGeometry::reference();
+        if file.dictionary.is_some() {
+            r.data_rows = dictionary.family().rows();
+            r.data_cols = dictionary.family().cols();
+        }
         let geometry = RigGeometry {
             face_width_m: file.face_width_m.unwrap_or(r.face_width_m),
             marker_centre_height_m: file
@@ -177,12 +209,13 @@ impl RigModel {
         check_faces(&faces)?;
         let markers = match &file.markers {
             None => None,
-            Some(list) => Some(check_markers(list, &faces, dictionary)?),
+            Some(list) => Some(check_markers(list, &faces, dictionary, name)?),
         };
         Ok(Self {
             geometry,
             faces,
             markers,
+            dictionary: name,
         })
     }
 }
@@ -243,9 +276,31 @@ fn check_markers(
     list: &[MarkerSpec],
     faces: &[FaceSpec],
     dictionary: &Dictionary,
+    name: &str,
 ) -> Result<Vec<(u32, u8, usize)>, RigFileError> {
     let mut out: Vec<(u32, u8, usize)> = Vec::with_capacity(list.len());
     for (i, m) in list.iter().enumerate() {
+        if let Some(d) = &m.dictionary {
+            let canonical = fiducial::canonical_name(d)
+                .map_err(|e| field(format!("markers[{i}].dictionary"), e.to_string()))?;
+            if canonical != name {
+                return Err(field(
+                    format!("markers[{i}].dictionary"),
+                    format!(
+                        "`{d}` is not the rig's dictionary {name} (set the top-level                          `dictionary`; one rig reads one dictionary)"
+                    ),
+                ));
+            }
+        }
+        let index = match (m.index, m.id) {
+            (Some(_), Some(_)) => {
+                return Err(field(
+                    format!("markers[{i}]"),
+                    "give either `index` or `id`, not both",
+                ));
+            }
+            (a, b) => a.or(b),
+        };
         if m.robot == 0 {
             return Err(field(
                 format!("markers[{i}].robot"),
@@ -258,7 +313,7 @@ fn check_markers(
                 format!("the rig has no face {}", m.face),
             ));
         }
-        let index = match (m.index, m.code) {
+        let index = match (index, m.code) {
             (Some(index), None) => {
                 if index >= dictionary.len() {
                     return Err(field(
@@ -280,13 +335,13 @@ fn check_markers(
             (Some(_), Some(_)) => {
                 return Err(field(
                     format!("markers[{i}]"),
-                    "give either `index` or `code`, not both",
+                    "give either `index`/`id` or `code`, not both",
                 ));
             }
             (None, None) => {
                 return Err(field(
                     format!("markers[{i}]"),
-                    "needs an `index` (dictionary entry) or a `code`",
+                    "needs an `id` (dictionary entry; `index` also works) or a `code`",
                 ));
             }
         };

@@ -185,3 +185,43 @@ proptest! {
         prop_assert_eq!(index, (robot as usize - 1) * n_faces + (pick % n_faces));
     }
 }
+
+#[test]
+fn rigs_name_their_dictionary_and_faces_by_dictionary_and_id() {
+    let m = RigModel::load(&fixture("octagon-tag36h11.yaml"), Dictionary::paper()).unwrap();
+    assert_eq!(m.dictionary, "DICT_APRILTAG_36h11");
+    assert_eq!((m.geometry.data_rows, m.geometry.data_cols), (6, 6));
+    assert_eq!(m.index_of(2, 3), Some(22));
+    assert_eq!(m.robot_face_in("TAG36H11", 22), Some((2, 3)));
+    assert_eq!(m.robot_face_in("FORMATION_4X5", 22), None);
+    let dict = m.marker_dictionary().unwrap();
+    assert_eq!(m.code(dict, 1, 1).unwrap(), dict.codes()[10]);
+    // Our own dictionary by default, and by name.
+    assert_eq!(RigModel::reference().dictionary, fiducial::PAPER_NAME);
+    assert_eq!(yaml("dictionary: own").unwrap(), RigModel::reference());
+    // Errors name the field.
+    assert_eq!(bad_field(yaml("dictionary: tag99h1")), "dictionary");
+    assert_eq!(
+        bad_field(yaml(
+            "dictionary: tag36h11\ncell_size_m: 0.0175\nmarkers:\n  - { robot: 1, face: 1, dictionary: DICT_4X4_50, id: 3 }"
+        )),
+        "markers[0].dictionary"
+    );
+    assert_eq!(
+        bad_field(yaml(
+            "dictionary: tag36h11\ncell_size_m: 0.0175\nmarkers:\n  - { robot: 1, face: 1, id: 3, index: 3 }"
+        )),
+        "markers[0]"
+    );
+    assert_eq!(
+        bad_field(yaml(
+            "dictionary: tag36h11\ncell_size_m: 0.0175\nmarkers:\n  - { robot: 1, face: 1, id: 587 }"
+        )),
+        "markers[0].index"
+    );
+    // A tag36h11 marker of 20 mm cells (160 mm) does not fit a 180 mm face with its margin.
+    assert!(matches!(
+        yaml("dictionary: tag36h11"),
+        Err(RigFileError::Rig(RigError::MarkerTooWide { .. }))
+    ));
+}

@@ -1,9 +1,11 @@
-//! `formation-tracker detect IMAGE... [--json]`: finds and reads the markers in image files.
+//! `formation-tracker detect IMAGE... [--json] [--dictionary NAME]...`: finds and reads the
+//! markers in image files, of our own dictionary or of the named standard ones.
 //!
 //! Each image (PNG or JPEG, any colour type, converted to 8-bit grey) goes through one reused
 //! `fiducial::Detector`. With `--json`, one JSON object per image, one per line, with the
-//! image's path and size, the markers read (code, robot and face from the rig mapping,
-//! Hamming distance corrected, sub-pixel corners NW, NE, SE, SW in pixel-centre convention),
+//! image's path and size, the markers read (`dictionary` and `id`; for our own dictionary
+//! also code, robot and face from the rig mapping; Hamming distance corrected, sub-pixel
+//! corners from the marker's top-left as printed, clockwise, in pixel-centre convention),
 //! `robots` (with `--camera`: one joint pose per robot and its formation variables, see
 //! `detect_robots.rs`; empty otherwise), with `--marker-size` each marker's own `pose`
 //! (`marker_pose.rs`; `null` otherwise) and `timing.detect_ms`: the
@@ -31,6 +33,11 @@ pub struct Args {
     /// Print one JSON object per image (one line each) instead of a listing.
     #[arg(long)]
     pub json: bool,
+    /// Marker dictionary to read, by name (case-insensitive): `FORMATION_4X5` (our own, the
+    /// default), an OpenCV name such as `DICT_4X4_50` or `DICT_APRILTAG_36h11`, or an
+    /// AprilTag name such as `tag36h11`. Repeat it to read several dictionaries in one pass.
+    #[arg(long = "dictionary", value_name = "NAME")]
+    pub dictionaries: Vec<String>,
     /// Largest image side accepted, pixels; larger images are refused from their header,
     /// before they are decoded.
     #[arg(long, value_name = "PX", default_value_t = formation_tracker_cli::frames::MAX_SIDE,
@@ -47,20 +54,32 @@ pub struct Args {
     pub robots: super::detect_robots::RobotArgs,
 }
 
-/// One marker in the JSON output.
+/// One marker in the JSON output. Own-dictionary markers keep `code`, `robot` and `face`
+/// (and their historical field order); every marker has `dictionary` and `id`.
 #[derive(Debug, Serialize)]
 struct MarkerOut {
-    code: u64,
-    /// Dictionary index.
+    /// The code (own dictionary only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    code: Option<u64>,
+    /// Dictionary index (= `id`).
     index: usize,
-    robot: u32,
-    face: u8,
+    /// Robot from the rig mapping (own dictionary, or the rig's dictionary).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    robot: Option<u32>,
+    /// Face from the rig mapping (as `robot`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    face: Option<u8>,
     hamming: u32,
-    /// NW, NE, SE, SW, pixel centres at integer coordinates.
+    /// First corner = the marker's top-left as printed, then clockwise (OpenCV's order);
+    /// pixel centres at integer coordinates.
     corners: [[f64; 2]; 4],
     contrast: f64,
     /// With `--marker-size`: the marker's own pose (`null` without a size or when rejected).
     pose: Option<super::marker_pose::MarkerPoseOut>,
+    /// The dictionary's name, e.g. `FORMATION_4X5` or `DICT_APRILTAG_36h11`.
+    dictionary: &'static str,
+    /// The marker's id in that dictionary (OpenCV's / AprilTag's id).
+    id: usize,
 }
 
 /// One robot in the JSON output (with `--camera`), built from the library's
@@ -145,11 +164,17 @@ struct RejectedOut {
     reason: String,
 }
 
-fn marker_out(d: &Decoded, rig: &RigModel) -> MarkerOut {
-    // A code on no face of the rig's table is reported as robot 0, face 0.
-    let (robot, face) = rig.robot_face(d.index).unwrap_or((0, 0));
+fn marker_out(d: &Decoded, dictionary: &'static str, rig: &RigModel) -> MarkerOut {
+    let own = dictionary == fiducial::PAPER_NAME;
+    // An own-dictionary code on no face of the rig's table is reported as robot 0, face 0
+    // (as always); other dictionaries' markers carry a robot and face only on the rig's.
+    let (robot, face) = match rig.robot_face_in(dictionary, d.index) {
+        Some((r, f)) => (Some(r), Some(f)),
+        None if own => (Some(0), Some(0)),
+        None => (None, None),
+    };
     MarkerOut {
-        code: d.code,
+        code: own.then_some(d.code),
         index: d.index,
         robot,
         face,
@@ -157,7 +182,28 @@ fn marker_out(d: &Decoded, rig: &RigModel) -> MarkerOut {
         corners: d.corners.map(|p| [p.x, p.y]),
         contrast: d.contrast,
         pose: None,
+        dictionary,
+        id: d.index,
     }
+}
+
+/// The dictionaries named by `--dictionary` (default: the rig's, which is our own unless
+/// the rig file names another), without repeats.
+fn dictionaries(
+    names: &[String],
+    rig: &RigModel,
+) -> Result<Vec<&'static fiducial::Dictionary>, CliError> {
+    let mut out: Vec<&'static fiducial::Dictionary> = Vec::new();
+    if names.is_empty() {
+        out.push(rig.marker_dictionary().map_err(|e| e.to_string())?);
+    }
+    for n in names {
+        let d = fiducial::dictionary_by_name(n).map_err(|e| format!("--dictionary: {e}"))?;
+        if !out.iter().any(|o| std::ptr::eq(*o, d)) {
+            out.push(d);
+        }
+    }
+    Ok(out)
 }
 
 /// Reads every image; reports unreadable ones on stderr and, at the end, ends with a partial
@@ -170,7 +216,19 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         None => super::detect_robots::RobotStage::rig(&args.robots, dict)?,
     };
     let sizes = super::marker_pose::MarkerSizes::new(&args.marker_size);
-    let mut detector = Detector::new(DetectorConfig::default());
+    let dicts = dictionaries(&args.dictionaries, &rig)?;
+    let names: Vec<&'static str> = dicts
+        .iter()
+        .map(|d| d.name().unwrap_or(fiducial::PAPER_NAME))
+        .collect();
+    // The robot stage reads the rig's dictionary only.
+    let rig_dict = names.iter().position(|n| *n == rig.dictionary);
+    let mut detector = Detector::with_dictionaries(
+        DetectorConfig::default(),
+        dicts.into_iter().cloned().collect(),
+    )
+    .map_err(|e| e.to_string())?;
+    let mut rig_markers = Vec::new();
     let mut found = Vec::new();
     let mut failed = 0usize;
     for path in &args.images {
@@ -197,9 +255,16 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         let t1 = Instant::now();
         detector.decode_quads(&view, &mut found);
         let t2 = Instant::now();
+        rig_markers.clear();
+        rig_markers.extend(
+            found
+                .iter()
+                .filter(|d| Some(d.dictionary) == rig_dict)
+                .copied(),
+        );
         let (robots, rejected) = match &stage {
             None => (Vec::new(), Vec::new()),
-            Some(stage) => match stage.measure(&found, w as u32, h as u32) {
+            Some(stage) => match stage.measure(&rig_markers, w as u32, h as u32) {
                 Ok((robots, failures)) => (
                     robots.iter().map(RobotOut::from).collect(),
                     failures
@@ -218,7 +283,10 @@ pub fn run(args: &Args) -> Result<(), CliError> {
                 }
             },
         };
-        let mut markers: Vec<MarkerOut> = found.iter().map(|d| marker_out(d, &rig)).collect();
+        let mut markers: Vec<MarkerOut> = found
+            .iter()
+            .map(|d| marker_out(d, names[d.dictionary], &rig))
+            .collect();
         let mut rejected = rejected;
         if let Some(stage) = stage.as_ref().filter(|_| !sizes.is_empty()) {
             let calibration = match stage.calibration_for(w as u32, h as u32) {
@@ -268,12 +336,18 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             )?;
             for m in &out.markers {
                 let c = m.corners;
+                let who = match (m.robot, m.face, m.code) {
+                    (Some(r), Some(f), Some(code)) => {
+                        format!("robot {r} face {f} (code {code}, index {}, ", m.index)
+                    }
+                    (Some(r), Some(f), None) => {
+                        format!("robot {r} face {f} ({} id {}, ", m.dictionary, m.id)
+                    }
+                    _ => format!("{} id {} (", m.dictionary, m.id),
+                };
                 super::outln!(
-                    "  robot {} face {} (code {}, index {}, {} bit(s) corrected) NW ({:.2}, {:.2}) NE ({:.2}, {:.2}) SE ({:.2}, {:.2}) SW ({:.2}, {:.2})",
-                    m.robot,
-                    m.face,
-                    m.code,
-                    m.index,
+                    "  {}{} bit(s) corrected) NW ({:.2}, {:.2}) NE ({:.2}, {:.2}) SE ({:.2}, {:.2}) SW ({:.2}, {:.2})",
+                    who,
                     m.hamming,
                     c[0][0],
                     c[0][1],

@@ -6,6 +6,10 @@
 //! plus `markers.json` listing every marker with its code and the exact pixel corners of its
 //! black border in the PNG. A `(robot, face)` to which the rig's marker table gives no marker
 //! is skipped.
+//!
+//! With `--dictionary NAME --ids LIST [--size-mm N]` it prints standard (OpenCV/AprilTag)
+//! markers instead: `NAME-ID.png` and `.svg` (black border `N` mm wide, one white cell of
+//! margin) and a `markers.json` of `dictionary`, `id`, files, PNG corners and size.
 
 use std::path::{Path, PathBuf};
 
@@ -32,6 +36,116 @@ pub struct Args {
     /// Pixels per marker cell in the PNGs.
     #[arg(long = "px-per-cell", default_value_t = 20)]
     pub px_per_cell: u32,
+    /// Print standard markers instead of the rig's: a dictionary by name (case-insensitive,
+    /// e.g. `DICT_4X4_50`, `DICT_APRILTAG_36h11`, `tag36h11`), with `--ids`.
+    #[arg(long, value_name = "NAME", requires = "ids", conflicts_with_all = ["rig", "robots"])]
+    pub dictionary: Option<String>,
+    /// Ids to print with `--dictionary`: `0-9`, `5`, or a list such as `0-3,7,12`.
+    #[arg(long, value_name = "LIST", requires = "dictionary")]
+    pub ids: Option<String>,
+    /// With `--dictionary`: side of the black border, millimetres (default 100).
+    #[arg(long = "size-mm", value_name = "MM", requires = "dictionary",
+          value_parser = super::numbers::finite)]
+    pub size_mm: Option<f64>,
+}
+
+/// One line of `markers.json` with `--dictionary`.
+#[derive(Debug, Serialize)]
+struct StandardEntry {
+    /// The dictionary's canonical name.
+    dictionary: &'static str,
+    /// The marker's id in it.
+    id: usize,
+    png: String,
+    svg: String,
+    /// Outer corners of the black border in the PNG (pixel centres at integers), from the
+    /// marker's top-left as printed, clockwise.
+    corners_px: [[f64; 2]; 4],
+    /// Width and height of the black border, metres.
+    size_m: [f64; 2],
+}
+
+/// Parses `--ids`: comma-separated ids and inclusive ranges `a-b`.
+fn parse_ids(text: &str, len: usize) -> Result<Vec<usize>, CliError> {
+    let mut out = Vec::new();
+    for part in text.split(',').map(str::trim) {
+        let bad = || format!("--ids {text}: `{part}` is not an id or a range like 0-9");
+        let (a, b) = match part.split_once('-') {
+            Some((a, b)) => (a.trim(), b.trim()),
+            None => (part, part),
+        };
+        let a: usize = a.parse().map_err(|_| bad())?;
+        let b: usize = b.parse().map_err(|_| bad())?;
+        if a > b {
+            return Err(bad().into());
+        }
+        if b >= len {
+            return Err(format!(
+                "--ids {text}: id {b} is beyond the dictionary's {len} ids (0-{})",
+                len - 1
+            )
+            .into());
+        }
+        out.extend(a..=b);
+    }
+    out.sort_unstable();
+    out.dedup();
+    Ok(out)
+}
+
+/// `markers --dictionary NAME --ids LIST [--size-mm N]`.
+fn run_standard(args: &Args, name: &str, ids: &str) -> Result<(), CliError> {
+    let dict = fiducial::dictionary_by_name(name).map_err(|e| format!("--dictionary: {e}"))?;
+    let canonical = dict.name().unwrap_or(fiducial::PAPER_NAME);
+    let ids = parse_ids(ids, dict.len())?;
+    let size_mm = args.size_mm.unwrap_or(100.0);
+    if size_mm.is_nan() || size_mm <= 0.0 {
+        return Err(format!("--size-mm {size_mm}: must be positive").into());
+    }
+    let family = dict.family();
+    let cell_mm = size_mm / f64::from(family.width_cells());
+    let options = RenderOptions {
+        px_per_cell: args.px_per_cell,
+        quiet_cells: 1,
+    };
+    super::prepare_out_dir(&args.out)?;
+    let size_m = [
+        size_mm / 1000.0,
+        cell_mm * f64::from(family.height_cells()) / 1000.0,
+    ];
+    let mut entries = Vec::new();
+    for id in ids {
+        let code = dict.codes()[id];
+        let stem = format!("{canonical}-{id}");
+        let marker = render_marker(family, code, &options)?;
+        let corners_px = marker.corners().map(|p| [p.x, p.y]);
+        let png = format!("{stem}.png");
+        let path = args.out.join(&png);
+        let px_per_m = f64::from(args.px_per_cell) / (cell_mm / 1000.0);
+        write_png_at_scale(&path, &marker.into_gray_image(), px_per_m)
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        let svg = format!("{stem}.svg");
+        let path = args.out.join(&svg);
+        std::fs::write(&path, render_svg(family, code, cell_mm, 1)?)
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        entries.push(StandardEntry {
+            dictionary: canonical,
+            id,
+            png,
+            svg,
+            corners_px,
+            size_m,
+        });
+    }
+    let path = args.out.join("markers.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&entries)? + "\n")
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    eprintln!(
+        "markers: wrote {} {canonical} markers ({size_mm} mm) to {}",
+        entries.len(),
+        args.out.display()
+    );
+    Ok(())
 }
 
 /// One line of `markers.json`.
@@ -53,8 +167,11 @@ struct Entry {
 
 /// Writes the markers and `markers.json`.
 pub fn run(args: &Args) -> Result<(), CliError> {
-    let dict = Dictionary::paper();
-    let rig = super::load_rig(args.rig.as_deref(), dict)?;
+    if let (Some(name), Some(ids)) = (&args.dictionary, &args.ids) {
+        return run_standard(args, name, ids);
+    }
+    let rig = super::load_rig(args.rig.as_deref(), Dictionary::paper())?;
+    let dict = rig.marker_dictionary()?;
     if args.robots == 0 {
         return Err("--robots must be at least 1".into());
     }

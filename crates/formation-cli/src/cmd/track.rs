@@ -299,8 +299,10 @@ pub(super) fn build_pipeline(
     let mut tracker = Tracker::new(config)?;
     tracker.record_history(args.smooth);
     let solver = PoseSolver::new(calibration.intrinsics).with_distortion(calibration.distortion);
+    // The rig's dictionary: our own unless the rig file names another (e.g. tag36h11).
+    let dictionary = rig.marker_dictionary()?.clone();
     Ok(Pipeline::new(
-        Detector::with_dictionary(DetectorConfig::default(), Dictionary::paper().clone()),
+        Detector::with_dictionary(DetectorConfig::default(), dictionary),
         solver,
         (calibration.width, calibration.height),
         rig,
