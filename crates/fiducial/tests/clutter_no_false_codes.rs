@@ -27,5 +27,7 @@ fn clutter_frames_give_no_markers() {
         assert!(out.is_empty(), "clutter read as {out:?} (Otsu)");
     }
     // The clutter really offers candidates to the decoder (black-bordered squares etc.).
-    assert!(quads >= 20, "only {quads} quads in 40 frames");
+    // Since the threshold keeps two-pixel dark lines (issue #16), textured clutter joins
+    // more of the squares to their surroundings: 18 quads in these 40 frames (25 before).
+    assert!(quads >= 15, "only {quads} quads in 40 frames");
 }
