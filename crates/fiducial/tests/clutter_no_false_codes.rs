@@ -18,7 +18,7 @@ fn clutter_frames_give_no_markers() {
     });
     let mut out = Vec::new();
     let mut quads = 0;
-    for _ in 0..40 {
+    for _ in 0..60 {
         let px = clutter_frame(240, 180, 1.0, 3.0, common::not_markers(), &mut rng).unwrap();
         let img = GrayView::new(&px, 240, 180).unwrap();
         quads += adaptive.detect(&img, &mut out);
@@ -27,5 +27,8 @@ fn clutter_frames_give_no_markers() {
         assert!(out.is_empty(), "clutter read as {out:?} (Otsu)");
     }
     // The clutter really offers candidates to the decoder (black-bordered squares etc.).
-    assert!(quads >= 20, "only {quads} quads in 40 frames");
+    // Since the threshold keeps two-pixel dark lines (issue #16), textured clutter joins
+    // more of the squares to their surroundings (18 quads in the first 40 frames, 25
+    // before), so the test reads 60 frames to keep offering at least 20.
+    assert!(quads >= 20, "only {quads} quads in 60 frames");
 }

@@ -90,6 +90,7 @@ fn robots_match_the_truth_of_a_rendered_scene() {
         "robot",
         "faces",
         "rejected_faces",
+        "rejections",
         "rotation",
         "translation",
         "reprojection_rms_px",

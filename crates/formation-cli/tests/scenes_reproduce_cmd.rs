@@ -46,7 +46,7 @@ fn writes_every_output_with_the_issue_fields() {
                 "faces_read",
                 "wrong_codes",
                 "distance_error_pct",
-                "heading_error_deg",
+                "heading_error",
                 "l12_error",
                 "alpha12_error",
                 "beta12_error",

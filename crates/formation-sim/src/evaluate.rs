@@ -16,7 +16,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::scene::{RenderedScene, SceneError, SceneSpec, SceneTruth, render_scene};
 use formation_tracker::rig::RigModel;
-use formation_tracker::robots::{FrameRobots, MarkerObservation, RobotConfig, measure_robots};
+use formation_tracker::robots::{
+    FaceRejection, FrameRobots, MarkerObservation, RobotConfig, measure_robots,
+};
 use unicycle::wrap_angle;
 
 /// A detection matches a true face when its mean corner distance is below this fraction of
@@ -47,12 +49,18 @@ pub struct RobotReport {
     pub wrong_codes: usize,
     /// Faces used for the pose (after outlier rejection).
     pub faces_used: Vec<u8>,
+    /// Faces partly hidden by an occluder ([`crate::scene::FaceTruthOut::partly_hidden`]).
+    #[serde(default)]
+    pub faces_partly_hidden: Vec<u8>,
+    /// Faces read but dropped from the pose, with the reason.
+    #[serde(default)]
+    pub rejections: Vec<FaceRejection>,
     /// Mean distance of the read corners from the true ones, pixels.
     pub corner_error_px: Option<f64>,
     /// `100 |l12 - l12_true| / l12_true`.
     pub distance_error_pct: Option<f64>,
-    /// `|heading - heading_true|`, degrees.
-    pub heading_error_deg: Option<f64>,
+    /// `|heading - heading_true|` (wrapped), radians.
+    pub heading_error: Option<f64>,
     /// `l12 - l12_true`, metres.
     pub l12_error: Option<f64>,
     /// `alpha12 - alpha12_true`, radians (wrapped).
@@ -204,14 +212,12 @@ pub fn evaluate_scene(
         let m = robots.robots.iter().find(|m| m.robot == t.robot);
         let true_heading = wrap_angle(t.beta12 - t.alpha12);
         let distance_error_pct = m.map(|m| 100.0 * (m.l12 - t.l12).abs() / t.l12);
-        let heading_error_deg = m.map(|m| {
-            wrap_angle(m.relative_heading() - true_heading)
-                .abs()
-                .to_degrees()
-        });
+        let heading_error = m.map(|m| wrap_angle(m.relative_heading() - true_heading).abs());
         let all_read = faces_required.iter().all(|f| faces_read.contains(f));
-        let pose_ok = match (distance_error_pct, heading_error_deg) {
-            (Some(d), Some(h)) => d <= MAX_DISTANCE_ERROR_PCT && h <= MAX_HEADING_ERROR_DEG,
+        let pose_ok = match (distance_error_pct, heading_error) {
+            (Some(d), Some(h)) => {
+                d <= MAX_DISTANCE_ERROR_PCT && h.to_degrees() <= MAX_HEADING_ERROR_DEG
+            }
             _ => faces_required.is_empty(),
         };
         let corner_error_px = (!corner_err[ri].is_empty())
@@ -229,9 +235,16 @@ pub fn evaluate_scene(
             paper_faces: paper,
             wrong_codes: wrong[ri],
             faces_used: m.map(|m| m.faces.clone()).unwrap_or_default(),
+            faces_partly_hidden: t
+                .faces
+                .iter()
+                .filter(|f| f.partly_hidden)
+                .map(|f| f.face)
+                .collect(),
+            rejections: m.map(|m| m.rejections.clone()).unwrap_or_default(),
             corner_error_px,
             distance_error_pct,
-            heading_error_deg,
+            heading_error,
             l12_error: m.map(|m| m.l12 - t.l12),
             alpha12_error: m.map(|m| wrap_angle(m.alpha12 - t.alpha12)),
             beta12_error: m.map(|m| wrap_angle(m.beta12 - t.beta12)),
@@ -310,7 +323,7 @@ pub fn markdown_table(reports: &[SceneReport], with_paper: bool) -> String {
                 if b.ambiguous { " (ambiguous)" } else { "" },
                 opt(b.corner_error_px, 2),
                 opt(b.distance_error_pct, 3),
-                opt(b.heading_error_deg, 3),
+                opt(b.heading_error.map(f64::to_degrees), 3),
                 opt(b.l12_error, 4),
                 opt(b.alpha12_error.map(f64::to_degrees), 3),
                 opt(b.beta12_error.map(f64::to_degrees), 3),
@@ -367,7 +380,8 @@ pub fn summarize(reports: &[SceneReport]) -> Summary {
                 .filter(|f| b.faces_read.contains(f))
                 .count();
             s.wrong_codes += b.wrong_codes;
-            if let (Some(d), Some(h)) = (b.distance_error_pct, b.heading_error_deg) {
+            if let (Some(d), Some(h)) = (b.distance_error_pct, b.heading_error.map(f64::to_degrees))
+            {
                 s.robots_measured += 1;
                 s.max_distance_error_pct = s.max_distance_error_pct.max(d);
                 s.max_heading_error_deg = s.max_heading_error_deg.max(h);

@@ -427,6 +427,11 @@ pub struct FaceTruthOut {
     pub corners_px: Option<[[f64; 2]; 4]>,
     /// Visible, off-axis at most 75 degrees and at least 14 px wide: must be read.
     pub readable: bool,
+    /// Front-facing and inside the image, but some (not all) of the face's corners are
+    /// hidden behind another object (another robot, the rig itself): the face is cut by an
+    /// occluder, and whatever of it is read may have a side along the occluder's edge.
+    #[serde(default)]
+    pub partly_hidden: bool,
 }
 
 /// Ground truth of one robot.
@@ -522,6 +527,11 @@ fn truth_from(
                 width_px,
                 corners_px: corners.map(|c| c.map(|p| [p.x, p.y])),
                 readable,
+                partly_hidden: ft.front_facing
+                    && ft.in_front
+                    && ft.inside_image
+                    && ft.unoccluded.iter().any(|&u| u)
+                    && !ft.unoccluded.iter().all(|&u| u),
             });
         }
         let rv = rot.scaled_axis();

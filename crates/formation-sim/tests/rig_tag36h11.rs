@@ -56,7 +56,8 @@ fn tag36h11_rig_is_read_and_measured_end_to_end() {
                 .iter()
                 .filter(|f| r.faces_read.contains(f))
                 .count();
-            if let (Some(d), Some(h)) = (r.distance_error_pct, r.heading_error_deg) {
+            if let (Some(d), Some(h)) = (r.distance_error_pct, r.heading_error.map(f64::to_degrees))
+            {
                 measured += 1;
                 worst_d = worst_d.max(d);
                 worst_h = worst_h.max(h);

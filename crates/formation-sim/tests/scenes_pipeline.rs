@@ -40,7 +40,7 @@ fn check(report: &SceneReport) {
             let d = r
                 .distance_error_pct
                 .expect("a robot with a readable face is measured");
-            let h = r.heading_error_deg.expect("and has a heading");
+            let h = r.heading_error.expect("and has a heading").to_degrees();
             assert!(
                 d <= MAX_DISTANCE_ERROR_PCT,
                 "{ctx}: distance error {d:.3} %"

@@ -740,6 +740,57 @@ pub fn clutter_frame<R: Rng + ?Sized>(
     })
 }
 
+/// Linear motion blur: each pixel becomes the mean of the frame along a segment of
+/// `length` pixels centred on it at `angle` radians from the image's x axis (a box kernel,
+/// as a camera moving uniformly while the shutter is open), sampled bilinearly every quarter
+/// pixel with edge pixels replicated. The blur is symmetric, so marker corners stay where
+/// they were. A `length` below one pixel (or not finite) returns the frame unchanged.
+pub fn motion_blur(
+    pixels: &[u8],
+    width: usize,
+    height: usize,
+    length: f64,
+    angle: f64,
+) -> Result<Vec<u8>, TestkitError> {
+    if width == 0 || height == 0 || width > 16384 || height > 16384 || pixels.len() < width * height
+    {
+        return Err(TestkitError::BadSize { width, height });
+    }
+    if !(length.is_finite() && length >= 1.0 && angle.is_finite()) {
+        return Ok(pixels[..width * height].to_vec());
+    }
+    let samples = (4.0 * length).ceil() as usize + 1;
+    let (dx, dy) = (angle.cos(), angle.sin());
+    let offsets: Vec<(f64, f64)> = (0..samples)
+        .map(|k| {
+            let t = -0.5 * length + length * k as f64 / (samples - 1) as f64;
+            (t * dx, t * dy)
+        })
+        .collect();
+    let (wmax, hmax) = ((width - 1) as f64, (height - 1) as f64);
+    let at = |x: f64, y: f64| -> f64 {
+        let (x, y) = (x.clamp(0.0, wmax), y.clamp(0.0, hmax));
+        let (xi, yi) = (x as usize, y as usize);
+        let (fx, fy) = (x - xi as f64, y - yi as f64);
+        let (xj, yj) = ((xi + 1).min(width - 1), (yi + 1).min(height - 1));
+        let g = |xx: usize, yy: usize| f64::from(pixels[yy * width + xx]);
+        let top = g(xi, yi) + (g(xj, yi) - g(xi, yi)) * fx;
+        let bot = g(xi, yj) + (g(xj, yj) - g(xi, yj)) * fx;
+        top + (bot - top) * fy
+    };
+    let mut out = Vec::with_capacity(width * height);
+    for y in 0..height {
+        for x in 0..width {
+            let sum: f64 = offsets
+                .iter()
+                .map(|&(ox, oy)| at(x as f64 + ox, y as f64 + oy))
+                .sum();
+            out.push((sum / samples as f64).round().clamp(0.0, 255.0) as u8);
+        }
+    }
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
@@ -826,6 +877,36 @@ mod tests {
         )
         .unwrap();
         assert_eq!(frame.len(), 160 * 120);
+    }
+
+    #[test]
+    fn motion_blur_spreads_an_edge_along_its_direction_only() {
+        // A vertical edge at x = 10 (dark left, light right) in a 20 x 5 frame.
+        let (w, h) = (20, 5);
+        let frame: Vec<u8> = (0..w * h)
+            .map(|i| if i % w < 10 { 0 } else { 200 })
+            .collect();
+        // Blurred across the edge (horizontally, 5 px): a ramp about 5 px wide, centred.
+        let across = motion_blur(&frame, w, h, 5.0, 0.0).unwrap();
+        let row = &across[2 * w..3 * w];
+        assert_eq!(row[3], 0);
+        assert_eq!(row[16], 200);
+        assert!(row[8] > 0 && row[8] < 100, "{row:?}");
+        assert!(row[11] > 100 && row[11] < 200, "{row:?}");
+        // Symmetric: the two pixels either side of the edge sum to the light level.
+        assert!(
+            (i32::from(row[9]) + i32::from(row[10]) - 200).abs() <= 2,
+            "{row:?}"
+        );
+        // Along the edge (vertically) nothing changes.
+        assert_eq!(
+            motion_blur(&frame, w, h, 5.0, std::f64::consts::FRAC_PI_2).unwrap(),
+            frame
+        );
+        // Bad sizes are errors, short blurs no-ops.
+        assert!(motion_blur(&frame, 0, h, 5.0, 0.0).is_err());
+        assert!(motion_blur(&frame[..10], w, h, 5.0, 0.0).is_err());
+        assert_eq!(motion_blur(&frame, w, h, 0.5, 0.0).unwrap(), frame);
     }
 
     #[test]

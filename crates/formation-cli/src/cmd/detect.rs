@@ -19,7 +19,7 @@ use std::time::Instant;
 use clap::Args as ClapArgs;
 use fiducial::{Decoded, Detector, DetectorConfig, GrayView};
 use formation_tracker::rig::RigModel;
-use formation_tracker::robots::RobotMeasurement;
+use formation_tracker::robots::{FaceRejection, RobotMeasurement};
 use serde::Serialize;
 
 use super::CliError;
@@ -92,6 +92,8 @@ struct RobotOut {
     faces: Vec<u8>,
     /// Faces read but rejected as inconsistent with the others.
     rejected_faces: Vec<u8>,
+    /// The same faces, each with the reason it was dropped.
+    rejections: Vec<FaceRejection>,
     /// Rotation vector, rig frame to camera frame (radians).
     rotation: [f64; 3],
     /// Rig origin in the camera frame (metres).
@@ -114,6 +116,7 @@ impl From<&RobotMeasurement> for RobotOut {
             robot: m.robot,
             faces: m.faces.clone(),
             rejected_faces: m.rejected_faces.clone(),
+            rejections: m.rejections.clone(),
             rotation: m.rotation,
             translation: m.translation,
             reprojection_rms_px: m.reprojection_rms_px,
