@@ -254,10 +254,7 @@ impl<W: Write> FoxgloveWriter<W> {
             .iter()
             .map(|l| {
                 let std = [l.l12_std, l.alpha12_std, l.beta12_std, l.v1_std, l.w1_std];
-                let mut cov = [0.0; 25];
-                for (i, s) in std.iter().enumerate() {
-                    cov[i * 6] = s * s;
-                }
+                let cov: Vec<f64> = l.covariance.iter().flatten().copied().collect();
                 json!({
                     "robot": l.robot,
                     "status": format!("{:?}", l.status).to_lowercase(),

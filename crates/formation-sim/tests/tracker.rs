@@ -131,7 +131,23 @@ fn measured(pose: &pose::Pose) -> Vector3<f64> {
 fn sane(l: &LeaderReport) -> bool {
     let values = [l.l12, l.alpha12, l.beta12, l.v1, l.w1, l.since_seen];
     let stds = [l.l12_std, l.alpha12_std, l.beta12_std, l.v1_std, l.w1_std];
-    values.iter().all(|v| v.is_finite()) && stds.iter().all(|s| s.is_finite() && *s >= 0.0)
+    let c = l.covariance;
+    // The covariance: symmetric, its diagonal the squared standard deviations, nothing
+    // between the formation and velocity blocks (the dual filter keeps no such terms), and
+    // positive definite.
+    let symmetric = (0..5).all(|i| (0..5).all(|j| c[i][j] == c[j][i]));
+    let diagonal =
+        (0..5).all(|i| (c[i][i].max(0.0).sqrt() - stds[i]).abs() <= 1e-12 * (1.0 + stds[i]));
+    let blocks = (0..3).all(|i| (3..5).all(|j| c[i][j] == 0.0));
+    let definite = nalgebra::Matrix5::from_fn(|i, j| c[i][j])
+        .cholesky()
+        .is_some();
+    values.iter().all(|v| v.is_finite())
+        && stds.iter().all(|s| s.is_finite() && *s >= 0.0)
+        && symmetric
+        && diagonal
+        && blocks
+        && definite
 }
 
 #[test]
@@ -140,6 +156,7 @@ fn filters_pose_measurements_better_than_raw() {
     let mut tr = tracker();
     let (mut est, mut raw, mut v_late, mut n_late) = (Vector3::zeros(), Vector3::zeros(), 0.0, 0);
     let mut updated = 0;
+    let mut correlated = 0;
     for (k, f) in frames.iter().enumerate() {
         let rep = tr
             .update(&input(f, seen(PoseMeasurement::Chosen(estimate(f.pose)))))
@@ -153,6 +170,12 @@ fn filters_pose_measurements_better_than_raw() {
         if l.measurement == MeasurementUse::Updated {
             updated += 1;
         }
+        // The formation block is the filter's full one: alpha12 and beta12 share the
+        // bearing measurement, so they are correlated.
+        let c = l.covariance;
+        if c[1][2].abs() > 0.1 * (c[1][1] * c[2][2]).sqrt() {
+            correlated += 1;
+        }
         let e = error(l, &f.truth);
         est += e.component_mul(&e);
         let m = measured(&f.pose) - f.truth;
@@ -165,6 +188,10 @@ fn filters_pose_measurements_better_than_raw() {
     }
     // Honest measurements are hardly ever gated (99.9 % gate).
     assert!(updated >= frames.len() - 4, "updated {updated}");
+    assert!(
+        correlated > frames.len() / 2,
+        "correlated in {correlated} frames"
+    );
     for i in 0..3 {
         assert!(
             est[i] < 0.5 * raw[i],

@@ -29,7 +29,7 @@ pub use smooth::{FilterStep, SmoothedStep};
 use std::cell::Cell;
 
 use dukf::{AngleMask, DualUkf, Euclidean, Ukf, UkfError, UtParams};
-use nalgebra::{Matrix2, Matrix3, SMatrix, SVector, Vector2, Vector3};
+use nalgebra::{Matrix2, Matrix3, Matrix5, SMatrix, SVector, Vector2, Vector3};
 use unicycle::{
     Formation, Inputs, MEASUREMENT_ANGLES, PolarModel, PolarState, STATE_ANGLES, UnicycleError,
     wrap_angle,
@@ -320,6 +320,19 @@ impl FormationFilter {
     /// The estimated leader velocities `(v1, w1)`.
     pub fn leader_velocity(&self) -> Inputs {
         (*self.dual.parameters()).into()
+    }
+
+    /// The covariance of `[l12, alpha12, beta12, v1, w1]`: the state filter's block of the
+    /// formation variables and the parameter filter's of the velocities. The dual filter
+    /// keeps no cross-covariance between its two filters, so the formation-velocity terms
+    /// are zero (the smoother's joint pass has them; `docs/smoothing.md`).
+    pub fn estimate_covariance(&self) -> Matrix5<f64> {
+        let mut c = Matrix5::zeros();
+        c.fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&self.dual.state_covariance().fixed_view::<3, 3>(3, 3));
+        c.fixed_view_mut::<2, 2>(3, 3)
+            .copy_from(self.dual.parameter_covariance());
+        c
     }
 
     /// Standard deviations of `(v1, w1)`.

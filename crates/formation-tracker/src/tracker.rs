@@ -631,6 +631,7 @@ fn report(
         beta12_std: fs[2],
         v1_std: ws[0],
         w1_std: ws[1],
+        covariance: filter.estimate_covariance().transpose().into(),
         since_seen: t - track.last_seen,
     }
 }

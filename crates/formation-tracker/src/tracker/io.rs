@@ -135,6 +135,11 @@ pub struct LeaderReport {
     pub v1_std: f64,
     /// Standard deviation of `w1`, rad/s.
     pub w1_std: f64,
+    /// Covariance of `[l12, alpha12, beta12, v1, w1]` (units: products of m, rad, m/s,
+    /// rad/s), row by row; its diagonal is the squares of the `*_std` fields. The
+    /// formation-velocity terms are zero: the dual filter keeps no cross-covariance between
+    /// its state and parameter filters.
+    pub covariance: [[f64; 5]; 5],
     /// Seconds since the last accepted measurement.
     pub since_seen: f64,
 }
