@@ -112,7 +112,10 @@ pub fn parse_header(line: &[u8]) -> Result<Header, String> {
     let (mut width, mut height, mut rate) = (None, None, None);
     let mut colour = Colour::parse("420jpeg")?;
     for field in fields.split(' ').filter(|f| !f.is_empty()) {
-        let (key, value) = field.split_at(1);
+        // The key is the field's first character, which need not be one byte long (a
+        // corrupt header may hold any text): split after it, not after byte 1.
+        let first = field.chars().next().map_or(0, char::len_utf8);
+        let (key, value) = field.split_at(first);
         let number = |v: &str| {
             v.parse::<usize>()
                 .map_err(|_| format!("header field {key}: `{v}` is not a whole number"))
@@ -299,6 +302,21 @@ mod tests {
             let e = Colour::parse(bad).unwrap_err();
             assert!(e.contains(bad) && e.starts_with("header field C"), "{e}");
         }
+    }
+
+    /// Found by the y4m fuzz target: a field starting with a multi-byte character split
+    /// inside it and panicked.
+    #[test]
+    fn a_field_starting_with_a_multibyte_character_is_an_error_not_a_panic() {
+        for line in [
+            "YUV4MPEG2 W4 H2 \u{6b9}30:1".as_bytes(),
+            "YUV4MPEG2 W4 H2 F30:1 \u{1d2}onoJF".as_bytes(),
+            b"YUV4MPEG2\xda\xb93\x100:",
+        ] {
+            assert!(parse_header(line).is_err(), "{line:?}");
+        }
+        let e = parse_header("YUV4MPEG2 W4 H2 \u{6b9}30:1".as_bytes()).unwrap_err();
+        assert!(e.contains('\u{6b9}'), "{e}");
     }
 
     #[test]
