@@ -500,15 +500,15 @@ fn inspect(
         }
         for t in &e.rendered.truth.robots {
             for f in &t.faces {
-                if f.visible || f.off_axis_deg < 90.0 {
+                if f.visible || f.off_axis < std::f64::consts::FRAC_PI_2 {
                     println!(
-                        "  truth robot {} face {} idx {} visible {} readable {} off-axis {:.1} width {:?} corners {:?}",
+                        "  truth robot {} face {} idx {} visible {} readable {} off-axis {:.1} deg width {:?} corners {:?}",
                         t.robot,
                         f.face,
                         f.index,
                         f.visible,
                         f.readable,
-                        f.off_axis_deg,
+                        f.off_axis.to_degrees(),
                         f.width_px.map(|w| (w * 10.0).round() / 10.0),
                         f.corners_px.map(|c| c.map(|p| [
                             (p[0] * 100.0).round() / 100.0,

@@ -113,7 +113,7 @@ fn locate(truth: &SceneTruth, corners: &[Point2<f64>; 4]) -> Option<(usize, usiz
             let (Some(c), Some(w)) = (f.corners_px, f.width_px) else {
                 continue;
             };
-            if !f.visible && f.off_axis_deg >= 90.0 {
+            if !f.visible && f.off_axis >= std::f64::consts::FRAC_PI_2 {
                 continue;
             }
             let d = c

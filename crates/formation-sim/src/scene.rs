@@ -418,8 +418,8 @@ pub struct FaceTruthOut {
     pub code: u64,
     /// The face (marker and quiet zone) is front-facing, in the image and unoccluded.
     pub visible: bool,
-    /// Angle between the face normal and the direction to the camera, degrees.
-    pub off_axis_deg: f64,
+    /// Angle between the face normal and the direction to the camera, radians (0: face-on).
+    pub off_axis: f64,
     /// Mean projected width of the marker's black border (top and bottom edges), pixels.
     pub width_px: Option<f64>,
     /// The black border's outer corners NW, NE, SE, SW by exact projection (pixel centres
@@ -523,7 +523,7 @@ fn truth_from(
                 index: rig.index_of(rb.robot, g.face).unwrap_or(usize::MAX),
                 code: rig.code(dictionary, rb.robot, g.face)?,
                 visible: ft.visible,
-                off_axis_deg: ft.off_axis_deg,
+                off_axis: ft.off_axis_deg.to_radians(),
                 width_px,
                 corners_px: corners.map(|c| c.map(|p| [p.x, p.y])),
                 readable,
