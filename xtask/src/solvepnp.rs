@@ -256,7 +256,7 @@ fn synthetic_cases() -> crate::Result<Value> {
     }))
 }
 
-/// Runs in the venv: argv[1] the cases, argv[2] the output.
+/// Runs in the venv: `argv[1]` the cases, `argv[2]` the output.
 const SCRIPT: &str = r#"
 import json, sys
 import numpy as np

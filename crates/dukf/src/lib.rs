@@ -128,7 +128,7 @@ mod dual;
 mod error;
 mod jitter;
 mod sigma;
-mod smoother;
+pub mod smoother;
 mod space;
 mod transform;
 mod ukf;

@@ -8,7 +8,7 @@
 //! Stages: [`Binarizer`] (adaptive tile threshold, or Otsu), [`Labeller`] (run-length
 //! union-find), cheap rejection of components by size, shape and frame-border contact,
 //! [`trace_outer`] (Moore border following) and [`fit_quad`] (four-vertex polygon), then
-//! [`Refiner`] (sub-pixel corners from grey-level edge lines), and finally [`decode()`]
+//! [`Refiner`] (sub-pixel corners from grey-level edge lines), and finally [`decode()`](crate::decode())
 //! (cross-ratio cell sampling and dictionary lookup) on each quad.
 //!
 //! The two phases are exposed separately ([`Detector::find_quads`] and
