@@ -4,78 +4,14 @@
 #![allow(clippy::unwrap_used)] // Tests may unwrap (house rules); helpers here are test code too.
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 
-use fiducial::Dictionary;
-use formation_sim::scenario::{ScenarioConfig, simulate};
-use formation_sim::scene::{CameraSpec, RenderSpec, RobotSpec, SceneSpec, render_scene};
-use formation_tracker::mount::CameraMount;
-use formation_tracker::rig::RigModel;
-use unicycle::{PolarModel, Pose, wrap_angle};
+use unicycle::wrap_angle;
 
 mod common;
 
 const FRAMES: usize = 12;
-
-struct Clip {
-    dir: PathBuf,
-    images: Vec<image::GrayImage>,
-    truth: Vec<[f64; 3]>,
-}
-
-/// The first frames of the reference scenario, rendered (2 x 2 samples per pixel to keep
-/// the test fast), with the follower inputs CSV and the calibration.
-fn clip(name: &str) -> Clip {
-    let dir = std::env::temp_dir().join(format!("ft-track-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(dir.join("frames")).unwrap();
-    let scenario = simulate(&ScenarioConfig::reference(1)).unwrap();
-    let rig = RigModel::reference();
-    let mut csv = String::from("frame,v2,w2\n");
-    let (mut images, mut truth) = (Vec::new(), Vec::new());
-    for (k, s) in scenario.samples.iter().take(FRAMES).enumerate() {
-        let prev = &scenario.samples[k.saturating_sub(1)];
-        let leader = PolarModel::leader_pose(&s.truth);
-        let spec = SceneSpec {
-            name: String::new(),
-            camera_robot: Pose {
-                x: s.follower.x,
-                y: s.follower.y,
-                theta: s.follower.theta,
-            },
-            mount: CameraMount::default(),
-            camera: CameraSpec::default(),
-            render: RenderSpec {
-                supersampling: 2,
-                seed: k as u64,
-                ..RenderSpec::default()
-            },
-            robots: vec![RobotSpec {
-                robot: 1,
-                x: leader.x,
-                y: leader.y,
-                theta: leader.theta,
-            }],
-        };
-        let image = render_scene(&spec, &rig, Dictionary::paper())
-            .unwrap()
-            .image;
-        image
-            .save(dir.join("frames").join(format!("f{k:03}.png")))
-            .unwrap();
-        images.push(image);
-        let h = PolarModel::h(&s.truth);
-        truth.push([h[0], h[1], h[2]]);
-        csv += &format!(
-            "{k},{},{}\n",
-            prev.follower_inputs.v, prev.follower_inputs.w
-        );
-    }
-    std::fs::write(dir.join("inputs.csv"), csv).unwrap();
-    std::fs::write(dir.join("camera.yaml"), common::CAMERA).unwrap();
-    Clip { dir, images, truth }
-}
 
 fn track(args: &[&str], dir: &Path, stdin: Option<Vec<u8>>) -> (String, String, Option<i32>) {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_formation-tracker"));
@@ -108,7 +44,7 @@ fn lines(stdout: &str) -> Vec<serde_json::Value> {
 
 #[test]
 fn folder_with_a_broken_frame() {
-    let clip = clip("folder");
+    let clip = common::reference_clip("folder", FRAMES);
     std::fs::write(clip.dir.join("frames").join("f005.png"), b"broken").unwrap();
     let (stdout, stderr, code) = track(
         &[
@@ -173,7 +109,7 @@ fn folder_with_a_broken_frame() {
 /// A y4m stream (mono) of the clip on stdin, cut inside its last frame.
 #[test]
 fn truncated_y4m_on_stdin_without_inputs() {
-    let clip = clip("stdin");
+    let clip = common::reference_clip("stdin", FRAMES);
     let mut y4m = b"YUV4MPEG2 W640 H480 F30:1 Ip A1:1 Cmono\n".to_vec();
     for image in &clip.images {
         y4m.extend_from_slice(b"FRAME\n");
@@ -216,7 +152,7 @@ fn bad_arguments_are_one_line_errors() {
 /// with their reason in `failures`, and no leader is tracked.
 #[test]
 fn poses_from_a_wrong_mount_are_rejected_not_tracked() {
-    let clip = clip("wrong-mount");
+    let clip = common::reference_clip("wrong-mount", FRAMES);
     let (stdout, stderr, code) = track(
         &[
             "frames",

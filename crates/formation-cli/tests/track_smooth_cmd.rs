@@ -3,77 +3,9 @@
 //! frame and leader, finite, and closer to the truth than the causal estimates.
 #![allow(clippy::unwrap_used)] // Tests may unwrap (house rules); helpers here are test code too.
 
-use std::path::PathBuf;
-
-use fiducial::Dictionary;
-use formation_sim::scenario::{ScenarioConfig, simulate};
-use formation_sim::scene::{CameraSpec, RenderSpec, RobotSpec, SceneSpec, render_scene};
-use formation_tracker::mount::CameraMount;
-use formation_tracker::rig::RigModel;
-use unicycle::{PolarModel, Pose};
-
 mod common;
 
 const FRAMES: usize = 30;
-
-struct Clip {
-    dir: PathBuf,
-    images: Vec<image::GrayImage>,
-    truth: Vec<[f64; 3]>,
-}
-
-/// The first frames of the reference scenario, rendered (2 x 2 samples per pixel to keep
-/// the test fast), with the follower inputs CSV and the calibration.
-fn clip(name: &str) -> Clip {
-    let dir = std::env::temp_dir().join(format!("ft-track-smooth-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(dir.join("frames")).unwrap();
-    let scenario = simulate(&ScenarioConfig::reference(1)).unwrap();
-    let rig = RigModel::reference();
-    let mut csv = String::from("frame,v2,w2\n");
-    let (mut images, mut truth) = (Vec::new(), Vec::new());
-    for (k, s) in scenario.samples.iter().take(FRAMES).enumerate() {
-        let prev = &scenario.samples[k.saturating_sub(1)];
-        let leader = PolarModel::leader_pose(&s.truth);
-        let spec = SceneSpec {
-            name: String::new(),
-            camera_robot: Pose {
-                x: s.follower.x,
-                y: s.follower.y,
-                theta: s.follower.theta,
-            },
-            mount: CameraMount::default(),
-            camera: CameraSpec::default(),
-            render: RenderSpec {
-                supersampling: 2,
-                seed: k as u64,
-                ..RenderSpec::default()
-            },
-            robots: vec![RobotSpec {
-                robot: 1,
-                x: leader.x,
-                y: leader.y,
-                theta: leader.theta,
-            }],
-        };
-        let image = render_scene(&spec, &rig, Dictionary::paper())
-            .unwrap()
-            .image;
-        image
-            .save(dir.join("frames").join(format!("f{k:03}.png")))
-            .unwrap();
-        images.push(image);
-        let h = PolarModel::h(&s.truth);
-        truth.push([h[0], h[1], h[2]]);
-        csv += &format!(
-            "{k},{},{}\n",
-            prev.follower_inputs.v, prev.follower_inputs.w
-        );
-    }
-    std::fs::write(dir.join("inputs.csv"), csv).unwrap();
-    std::fs::write(dir.join("camera.yaml"), common::CAMERA).unwrap();
-    Clip { dir, images, truth }
-}
 
 fn json_lines(stdout: &str) -> Vec<serde_json::Value> {
     stdout
@@ -84,7 +16,7 @@ fn json_lines(stdout: &str) -> Vec<serde_json::Value> {
 
 #[test]
 fn smoothed_lines_follow_the_causal_ones_and_are_closer_to_the_truth() {
-    let clip = clip("json");
+    let clip = common::reference_clip("smooth-json", FRAMES);
     let out = common::run(
         &clip.dir,
         &[
@@ -154,7 +86,7 @@ fn smoothed_lines_follow_the_causal_ones_and_are_closer_to_the_truth() {
 
 #[test]
 fn text_mode_prints_smoothed_lines() {
-    let clip = clip("text");
+    let clip = common::reference_clip("smooth-text", FRAMES);
     let out = common::run(
         &clip.dir,
         &[

@@ -4,6 +4,13 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use fiducial::Dictionary;
+use formation_sim::scenario::{ScenarioConfig, simulate};
+use formation_sim::scene::{CameraSpec, RenderSpec, RobotSpec, SceneSpec, render_scene};
+use formation_tracker::mount::CameraMount;
+use formation_tracker::rig::RigModel;
+use unicycle::{PolarModel, Pose};
+
 /// A 640 x 480 pinhole calibration (60 deg horizontal field of view, no distortion), as
 /// OpenCV writes it.
 pub const CAMERA: &str = "%YAML:1.0
@@ -45,4 +52,68 @@ pub fn run(dir: &Path, args: &[&str]) -> Output {
         .current_dir(dir)
         .output()
         .unwrap()
+}
+
+/// Frames of the reference scenario rendered for `track`, with their truth.
+pub struct Clip {
+    /// The folder: `frames/`, `inputs.csv`, `camera.yaml`.
+    pub dir: PathBuf,
+    /// The rendered frames.
+    pub images: Vec<image::GrayImage>,
+    /// The true `[l12, alpha12, beta12]` of each frame.
+    pub truth: Vec<[f64; 3]>,
+}
+
+/// The first `frames` frames of the reference scenario, rendered (2 x 2 samples per pixel to
+/// keep the tests fast), with the follower inputs CSV and the calibration, in a folder of
+/// its own named after `name`.
+pub fn reference_clip(name: &str, frames: usize) -> Clip {
+    let dir = std::env::temp_dir().join(format!("ft-track-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("frames")).unwrap();
+    let scenario = simulate(&ScenarioConfig::reference(1)).unwrap();
+    let rig = RigModel::reference();
+    let mut csv = String::from("frame,v2,w2\n");
+    let (mut images, mut truth) = (Vec::new(), Vec::new());
+    for (k, s) in scenario.samples.iter().take(frames).enumerate() {
+        let prev = &scenario.samples[k.saturating_sub(1)];
+        let leader = PolarModel::leader_pose(&s.truth);
+        let spec = SceneSpec {
+            name: String::new(),
+            camera_robot: Pose {
+                x: s.follower.x,
+                y: s.follower.y,
+                theta: s.follower.theta,
+            },
+            mount: CameraMount::default(),
+            camera: CameraSpec::default(),
+            render: RenderSpec {
+                supersampling: 2,
+                seed: k as u64,
+                ..RenderSpec::default()
+            },
+            robots: vec![RobotSpec {
+                robot: 1,
+                x: leader.x,
+                y: leader.y,
+                theta: leader.theta,
+            }],
+        };
+        let image = render_scene(&spec, &rig, Dictionary::paper())
+            .unwrap()
+            .image;
+        image
+            .save(dir.join("frames").join(format!("f{k:03}.png")))
+            .unwrap();
+        images.push(image);
+        let h = PolarModel::h(&s.truth);
+        truth.push([h[0], h[1], h[2]]);
+        csv += &format!(
+            "{k},{},{}\n",
+            prev.follower_inputs.v, prev.follower_inputs.w
+        );
+    }
+    std::fs::write(dir.join("inputs.csv"), csv).unwrap();
+    std::fs::write(dir.join("camera.yaml"), CAMERA).unwrap();
+    Clip { dir, images, truth }
 }
