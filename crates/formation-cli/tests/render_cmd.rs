@@ -25,7 +25,12 @@ fn render_command_writes_png_and_truth() {
     assert!(status.success());
     let img = image::open(&png).unwrap().into_luma8();
     assert_eq!(img.dimensions(), (640, 480));
-    let truth: SceneTruth = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let text = std::fs::read_to_string(&json).unwrap();
+    // Angles in machine-readable outputs are radians (docs/outputs.md): no field in degrees
+    // (`off_axis_deg` was one).
+    assert!(!text.contains("_deg\""), "{text}");
+    assert!(text.contains("\"off_axis\""));
+    let truth: SceneTruth = serde_json::from_str(&text).unwrap();
     assert_eq!(truth.robots.len(), 2);
     assert!((truth.robots[1].translation[2] - 3.0).abs() < 0.01);
     let out = Command::new(env!("CARGO_BIN_EXE_formation-tracker"))
