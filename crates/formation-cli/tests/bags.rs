@@ -137,7 +137,23 @@ fn the_demo_bags_reproduce_the_folder_path() {
                 let s = a["std"][0].as_f64().unwrap();
                 let var = a["covariance"][0].as_f64().unwrap();
                 assert!((var - s * s).abs() <= 1e-15 * var.abs(), "{var} vs {s}^2");
-                assert_eq!(a["covariance"][1].as_f64().unwrap(), 0.0);
+                // The MCAP's covariance (row-major, 25 numbers) is the JSON line's 5 x 5 one:
+                // the formation block in full, nothing between formation and velocities.
+                let flat: Vec<f64> = b["covariance"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .flat_map(|row| row.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()))
+                    .collect();
+                let mcap: Vec<f64> = a["covariance"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|v| v.as_f64().unwrap())
+                    .collect();
+                assert_eq!(mcap, flat);
+                assert_eq!(mcap[3], 0.0, "l12-v1 term of the dual filter");
+                assert_eq!(mcap[1], mcap[5], "symmetric");
             }
         }
     }
