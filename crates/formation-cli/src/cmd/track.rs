@@ -236,12 +236,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             }
             Err(e) => {
                 broken += 1;
-                let hint = if matches!(e, PipelineError::SizeMismatch { .. }) {
-                    " (pass --scale-calibration if the frames were resized from the calibrated camera's)"
-                } else {
-                    ""
-                };
-                progress.println(&format!("track: frame {index}: {e}{hint}"));
+                progress.println(&super::track::frame_error(index, &e));
             }
         }
     }
@@ -271,6 +266,17 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     }
     eprintln!("track: {summary}");
     Ok(())
+}
+
+/// The line for a frame the pipeline could not use, with a hint when the frame's size is
+/// not the calibration's (folders, y4m and bags alike).
+pub(super) fn frame_error(index: u64, e: &PipelineError) -> String {
+    let hint = if matches!(e, PipelineError::SizeMismatch { .. }) {
+        " (pass --scale-calibration if the frames were resized from the calibrated camera's)"
+    } else {
+        ""
+    };
+    format!("track: frame {index}: {e}{hint}")
 }
 
 /// `--fps`, else the stream's own rate, else 30 (said on stderr).

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use fiducial::Dictionary;
 use formation_tracker::mount::CameraMount;
-use formation_tracker::pipeline::{Pipeline, PipelineError, PipelineFrame};
+use formation_tracker::pipeline::{Pipeline, PipelineFrame};
 use formation_tracker::rig::RigModel;
 use formation_tracker::robots::MarkerObservation;
 use formation_tracker_cli::bag::{Bag, BagError};
@@ -224,12 +224,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             }
             Err(e) => {
                 broken += 1;
-                let hint = if matches!(e, PipelineError::SizeMismatch { .. }) {
-                    " (pass --scale-calibration if the frames were resized from the calibrated camera's)"
-                } else {
-                    ""
-                };
-                progress.println(&format!("track: frame {index}: {e}{hint}"));
+                progress.println(&super::track::frame_error(index, &e));
             }
         }
     }
