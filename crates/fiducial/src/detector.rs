@@ -26,6 +26,7 @@ use crate::error::FiducialError;
 use crate::image::{Corners, GrayView};
 use crate::quad::{QuadLimits, fit_quad};
 use crate::refine::{RefineConfig, Refiner};
+use crate::split::{Rect, SplitParams, Splitter};
 use crate::threshold::{Binarizer, Threshold};
 
 /// Every tunable of the detector, with documented defaults ([`DetectorConfig::default`]).
@@ -106,6 +107,17 @@ fn overlaps(a: &Decoded, b: &Decoded) -> bool {
     (ca[0] - cb[0]).hypot(ca[1] - cb[1]) < 0.5 * side
 }
 
+/// Two outlines of one marker: their centres are within half a side of each other.
+fn same_place(a: &Corners, b: &Corners) -> bool {
+    let centre = |c: &Corners| {
+        c.iter()
+            .fold([0.0, 0.0], |s, p| [s[0] + p.x / 4.0, s[1] + p.y / 4.0])
+    };
+    let (ca, cb) = (centre(a), centre(b));
+    let side = (a[1] - a[0]).norm().min((b[1] - b[0]).norm());
+    (ca[0] - cb[0]).hypot(ca[1] - cb[1]) < 0.5 * side
+}
+
 /// A candidate marker outline with sub-pixel corners.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Quad {
@@ -137,6 +149,9 @@ pub struct Detector {
     contour: Vec<[i32; 2]>,
     refiner: Refiner,
     quads: Vec<Quad>,
+    /// Boxes of large components that gave no quad, re-cut by [`Splitter`].
+    retry: Vec<Rect>,
+    splitter: Splitter,
 }
 
 impl Default for Detector {
@@ -190,6 +205,8 @@ impl Detector {
             contour: Vec::new(),
             refiner: Refiner::default(),
             quads: Vec::new(),
+            retry: Vec::new(),
+            splitter: Splitter::default(),
         }
     }
 
@@ -307,26 +324,37 @@ impl Detector {
         };
         let m = cfg.border_margin.max(1);
         let min_side = cfg.min_side.max(3.0) as u32;
+        self.retry.clear();
         let components = self.labeller.label(&self.bin, w);
         for c in components {
             let bw = c.x_max - c.x_min + 1;
             let bh = c.y_max - c.y_min + 1;
             // Cheap rejections first: size, frame border, sparsity.
-            if bw.max(bh) < min_side
-                || bw.min(bh) < min_side / 2
-                || c.pixels < bw.max(bh) + bw.min(bh)
+            if bw.max(bh) < min_side || bw.min(bh) < min_side / 2 {
+                continue;
+            }
+            let rect = Rect {
+                x0: c.x_min,
+                y0: c.y_min,
+                x1: c.x_max,
+                y1: c.y_max,
+            };
+            if c.pixels < bw.max(bh) + bw.min(bh)
                 || c.x_min < m
                 || c.y_min < m
                 || c.x_max as usize + m as usize >= w
                 || c.y_max as usize + m as usize >= h
             {
+                self.retry.push(rect);
                 continue;
             }
             let max_len = 2 * (bw + bh) as usize + 16;
             if !trace_outer(&self.bin, w, c.start_x, c.y_min, max_len, &mut self.contour) {
+                self.retry.push(rect);
                 continue;
             }
             let Some(coarse) = fit_quad(&self.contour, &limits) else {
+                self.retry.push(rect);
                 continue;
             };
             let Some((corners, contrast)) =
@@ -340,6 +368,50 @@ impl Detector {
                 contrast,
             });
         }
+        self.split_retries(img, &limits, cells_across);
         &self.quads
+    }
+
+    /// Re-cuts the components that gave no quad ([`Splitter`]) and adds the quads found
+    /// there that are not already in the list.
+    fn split_retries(&mut self, img: &GrayView<'_>, limits: &QuadLimits, cells_across: f64) {
+        let area = |r: &Rect| u64::from(r.x1 - r.x0 + 1) * u64::from(r.y1 - r.y0 + 1);
+        let total: u64 = self.retry.iter().map(area).sum();
+        if total > (img.width() * img.height()) as u64 {
+            // Nested boxes: one pass over their union costs less.
+            let u = self.retry.iter().fold(self.retry[0], |u, r| Rect {
+                x0: u.x0.min(r.x0),
+                y0: u.y0.min(r.y0),
+                x1: u.x1.max(r.x1),
+                y1: u.y1.max(r.y1),
+            });
+            self.retry.clear();
+            self.retry.push(u);
+        }
+        let cfg = &self.config;
+        let params = SplitParams {
+            limits,
+            refine: &cfg.refine,
+            min_angle_deg: cfg.min_angle_deg,
+            cells_across,
+            border_margin: cfg.border_margin,
+            min_side: cfg.min_side.max(3.0) as u32,
+        };
+        let quads = &mut self.quads;
+        for &rect in &self.retry {
+            self.splitter.split(
+                img,
+                &self.bin,
+                rect,
+                &params,
+                &mut self.refiner,
+                |c, contrast| {
+                    let corners = c.map(|[x, y]| Point2::new(x, y));
+                    if !quads.iter().any(|q| same_place(&q.corners, &corners)) {
+                        quads.push(Quad { corners, contrast });
+                    }
+                },
+            );
+        }
     }
 }

@@ -145,6 +145,7 @@ pub mod image;
 pub mod quad;
 pub mod refine;
 pub mod render;
+pub mod split;
 pub mod standard;
 pub mod threshold;
 

@@ -1,0 +1,184 @@
+//! A second look at dark components that gave no quadrilateral: re-cut them at a darker
+//! threshold, so that a marker border merged with its surroundings through a thin bridge
+//! becomes a component of its own (issue #13, real frames).
+//!
+//! A marker lying almost flat, seen at a grazing angle, has a white margin only a pixel or
+//! two tall on its far side. Blur pulls that margin below the midpoint threshold, and the
+//! black border's component joins the grey table, a shadow or a neighbouring object: its
+//! outer contour is not a quadrilateral and the marker is lost before decoding. The ink of
+//! the border is still the darkest thing in its neighbourhood, and the blurred margin is
+//! still lighter than the ink by a good part of the local contrast. So the pixels of such a
+//! component are cut again at a point a quarter of the way from the local minimum to the
+//! local maximum (instead of half way), keeping only pixels dark at both cuts: the thin
+//! bridges fall away, the ink of the border stays, and the components of the re-cut are
+//! traced and fitted exactly like the first ones. The refined corners come from the grey
+//! image, as always, so the darker cut costs no accuracy.
+//!
+//! Only components that are large enough to hold a marker and gave no quad are re-cut, each
+//! over its bounding box (over the union of the boxes when their areas add up to more than
+//! the frame), so the extra cost is bounded by one more labelling pass of the frame and is
+//! nothing when every large component was a quad.
+//!
+//! Known limit: a border whose far edge touches an object as dark as its ink (no margin left
+//! at all, not even a blurred one) stays merged; on the Duckietown frames five of the 56 tags
+//! AprilTag 3 reads are lost that way (its boundary clustering fits a quad to the three
+//! sides that border the white card).
+
+use crate::contour::{Labeller, trace_outer};
+use crate::image::GrayView;
+use crate::quad::{QuadLimits, fit_quad};
+use crate::refine::{RefineConfig, Refiner};
+use crate::threshold::DARK;
+
+/// Tile side of the local minimum and maximum of the re-cut, in pixels (the neighbourhood is
+/// 3 x 3 tiles, as in the first cut).
+const TILE: usize = 8;
+
+/// Where the re-cut lies between the local minimum (0) and maximum (1) grey level.
+const CUT: f64 = 0.25;
+
+/// A pixel rectangle, inclusive bounds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Rect {
+    /// Smallest x.
+    pub x0: u32,
+    /// Smallest y.
+    pub y0: u32,
+    /// Largest x.
+    pub x1: u32,
+    /// Largest y.
+    pub y1: u32,
+}
+
+/// Scratch buffers of the re-cut, reused from frame to frame.
+#[derive(Debug, Default, Clone)]
+pub struct Splitter {
+    /// The re-cut binary image of one rectangle, with a light frame of one pixel.
+    bin: Vec<u8>,
+    tile_min: Vec<u8>,
+    tile_max: Vec<u8>,
+    labeller: Labeller,
+    contour: Vec<[i32; 2]>,
+}
+
+/// What the re-cut needs from the detector's settings.
+#[derive(Debug, Clone, Copy)]
+pub struct SplitParams<'a> {
+    /// Quadrilateral acceptance limits.
+    pub limits: &'a QuadLimits,
+    /// Refinement settings.
+    pub refine: &'a RefineConfig,
+    /// Smallest corner angle, degrees.
+    pub min_angle_deg: f64,
+    /// Most cells across of any dictionary read.
+    pub cells_across: f64,
+    /// Components closer than this to the frame border are rejected.
+    pub border_margin: u32,
+    /// Shortest side, pixels.
+    pub min_side: u32,
+}
+
+impl Splitter {
+    /// Re-cuts `bin` (the first binary image of `img`) inside `rect` and calls `found` with
+    /// the refined corners (clockwise in the image) and contrast of each quadrilateral.
+    pub fn split(
+        &mut self,
+        img: &GrayView<'_>,
+        bin: &[u8],
+        rect: Rect,
+        params: &SplitParams<'_>,
+        refiner: &mut Refiner,
+        mut found: impl FnMut([[f64; 2]; 4], f64),
+    ) {
+        let (w, h) = (img.width(), img.height());
+        let (x0, y0) = (rect.x0 as usize, rect.y0 as usize);
+        let (x1, y1) = ((rect.x1 as usize).min(w - 1), (rect.y1 as usize).min(h - 1));
+        if x1 < x0 || y1 < y0 {
+            return;
+        }
+        let (cw, ch) = (x1 - x0 + 1, y1 - y0 + 1);
+        // Tile statistics over the rectangle.
+        let (tw, th) = (cw.div_ceil(TILE), ch.div_ceil(TILE));
+        self.tile_min.clear();
+        self.tile_min.resize(tw * th, u8::MAX);
+        self.tile_max.clear();
+        self.tile_max.resize(tw * th, 0);
+        for y in 0..ch {
+            let row = &img.row(y0 + y)[x0..=x1];
+            let t = (y / TILE) * tw;
+            for (x, &v) in row.iter().enumerate() {
+                let i = t + x / TILE;
+                self.tile_min[i] = self.tile_min[i].min(v);
+                self.tile_max[i] = self.tile_max[i].max(v);
+            }
+        }
+        // The re-cut, with a light frame of one pixel so that no component touches it.
+        let (bw, bh) = (cw + 2, ch + 2);
+        self.bin.clear();
+        self.bin.resize(bw * bh, 0);
+        for ty in 0..th {
+            for tx in 0..tw {
+                let (mut lo, mut hi) = (u8::MAX, 0u8);
+                for ny in ty.saturating_sub(1)..(ty + 2).min(th) {
+                    for nx in tx.saturating_sub(1)..(tx + 2).min(tw) {
+                        lo = lo.min(self.tile_min[ny * tw + nx]);
+                        hi = hi.max(self.tile_max[ny * tw + nx]);
+                    }
+                }
+                let cut = f64::from(lo) + CUT * f64::from(hi - lo);
+                for y in ty * TILE..((ty + 1) * TILE).min(ch) {
+                    let src = (y0 + y) * w + x0;
+                    let row = img.row(y0 + y);
+                    for x in tx * TILE..((tx + 1) * TILE).min(cw) {
+                        if bin[src + x] == DARK && f64::from(row[x0 + x]) < cut {
+                            self.bin[(y + 1) * bw + x + 1] = DARK;
+                        }
+                    }
+                }
+            }
+        }
+        let m = params.border_margin.max(1) as usize;
+        let min_side = params.min_side;
+        let Self {
+            bin: sbin,
+            labeller,
+            contour,
+            ..
+        } = self;
+        for &c in labeller.label(sbin, bw) {
+            let cbw = c.x_max - c.x_min + 1;
+            let cbh = c.y_max - c.y_min + 1;
+            // Image coordinates of the component's box (the frame adds one pixel).
+            let (ix0, iy0) = (x0 + c.x_min as usize - 1, y0 + c.y_min as usize - 1);
+            let (ix1, iy1) = (x0 + c.x_max as usize - 1, y0 + c.y_max as usize - 1);
+            if cbw.max(cbh) < min_side
+                || cbw.min(cbh) < min_side / 2
+                || c.pixels < cbw.max(cbh) + cbw.min(cbh)
+                || ix0 < m
+                || iy0 < m
+                || ix1 + m >= w
+                || iy1 + m >= h
+            {
+                continue;
+            }
+            let max_len = 2 * (cbw + cbh) as usize + 16;
+            if !trace_outer(sbin, bw, c.start_x, c.y_min, max_len, contour) {
+                continue;
+            }
+            let Some(coarse) = fit_quad(contour, params.limits) else {
+                continue;
+            };
+            let (ox, oy) = (x0 as f64 - 1.0, y0 as f64 - 1.0);
+            let coarse = coarse.map(|[x, y]| [x + ox, y + oy]);
+            if let Some((corners, contrast)) = refiner.refine(
+                img,
+                &coarse,
+                params.refine,
+                params.min_angle_deg,
+                params.cells_across,
+            ) {
+                found(corners, contrast);
+            }
+        }
+    }
+}
