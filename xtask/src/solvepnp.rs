@@ -18,6 +18,13 @@
 //!    (`undistorted_solutions`: the error in ideal pixels, the objective our solver
 //!    minimises).
 //! 3. The results go to `fixtures/opencv/solvepnp_opencv.json` (or `--out FILE`).
+//!
+//! `--duckietown` makes the cases from our own detections instead: `fiducial` (default
+//! settings, tag36h11) reads the real frames of `fixtures/realdata/duckietown/`, and every
+//! tag read becomes a corner set (65 mm, the frame set's K from `test_info.yaml`; the frames
+//! are rectified, so both sides use the plumb-bob model with zero coefficients). They go to
+//! `fixtures/opencv/duckietown_cases.json` and OpenCV's answers to
+//! `fixtures/opencv/duckietown_opencv.json`, read by `crates/fiducial/tests/duckietown.rs`.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -33,26 +40,48 @@ const NOISE_PX: f64 = 0.2;
 /// Seed of the synthetic cases.
 const SEED: u64 = 13;
 
-const USAGE: &str = "usage: cargo xtask solvepnp [--cases FILE] [--out FILE]
+const USAGE: &str = "usage: cargo xtask solvepnp [--cases FILE | --duckietown] [--out FILE]
 
   --cases FILE  corner sets to solve (default: generate synthetic ones into
                 fixtures/opencv/solvepnp_cases.json)
+  --duckietown  our detections on fixtures/realdata/duckietown as the corner sets (written to
+                fixtures/opencv/duckietown_cases.json; results by default to
+                fixtures/opencv/duckietown_opencv.json)
   --out FILE    OpenCV's results (default fixtures/opencv/solvepnp_opencv.json)";
 
 pub fn run(args: &[String]) -> crate::Result {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let mut cases = None;
-    let mut out = root.join("fixtures/opencv/solvepnp_opencv.json");
+    let mut out = None;
+    let mut duckietown = false;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         match a.as_str() {
             "--cases" => cases = Some(PathBuf::from(it.next().ok_or(USAGE)?)),
-            "--out" => out = PathBuf::from(it.next().ok_or(USAGE)?),
+            "--out" => out = Some(PathBuf::from(it.next().ok_or(USAGE)?)),
+            "--duckietown" => duckietown = true,
             _ => return Err(USAGE.into()),
         }
     }
+    if duckietown && cases.is_some() {
+        return Err(USAGE.into());
+    }
+    let out = out.unwrap_or_else(|| {
+        root.join(if duckietown {
+            "fixtures/opencv/duckietown_opencv.json"
+        } else {
+            "fixtures/opencv/solvepnp_opencv.json"
+        })
+    });
     let cases = match cases {
         Some(path) => path,
+        None if duckietown => {
+            let path = root.join("fixtures/opencv/duckietown_cases.json");
+            let text = serde_json::to_string_pretty(&duckietown_cases(&root)?)?;
+            write(&path, &(text + "\n"))?;
+            eprintln!("wrote {}", path.display());
+            path
+        }
         None => {
             let path = root.join("fixtures/opencv/solvepnp_cases.json");
             let text = serde_json::to_string_pretty(&synthetic_cases()?)?;
@@ -256,6 +285,96 @@ fn synthetic_cases() -> crate::Result<Value> {
     }))
 }
 
+/// The Duckietown frames and which `test_info.yaml` section (camera) each belongs to.
+const DUCKIETOWN_FRAMES: &[(&str, &str)] = &[
+    ("test_image.png", "sample_test"),
+    ("test_image_multiple_01.png", "multiple_tags_test"),
+    ("test_image_multiple_02.png", "multiple_tags_test"),
+    ("test_image_multiple_03.png", "multiple_tags_test"),
+    ("test_image_multiple_04.png", "multiple_tags_test"),
+    ("test_image_multiple_05.png", "multiple_tags_test"),
+    ("test_image_multiple_06.png", "multiple_tags_test"),
+    ("test_image_multiple_07.png", "multiple_tags_test"),
+    ("test_image_multiple_08.png", "multiple_tags_test"),
+    ("test_image_multiple_09.png", "multiple_tags_test"),
+    ("test_image_multiple_10.png", "multiple_tags_test"),
+];
+
+/// The `K:` list of each top-level section of `test_info.yaml` (a flat file: a section is
+/// an unindented `name:` line, its `K: [...]` an indented line below it).
+fn duckietown_k(text: &str) -> crate::Result<Vec<(String, [f64; 9])>> {
+    let mut out = Vec::new();
+    let mut section = None;
+    for line in text.lines() {
+        if !line.starts_with(' ') && line.trim_end().ends_with(':') {
+            section = Some(line.trim_end().trim_end_matches(':').to_string());
+        } else if let Some(list) = line.trim().strip_prefix("K:") {
+            let values: Vec<f64> = list
+                .trim()
+                .trim_start_matches('[')
+                .trim_end_matches(']')
+                .split(',')
+                .map(|v| v.trim().parse::<f64>())
+                .collect::<Result<_, _>>()?;
+            let k: [f64; 9] = values
+                .try_into()
+                .map_err(|_| "test_info.yaml: K must have 9 numbers")?;
+            let name = section
+                .clone()
+                .ok_or("test_info.yaml: K outside a section")?;
+            out.push((name, k));
+        }
+    }
+    Ok(out)
+}
+
+/// Corner sets from our own detections on the Duckietown frames (see the module docs).
+fn duckietown_cases(root: &Path) -> crate::Result<Value> {
+    let dir = root.join("fixtures/realdata/duckietown");
+    let ks = duckietown_k(&std::fs::read_to_string(dir.join("test_info.yaml"))?)?;
+    let dict = fiducial::dictionary_by_name("tag36h11")?.clone();
+    let mut det = fiducial::Detector::with_dictionary(fiducial::DetectorConfig::default(), dict);
+    let mut out = Vec::new();
+    let mut cases = Vec::new();
+    for (file, camera) in DUCKIETOWN_FRAMES {
+        let img = image::open(dir.join(file))?.to_luma8();
+        let (w, h) = img.dimensions();
+        det.detect(
+            &fiducial::GrayView::new(img.as_raw(), w as usize, h as usize)?,
+            &mut out,
+        );
+        out.sort_by_key(|d| d.index);
+        for d in &out {
+            cases.push(json!({
+                "name": format!("{file}:{}", d.index),
+                "camera": camera,
+                "size": 0.065,
+                "corners": d.corners.iter().map(|p| [p.x, p.y]).collect::<Vec<_>>(),
+            }));
+        }
+    }
+    let cams: Vec<Value> = ks
+        .iter()
+        .map(|(name, k)| {
+            json!({
+                "name": name,
+                "width": 640.0,
+                "height": 480.0,
+                "k": k,
+                "distortion_model": "plumb_bob",
+                "distortion": [0.0, 0.0, 0.0, 0.0, 0.0],
+                "points": [],
+            })
+        })
+        .collect();
+    Ok(json!({
+        "generated_by": "cargo xtask solvepnp --duckietown",
+        "detector": "fiducial, DetectorConfig::default(), tag36h11",
+        "cameras": cams,
+        "cases": cases,
+    }))
+}
+
 /// Runs in the venv: `argv[1]` the cases, `argv[2]` the output.
 const SCRIPT: &str = r#"
 import json, sys
@@ -321,6 +440,9 @@ for cam in cases["cameras"]:
     k, d = lens(cam)
     pts = np.array(cam["points"], dtype=np.float64).reshape(-1, 1, 3)
     zero = np.zeros(3)
+    if len(pts) == 0:
+        out_cams.append({"name": cam["name"], "pixels": []})
+        continue
     if cam["distortion_model"] == "equidistant":
         proj, _ = cv2.fisheye.projectPoints(pts, zero, zero, k, d)
     else:
@@ -328,7 +450,7 @@ for cam in cases["cameras"]:
     out_cams.append({"name": cam["name"], "pixels": proj.reshape(-1, 2).tolist()})
 
 json.dump({
-    "generated_by": "cargo xtask solvepnp",
+    "generated_by": cases.get("generated_by", "cargo xtask solvepnp"),
     "opencv": cv2.__version__,
     "cases": out_cases,
     "cameras": out_cams,
