@@ -5,7 +5,11 @@
 //! with 8 real markers of 20-120 px at random perspective, blur sigma 1 and noise sigma 3
 //! unless a table varies one of them; marker-free clutter frames; frames of foreign markers
 //! (bordered 4 x 5 codes that are not in the dictionary). The work runs in release mode: from
-//! the dev profile the command re-invokes itself through `cargo run --release`.
+//! the dev profile the command re-invokes itself through `cargo run --release`. It runs on
+//! every core (rayon): the accuracy and recall scenes in parallel, the standard families in
+//! parallel, and the 1,000 clutter frames rendered once, in parallel, then read by every
+//! detector of the false-read table and of every family (each frame seeded on its own, so
+//! the figures do not depend on the number of threads).
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -17,6 +21,66 @@ use marker_testkit::{
 };
 use rand::{Rng, RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+/// Seed of the first clutter frame (frame `i` has its own generator, seeded `CLUTTER_SEED +
+/// i`, so that the frames can be rendered in parallel).
+const CLUTTER_SEED: u64 = 7_000;
+
+/// `frames` marker-free clutter frames (640x480, blur 1, noise 3; frame `i` seeded
+/// [`CLUTTER_SEED`] + `i`), rendered once, in parallel, and read by every detector of steps
+/// 2 and 5 (about 300 kB a frame).
+fn clutter_frames(dict: &Dictionary, frames: usize) -> crate::Result<Vec<Vec<u8>>> {
+    eprintln!("detector-accuracy: rendering {frames} clutter frames");
+    (0..frames as u64)
+        .into_par_iter()
+        .map(|i| {
+            let is_entry = |code| dict.lookup_within(code, 0).is_some();
+            let not_markers = NotMarkers {
+                rows: dict.family().rows() as usize,
+                cols: dict.family().cols() as usize,
+                is_marker: &is_entry,
+            };
+            let mut rng = ChaCha8Rng::seed_from_u64(CLUTTER_SEED + i);
+            clutter_frame(640, 480, 1.0, 3.0, not_markers, &mut rng).map_err(|e| e.to_string())
+        })
+        .collect::<Result<_, String>>()
+        .map_err(Into::into)
+}
+
+/// Per detector, the codes it reads in all `frames` (frames in parallel, each worker with
+/// its own copies of the detectors); and the quads the first detector examined.
+fn reads_per_detector(dets: &[Detector], frames: &[Vec<u8>]) -> crate::Result<(Vec<usize>, usize)> {
+    let n = dets.len();
+    frames
+        .par_iter()
+        .map_init(
+            || (dets.to_vec(), Vec::new()),
+            |(dets, out), px| {
+                let img = GrayView::new(px, 640, 480).map_err(|e| e.to_string())?;
+                let mut reads = vec![0usize; n];
+                let mut quads = 0;
+                for (k, det) in dets.iter_mut().enumerate() {
+                    let q = det.detect(&img, out);
+                    if k == 0 {
+                        quads = q;
+                    }
+                    reads[k] = out.len();
+                }
+                Ok::<_, String>((reads, quads))
+            },
+        )
+        .try_reduce(
+            || (vec![0usize; n], 0),
+            |(mut a, qa), (b, qb)| {
+                for (x, y) in a.iter_mut().zip(b) {
+                    *x += y;
+                }
+                Ok((a, qa + qb))
+            },
+        )
+        .map_err(Into::into)
+}
 
 /// Every entry of `dict` as a test pattern (index = dictionary index).
 fn entries(dict: &Dictionary) -> Vec<CellPattern> {
@@ -73,9 +137,10 @@ pub fn run(args: &[String]) -> crate::Result {
     let all = entries(dict);
     let mut doc = header(quick)?;
     let (by_errors, otsu) = accuracy_scenes(&mut doc, &all, n(200, 20))?;
-    let clutter_reads = false_reads(&mut doc, dict, &by_errors, n(1000, 100), n(100, 10))?;
+    let clutter = clutter_frames(dict, n(1000, 100))?;
+    let clutter_reads = false_reads(&mut doc, dict, &by_errors, &clutter, n(100, 10))?;
     recall_curves(&mut doc, &all, n(50, 8))?;
-    family_rows(&mut doc, &by_errors[0].2, n(50, 4), n(1000, 100))?;
+    family_rows(&mut doc, &by_errors[0].2, n(50, 4), &clutter)?;
     motion_blur_rows(&mut doc, &all, n(10, 3))?;
     writeln!(
         doc,
@@ -150,24 +215,22 @@ fn accuracy_scenes(
 ) -> crate::Result<(VariantTallies, Tally)> {
     eprintln!("detector-accuracy: {scenes} accuracy scenes");
     let base = SceneConfig::default();
-    let mut by_errors: Vec<(String, DetectorConfig, Tally)> = variants()
+    let variants = variants();
+    let mut configs: Vec<DetectorConfig> = variants.iter().map(|(_, cfg)| *cfg).collect();
+    configs.push(DetectorConfig {
+        threshold: Threshold::Otsu,
+        ..DetectorConfig::default()
+    });
+    // Scenes in parallel, one tally per configuration (the last is Otsu).
+    let mut tallies = par_tallies(scenes, &configs, |seed| {
+        marker_scene(&base, all, &mut ChaCha8Rng::seed_from_u64(seed))
+    })?;
+    let otsu = tallies.pop().unwrap_or_default();
+    let by_errors: Vec<(String, DetectorConfig, Tally)> = variants
         .into_iter()
-        .map(|(label, cfg)| (label, cfg, Tally::default()))
+        .zip(tallies)
+        .map(|((label, cfg), t)| (label, cfg, t))
         .collect();
-    let mut otsu = Tally::default();
-    for seed in 0..scenes as u64 {
-        let scene = marker_scene(&base, all, &mut ChaCha8Rng::seed_from_u64(seed))?;
-        for (_, cfg, tally) in &mut by_errors {
-            tally.add(&scene, *cfg)?;
-        }
-        otsu.add(
-            &scene,
-            DetectorConfig {
-                threshold: Threshold::Otsu,
-                ..DetectorConfig::default()
-            },
-        )?;
-    }
     let def = &by_errors[0].2;
     writeln!(doc, "## Accuracy scenes\n")?;
     writeln!(
@@ -221,15 +284,13 @@ fn false_reads(
     doc: &mut String,
     dict: &Dictionary,
     by_errors: &VariantTallies,
-    frames: usize,
+    clutter_px: &[Vec<u8>],
     foreign_scenes: usize,
 ) -> crate::Result<usize> {
     let base = SceneConfig::default();
+    let frames = clutter_px.len();
     eprintln!("detector-accuracy: {frames} clutter frames");
     let nv = by_errors.len();
-    let mut clutter = vec![0usize; nv + 1]; // each variant, then Otsu
-    let mut quads = 0usize;
-    let mut rng = ChaCha8Rng::seed_from_u64(7_000);
     let mut dets: Vec<Detector> = by_errors
         .iter()
         .map(|(_, cfg, _)| Detector::new(*cfg))
@@ -238,24 +299,9 @@ fn false_reads(
         threshold: Threshold::Otsu,
         ..DetectorConfig::default()
     }));
+    // Each variant, then Otsu.
+    let (clutter, quads) = reads_per_detector(&dets, clutter_px)?;
     let mut out = Vec::new();
-    let is_entry = |code| dict.lookup_within(code, 0).is_some();
-    let not_markers = NotMarkers {
-        rows: dict.family().rows() as usize,
-        cols: dict.family().cols() as usize,
-        is_marker: &is_entry,
-    };
-    for _ in 0..frames {
-        let px = clutter_frame(640, 480, 1.0, 3.0, not_markers, &mut rng)?;
-        let img = GrayView::new(&px, 640, 480)?;
-        for (k, det) in dets.iter_mut().enumerate() {
-            let q = det.detect(&img, &mut out);
-            if k == 0 {
-                quads += q;
-            }
-            clutter[k] += out.len();
-        }
-    }
     // Foreign markers.
     eprintln!("detector-accuracy: {foreign_scenes} foreign-marker scenes");
     let mut foreign = vec![0usize; nv];
@@ -358,18 +404,17 @@ fn recall_curves(doc: &mut String, all: &[CellPattern], per: usize) -> crate::Re
             "| {name} | adaptive recall | adaptive corner RMS (px) | Otsu recall | Otsu corner RMS (px) | wrong codes (both) |\n| --- | --- | --- | --- | --- | --- |"
         )?;
         for (label, cfg) in rows {
-            let (mut a, mut o) = (Tally::default(), Tally::default());
-            for seed in 0..per as u64 {
-                let scene = marker_scene(&cfg, all, &mut ChaCha8Rng::seed_from_u64(50_000 + seed))?;
-                a.add(&scene, DetectorConfig::default())?;
-                o.add(
-                    &scene,
-                    DetectorConfig {
-                        threshold: Threshold::Otsu,
-                        ..DetectorConfig::default()
-                    },
-                )?;
-            }
+            let configs = [
+                DetectorConfig::default(),
+                DetectorConfig {
+                    threshold: Threshold::Otsu,
+                    ..DetectorConfig::default()
+                },
+            ];
+            let mut t = par_tallies(per, &configs, |seed| {
+                marker_scene(&cfg, all, &mut ChaCha8Rng::seed_from_u64(50_000 + seed))
+            })?;
+            let (o, a) = (t.pop().unwrap_or_default(), t.pop().unwrap_or_default());
             writeln!(
                 doc,
                 "| {label} | {:.1} % | {:.4} | {:.1} % | {:.4} | {} |",
@@ -464,6 +509,39 @@ fn variants() -> Vec<(String, DetectorConfig)> {
     ]
 }
 
+/// Tallies of every configuration of `configs` over the scenes `scene(seed)` for seeds
+/// `0..scenes` (scenes rendered and read in parallel; each worker has its own detectors).
+fn par_tallies(
+    scenes: usize,
+    configs: &[DetectorConfig],
+    scene: impl Fn(u64) -> Result<MarkerScene, marker_testkit::TestkitError> + Sync,
+) -> crate::Result<Vec<Tally>> {
+    let n = configs.len();
+    let empty = || (0..n).map(|_| Tally::default()).collect::<Vec<_>>();
+    (0..scenes as u64)
+        .into_par_iter()
+        .map_init(
+            || {
+                configs
+                    .iter()
+                    .map(|c| Detector::new(*c))
+                    .collect::<Vec<_>>()
+            },
+            |dets, seed| {
+                let scene = scene(seed).map_err(|e| e.to_string())?;
+                let mut t = empty();
+                for (tally, det) in t.iter_mut().zip(dets.iter_mut()) {
+                    tally.add_with(&scene, det).map_err(|e| e.to_string())?;
+                }
+                Ok::<_, String>(t)
+            },
+        )
+        .try_reduce(empty, |a, b| {
+            Ok(a.into_iter().zip(b).map(|(x, y)| x.merge(y)).collect())
+        })
+        .map_err(Into::into)
+}
+
 /// Running totals over scenes.
 #[derive(Default)]
 struct Tally {
@@ -525,87 +603,120 @@ impl Tally {
         (self.sq_err / self.corners.max(1) as f64).sqrt()
     }
 
+    /// Adds the counts of `o` (scenes tallied apart, e.g. on another thread).
+    fn merge(mut self, o: Tally) -> Tally {
+        self.scenes += o.scenes;
+        self.complete += o.complete;
+        self.total += o.total;
+        self.found += o.found;
+        self.wrong += o.wrong;
+        self.sq_err += o.sq_err;
+        self.corners += o.corners;
+        self.max_err = self.max_err.max(o.max_err);
+        for (a, b) in self.by_size.iter_mut().zip(o.by_size) {
+            a.0 += b.0;
+            a.1 += b.1;
+        }
+        self
+    }
+
     fn recall(&self) -> f64 {
         100.0 * self.found as f64 / self.total.max(1) as f64
     }
+}
+
+/// One family's row of step 5 (before its clutter reads).
+struct FamilyRow {
+    sd: &'static fiducial::StandardDictionary,
+    correction: u32,
+    fixtures_ok: usize,
+    fixtures: usize,
+    tally: Tally,
+    detector: Detector,
+}
+
+/// One family of step 5: its OpenCV-drawn fixtures and `scenes` synthetic scenes.
+fn family_row(
+    sd: &'static fiducial::StandardDictionary,
+    scenes: usize,
+) -> crate::Result<FamilyRow> {
+    let base = SceneConfig::default();
+    let fixtures = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fixtures/markers");
+    let dict = fiducial::dictionary_by_name(sd.name)?;
+    let mut det = Detector::with_dictionary(DetectorConfig::default(), dict.clone());
+    // OpenCV's own drawings.
+    let (mut fx_ok, mut fx_total) = (0, 0);
+    for entry in std::fs::read_dir(fixtures.join(sd.name))? {
+        let path = entry?.path();
+        let id: usize = path
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .ok_or("bad fixture name")?
+            .parse()?;
+        let img = image::open(&path)?.to_luma8();
+        let (w, h) = (img.width() as usize, img.height() as usize);
+        let m = w / 4;
+        let cw = w + 2 * m;
+        let mut canvas = vec![255u8; cw * (h + 2 * m)];
+        for y in 0..h {
+            canvas[(y + m) * cw + m..(y + m) * cw + m + w]
+                .copy_from_slice(&img.as_raw()[y * w..(y + 1) * w]);
+        }
+        let mut out = Vec::new();
+        det.detect(&GrayView::new(&canvas, cw, h + 2 * m)?, &mut out);
+        fx_total += 1;
+        let same = |i: usize| {
+            (0..4u8)
+                .any(|q| dict.family().rotate(dict.codes()[i], q).ok() == Some(dict.codes()[id]))
+        };
+        if out.len() == 1 && (out[0].index == id || same(out[0].index)) {
+            fx_ok += 1;
+        }
+    }
+    // Synthetic scenes.
+    let n = sd.size as usize;
+    let all = CellPattern::from_codes(n, n, dict.codes().iter().copied());
+    let mut tally = Tally::default();
+    for seed in 0..scenes as u64 {
+        let scene = marker_scene(&base, &all, &mut ChaCha8Rng::seed_from_u64(50_000 + seed))?;
+        tally.add_with(&scene, &mut det)?;
+    }
+    Ok(FamilyRow {
+        sd,
+        correction: dict.max_correctable(),
+        fixtures_ok: fx_ok,
+        fixtures: fx_total,
+        tally,
+        detector: det,
+    })
 }
 
 /// Step 5: every predefined (OpenCV/AprilTag) dictionary with the default detector: its
 /// OpenCV-drawn fixtures (`fixtures/markers/`, on a white margin), `scenes` accuracy scenes
 /// of its own markers (seeds 50,000 on, never tuned on), and each family's reads in
 /// `frames` clutter frames (the same frames for every family).
-fn family_rows(doc: &mut String, own: &Tally, scenes: usize, frames: usize) -> crate::Result {
+fn family_rows(
+    doc: &mut String,
+    own: &Tally,
+    scenes: usize,
+    clutter_px: &[Vec<u8>],
+) -> crate::Result {
+    let frames = clutter_px.len();
     eprintln!(
         "detector-accuracy: {} families",
         fiducial::standard_dictionaries().len()
     );
-    let base = SceneConfig::default();
-    let fixtures = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fixtures/markers");
-    let mut rows = Vec::new();
-    let mut dets = Vec::new();
-    for sd in fiducial::standard_dictionaries() {
-        let dict = fiducial::dictionary_by_name(sd.name)?;
-        let mut det = Detector::with_dictionary(DetectorConfig::default(), dict.clone());
-        // OpenCV's own drawings.
-        let (mut fx_ok, mut fx_total) = (0, 0);
-        for entry in std::fs::read_dir(fixtures.join(sd.name))? {
-            let path = entry?.path();
-            let id: usize = path
-                .file_stem()
-                .and_then(|s| s.to_str())
-                .ok_or("bad fixture name")?
-                .parse()?;
-            let img = image::open(&path)?.to_luma8();
-            let (w, h) = (img.width() as usize, img.height() as usize);
-            let m = w / 4;
-            let cw = w + 2 * m;
-            let mut canvas = vec![255u8; cw * (h + 2 * m)];
-            for y in 0..h {
-                canvas[(y + m) * cw + m..(y + m) * cw + m + w]
-                    .copy_from_slice(&img.as_raw()[y * w..(y + 1) * w]);
-            }
-            let mut out = Vec::new();
-            det.detect(&GrayView::new(&canvas, cw, h + 2 * m)?, &mut out);
-            fx_total += 1;
-            let same = |i: usize| {
-                (0..4u8).any(|q| {
-                    dict.family().rotate(dict.codes()[i], q).ok() == Some(dict.codes()[id])
-                })
-            };
-            if out.len() == 1 && (out[0].index == id || same(out[0].index)) {
-                fx_ok += 1;
-            }
-        }
-        // Synthetic scenes.
-        let n = sd.size as usize;
-        let all = CellPattern::from_codes(n, n, dict.codes().iter().copied());
-        let mut tally = Tally::default();
-        for seed in 0..scenes as u64 {
-            let scene = marker_scene(&base, &all, &mut ChaCha8Rng::seed_from_u64(50_000 + seed))?;
-            tally.add_with(&scene, &mut det)?;
-        }
-        rows.push((sd, dict.max_correctable(), fx_ok, fx_total, tally));
-        dets.push(det);
-    }
-    // Clutter: the same frames for every family.
-    let mut clutter = vec![0usize; dets.len()];
-    let mut rng = ChaCha8Rng::seed_from_u64(7_000);
-    let paper = Dictionary::paper();
-    let is_entry = |code| paper.lookup_within(code, 0).is_some();
-    let not_markers = NotMarkers {
-        rows: paper.family().rows() as usize,
-        cols: paper.family().cols() as usize,
-        is_marker: &is_entry,
-    };
-    let mut out = Vec::new();
-    for _ in 0..frames {
-        let px = clutter_frame(640, 480, 1.0, 3.0, not_markers, &mut rng)?;
-        let img = GrayView::new(&px, 640, 480)?;
-        for (k, det) in dets.iter_mut().enumerate() {
-            det.detect(&img, &mut out);
-            clutter[k] += out.len();
-        }
-    }
+    // Families in parallel (their fixtures and scenes), then the clutter frames in parallel.
+    let rows: Vec<FamilyRow> = fiducial::standard_dictionaries()
+        .par_iter()
+        .map(|sd| family_row(sd, scenes).map_err(|e| format!("{}: {e}", sd.name)))
+        .collect::<Result<_, String>>()?;
+    let dets: Vec<Detector> = rows.iter().map(|r| r.detector.clone()).collect();
+    let (clutter, _) = reads_per_detector(&dets, clutter_px)?;
+    let rows: Vec<_> = rows
+        .into_iter()
+        .map(|r| (r.sd, r.correction, r.fixtures_ok, r.fixtures, r.tally))
+        .collect();
     writeln!(doc, "\n## Standard families\n")?;
     writeln!(
         doc,
