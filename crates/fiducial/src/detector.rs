@@ -376,8 +376,12 @@ impl Detector {
     /// there that are not already in the list.
     fn split_retries(&mut self, img: &GrayView<'_>, limits: &QuadLimits, cells_across: f64) {
         let area = |r: &Rect| u64::from(r.x1 - r.x0 + 1) * u64::from(r.y1 - r.y0 + 1);
+        if self.retry.is_empty() {
+            return;
+        }
+        let frame = (img.width() * img.height()) as u64;
         let total: u64 = self.retry.iter().map(area).sum();
-        if total > (img.width() * img.height()) as u64 {
+        if total > frame {
             // Nested boxes: one pass over their union costs less.
             let u = self.retry.iter().fold(self.retry[0], |u, r| Rect {
                 x0: u.x0.min(r.x0),
@@ -391,27 +395,29 @@ impl Detector {
         let cfg = &self.config;
         let params = SplitParams {
             limits,
-            refine: &cfg.refine,
-            min_angle_deg: cfg.min_angle_deg,
-            cells_across,
             border_margin: cfg.border_margin,
             min_side: cfg.min_side.max(3.0) as u32,
         };
-        let quads = &mut self.quads;
+        let (quads, refiner) = (&mut self.quads, &mut self.refiner);
         for &rect in &self.retry {
-            self.splitter.split(
-                img,
-                &self.bin,
-                rect,
-                &params,
-                &mut self.refiner,
-                |c, contrast| {
+            self.splitter
+                .split(img, &self.bin, rect, &params, |coarse| {
+                    // Most re-cut components are ones already found (or their parts): skip
+                    // those before the refinement, by the coarse corners.
+                    let rough = coarse.map(|[x, y]| Point2::new(x, y));
+                    if quads.iter().any(|q| same_place(&q.corners, &rough)) {
+                        return;
+                    }
+                    let Some((c, contrast)) =
+                        refiner.refine(img, &coarse, &cfg.refine, cfg.min_angle_deg, cells_across)
+                    else {
+                        return;
+                    };
                     let corners = c.map(|[x, y]| Point2::new(x, y));
                     if !quads.iter().any(|q| same_place(&q.corners, &corners)) {
                         quads.push(Quad { corners, contrast });
                     }
-                },
-            );
+                });
         }
     }
 }

@@ -16,8 +16,11 @@
 //!
 //! Only components that are large enough to hold a marker and gave no quad are re-cut, each
 //! over its bounding box (over the union of the boxes when their areas add up to more than
-//! the frame), so the extra cost is bounded by one more labelling pass of the frame and is
-//! nothing when every large component was a quad.
+//! the frame). A frame in which every large component was a quad (the synthetic marker
+//! scenes) pays nothing; a cluttered frame pays about one more quad-finding pass, plus the
+//! refinement of the new quads the re-cut finds (on the clutter frames of the accuracy
+//! scenes, quad finding took about twice as long with the re-cut, measured on a loaded
+//! machine). Re-cut quads already found are dropped before the refinement.
 //!
 //! Known limit: a border whose far edge touches an object as dark as its ink (no margin left
 //! at all, not even a blurred one) stays merged; on the Duckietown frames five of the 56 tags
@@ -27,7 +30,6 @@
 use crate::contour::{Labeller, trace_outer};
 use crate::image::GrayView;
 use crate::quad::{QuadLimits, fit_quad};
-use crate::refine::{RefineConfig, Refiner};
 use crate::threshold::DARK;
 
 /// Tile side of the local minimum and maximum of the re-cut, in pixels (the neighbourhood is
@@ -66,12 +68,6 @@ pub struct Splitter {
 pub struct SplitParams<'a> {
     /// Quadrilateral acceptance limits.
     pub limits: &'a QuadLimits,
-    /// Refinement settings.
-    pub refine: &'a RefineConfig,
-    /// Smallest corner angle, degrees.
-    pub min_angle_deg: f64,
-    /// Most cells across of any dictionary read.
-    pub cells_across: f64,
     /// Components closer than this to the frame border are rejected.
     pub border_margin: u32,
     /// Shortest side, pixels.
@@ -80,15 +76,15 @@ pub struct SplitParams<'a> {
 
 impl Splitter {
     /// Re-cuts `bin` (the first binary image of `img`) inside `rect` and calls `found` with
-    /// the refined corners (clockwise in the image) and contrast of each quadrilateral.
+    /// the coarse corners (image pixel coordinates, clockwise in the image) of each
+    /// quadrilateral traced there; the caller refines those it does not know yet.
     pub fn split(
         &mut self,
         img: &GrayView<'_>,
         bin: &[u8],
         rect: Rect,
         params: &SplitParams<'_>,
-        refiner: &mut Refiner,
-        mut found: impl FnMut([[f64; 2]; 4], f64),
+        mut found: impl FnMut([[f64; 2]; 4]),
     ) {
         let (w, h) = (img.width(), img.height());
         let (x0, y0) = (rect.x0 as usize, rect.y0 as usize);
@@ -169,16 +165,7 @@ impl Splitter {
                 continue;
             };
             let (ox, oy) = (x0 as f64 - 1.0, y0 as f64 - 1.0);
-            let coarse = coarse.map(|[x, y]| [x + ox, y + oy]);
-            if let Some((corners, contrast)) = refiner.refine(
-                img,
-                &coarse,
-                params.refine,
-                params.min_angle_deg,
-                params.cells_across,
-            ) {
-                found(corners, contrast);
-            }
+            found(coarse.map(|[x, y]| [x + ox, y + oy]));
         }
     }
 }
