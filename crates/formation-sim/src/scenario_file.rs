@@ -710,4 +710,58 @@ mod tests {
         let l_end = run.samples.last().unwrap().truth[3];
         assert!((l_end - 1.5).abs() < 0.01, "l12 at the end {l_end}");
     }
+
+    #[test]
+    fn the_vision_section_defaults_to_the_built_in_demo() {
+        let spec = ScenarioSpec::parse(MINIMAL, false, Path::new("x.yaml")).unwrap();
+        assert_eq!(spec.vision, VisionSpec::default());
+        assert_eq!(spec.vision.camera, CameraSpec::default());
+        assert_eq!(
+            spec.vision.occlusions,
+            [OcclusionSpec { from: 3.5, to: 4.5 }]
+        );
+        let text = MINIMAL.to_owned()
+            + "vision:\n  camera: {width: 320, height: 240, hfov_deg: 50}\n  render:\n    \
+               motion_blur: {exposure_s: 0.01}\n    gradient: {from: 1, to: 0.5}\n  \
+               occlusions: []\n";
+        let spec = ScenarioSpec::parse(&text, false, Path::new("x.yaml")).unwrap();
+        let v = &spec.vision;
+        assert_eq!((v.camera.width, v.camera.height), (320, 240));
+        assert_eq!(v.render.motion_blur.unwrap().subframes, 5);
+        assert_eq!(v.render.gradient.unwrap().angle_deg, 0.0);
+        assert_eq!(v.render.supersampling, 4);
+        assert!(v.occlusions.is_empty());
+    }
+
+    #[test]
+    fn bad_vision_fields_are_named() {
+        for (section, what) in [
+            ("camera: {width: 8, height: 240}", "vision.camera"),
+            ("camera: {hfov_deg: 200}", "vision.camera.hfov_deg"),
+            ("mount: {pan: 30}", "radians, not degrees"),
+            ("render: {noise_sigma: -1}", "vision.render.noise_sigma"),
+            ("render: {supersampling: 0}", "vision.render.supersampling"),
+            (
+                "render: {motion_blur: {exposure_s: 0.1}}",
+                "at most the frame period",
+            ),
+            (
+                "render: {motion_blur: {exposure_s: 0.01, subframes: 4}}",
+                "must be odd",
+            ),
+            ("render: {gradient: {from: 1, to: -1}}", "gradient.to"),
+            ("occlusions: [{from: 2, to: 1}]", "vision.occlusions[0]"),
+            (
+                "occlusions: [{from: 1, to: 2}, {from: 3, to: 4}]",
+                "at most one",
+            ),
+            ("lens: fisheye", "unknown field"),
+        ] {
+            let text = format!("{MINIMAL}vision:\n  {section}\n");
+            let err = ScenarioSpec::parse(&text, false, Path::new("x.yaml"))
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains(what), "{section}: {err}");
+        }
+    }
 }
