@@ -169,3 +169,34 @@ fn progress_is_logged_without_a_terminal_and_quiet_silences_it() {
         "results still print: {quiet}"
     );
 }
+
+/// `demo --scenario` with a bad `vision` field: one line naming the field, a non-zero exit,
+/// before any rendering; `--robots` other than 2 with a scenario file is refused too.
+#[test]
+fn demo_scenario_errors_name_the_field() {
+    let d = common::blank_frames("demo-scenario");
+    let file = d.join("bad.yaml");
+    let text = include_str!("../../../fixtures/scenarios/far.yaml").replace("pan: 0.0", "pan: 30");
+    std::fs::write(&file, text).unwrap();
+    let out = d.join("out");
+    let args = [
+        "demo",
+        "--scenario",
+        file.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let (got, stderr) = code(&d, &args);
+    assert!(got.is_some_and(|c| c != 0), "{stderr}");
+    let errors: Vec<&str> = stderr.lines().filter(|l| l.contains("error")).collect();
+    assert_eq!(errors.len(), 1, "{stderr}");
+    assert!(errors[0].contains("vision.mount.pan"), "{stderr}");
+    assert!(!stderr.contains("rendering and tracking"), "{stderr}");
+    let far = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fixtures/scenarios/far.yaml"
+    );
+    let (got, stderr) = code(&d, &["demo", "--scenario", far, "--robots", "3"]);
+    assert!(got.is_some_and(|c| c != 0), "{stderr}");
+    assert!(stderr.contains("two robots"), "{stderr}");
+}

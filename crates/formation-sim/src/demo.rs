@@ -21,6 +21,16 @@
 //!
 //! Figures of merit are computed for robot 2's track of robot 1 (the reference pair); every
 //! follower's trace is returned.
+//!
+//! **Scenario files** ([`DemoConfig::from_scenario`], `demo --scenario FILE`): the file of
+//! `reproduce dukf --scenario` (see [`crate::scenario_file`]) gives the two robots' start,
+//! the leader's inputs, the follower's set-point changes, the frame rate and duration, and
+//! in its `vision` section the camera (size, field of view, mount), the rendering (noise,
+//! blur, motion blur, lighting gradient) and the occlusion. **Motion blur**: a frame at time
+//! `t` with exposure `e` averages the radiance of `n` (odd) sub-frames at
+//! `t + e ((i + 1/2) / n - 1/2)`, the robots placed by integrating their inputs exactly
+//! (before `t` the inputs of the interval ending at `t`; after it, the same inputs held), then
+//! blurs and adds noise once; the truth is at `t` (the middle sub-frame).
 
 use std::time::Instant;
 
@@ -34,6 +44,7 @@ use unicycle::{
 use crate::annotate::{AnnotateError, MarkerLabel, RigOverlay, annotate};
 use crate::reproduce::{MeanSquareErrors, StepRecord};
 use crate::scenario::reference_leader_inputs;
+use crate::scenario_file::{GradientSpec, MotionBlurSpec, ScenarioSpec};
 use crate::scene::{self, CameraSpec, RenderSpec, RobotSpec, SceneError, SceneSpec};
 use formation_tracker::mount::CameraMount;
 use formation_tracker::pipeline::{Pipeline, PipelineError, Timing};
@@ -72,6 +83,9 @@ pub enum DemoError {
     /// The camera model could not be built.
     #[error(transparent)]
     Pose(#[from] pose::PoseError),
+    /// The scenario's vision settings are out of range.
+    #[error(transparent)]
+    Scenario(crate::scenario_file::ScenarioFileError),
 }
 
 /// Settings of the demo. [`DemoConfig::default`] is the documented demo.
@@ -92,6 +106,53 @@ pub struct DemoConfig {
     pub render: RenderSpec,
     /// Annotated frames kept for the strip: every this many steps (30: one a second).
     pub strip_every: usize,
+    /// Image size and field of view (640 x 480, 60 degrees).
+    pub camera: CameraSpec,
+    /// The camera mount of every follower (0.5 m ahead, 0.30 m high, level); its offset is
+    /// the filter's `d`.
+    pub mount: CameraMount,
+    /// Motion blur (none).
+    pub motion_blur: Option<MotionBlurSpec>,
+    /// Lighting gradient across the image (none).
+    pub gradient: Option<GradientSpec>,
+    /// The scenario the robots drive (start, leader inputs, set-point changes); `None`: the
+    /// reference inputs from the starting line (see the module documentation). Only with two
+    /// robots.
+    pub scenario: Option<ScenarioSpec>,
+}
+
+impl DemoConfig {
+    /// The demo of a scenario file: two robots, open loop, the file's start, leader inputs,
+    /// set-points, frame rate, duration, camera offset and `vision` section, a strip frame a
+    /// second and noise seed 1. The reference scenario's file gives exactly
+    /// [`DemoConfig::default`]'s run.
+    pub fn from_scenario(spec: &ScenarioSpec) -> Self {
+        let v = &spec.vision;
+        Self {
+            robots: 2,
+            closed_loop: false,
+            duration: spec.duration,
+            dt: 1.0 / spec.frame_rate,
+            occlusion: v.occlusions.first().map(|o| (o.from, o.to)),
+            render: RenderSpec {
+                supersampling: v.render.supersampling,
+                noise_sigma: v.render.noise_sigma,
+                blur_sigma: v.render.blur_sigma,
+                seed: 1,
+            },
+            strip_every: (spec.frame_rate.round() as usize).max(1),
+            camera: v.camera,
+            mount: CameraMount {
+                offset: spec.camera_offset,
+                height: v.mount.height,
+                pan: v.mount.pan,
+                tilt: v.mount.tilt,
+            },
+            motion_blur: v.render.motion_blur,
+            gradient: v.render.gradient,
+            scenario: Some(spec.clone()),
+        }
+    }
 }
 
 impl Default for DemoConfig {
@@ -109,6 +170,11 @@ impl Default for DemoConfig {
                 seed: 1,
             },
             strip_every: 30,
+            camera: CameraSpec::default(),
+            mount: CameraMount::default(),
+            motion_blur: None,
+            gradient: None,
+            scenario: None,
         }
     }
 }
@@ -133,6 +199,10 @@ pub struct DemoRecord {
     pub timing: Timing,
     /// Desired separation of the follower's controller, m.
     pub l12_desired: f64,
+    /// Normalised innovation squared of the leader's measurement when the tracker used it
+    /// (or gated it): `nu^T S^-1 nu` over `(l12, alpha12, beta12)`, see
+    /// [`formation_tracker::tracker::LeaderReport::nis`].
+    pub nis: Option<f64>,
 }
 
 /// One follower's whole run.
@@ -165,11 +235,98 @@ pub struct PairSummary {
     pub frames_detected: usize,
     /// Scored frames in which the track was coasting.
     pub frames_coasting: usize,
+    /// Mean square errors of the tracked `[l12, alpha12, beta12, v1, w1]` over the scored
+    /// frames in which the leader was measured (the frames of `mse_meas`), same units.
+    pub mse_detected: [f64; 5],
+    /// Mean square errors of the tracked `[l12, alpha12, beta12, v1, w1]` over the coasting
+    /// frames (NaN when none).
+    pub mse_coasting: [f64; 5],
+    /// RMS error of the tracked `[v1, w1]` after `t = 2 s` (m/s, rad/s).
+    pub rms_velocity_after_2s: [f64; 2],
+    /// Consistency of the measurements with the track (NIS, 3 degrees of freedom).
+    pub nis: NisSummary,
+}
+
+/// The normalised innovation squared (NIS) of the measurements a track used, against its
+/// chi-square distribution with 3 degrees of freedom (`l12`, `alpha12`, `beta12`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct NisSummary {
+    /// Frames whose measurement was used (updated).
+    pub frames: usize,
+    /// Mean NIS over those frames (3 for a consistent filter).
+    pub mean: f64,
+    /// The two-sided 95 % interval of the mean of `frames` independent chi-square(3) values:
+    /// `[chi2(0.025, 3 n) / n, chi2(0.975, 3 n) / n]`; a consistent filter's `mean` lies in it.
+    pub mean_bounds_95: [f64; 2],
+    /// Fraction of the frames whose NIS lies in the per-frame two-sided 95 % interval of a
+    /// chi-square(3), [0.216, 9.348] (0.95 for a consistent filter).
+    pub inside_95: f64,
+}
+
+/// The `p` quantile of a chi-square distribution with `k` degrees of freedom, by the
+/// Wilson-Hilferty approximation (within 0.5 % for `k >= 3` at these tails); `z` is the
+/// standard normal quantile of `p`.
+fn chi2_quantile(k: f64, z: f64) -> f64 {
+    let a = 2.0 / (9.0 * k);
+    k * (1.0 - a + z * a.sqrt()).powi(3)
+}
+
+/// The 2.5 % and 97.5 % points of a chi-square with 3 degrees of freedom.
+pub const CHI2_3_95: (f64, f64) = (0.2158, 9.3484);
+
+/// The standard normal's 97.5 % point.
+const Z_975: f64 = 1.959_964;
+
+impl NisSummary {
+    /// The NIS values `nis` (3 degrees of freedom each).
+    pub fn of(nis: &[f64]) -> Self {
+        let n = nis.len();
+        if n == 0 {
+            return Self {
+                frames: 0,
+                mean: f64::NAN,
+                mean_bounds_95: [f64::NAN; 2],
+                inside_95: f64::NAN,
+            };
+        }
+        let k = 3.0 * n as f64;
+        // The exact per-frame quantiles (the approximation is poor at 3 degrees of freedom).
+        let (lo, hi) = CHI2_3_95;
+        Self {
+            frames: n,
+            mean: nis.iter().sum::<f64>() / n as f64,
+            mean_bounds_95: [
+                chi2_quantile(k, -Z_975) / n as f64,
+                chi2_quantile(k, Z_975) / n as f64,
+            ],
+            inside_95: nis.iter().filter(|&&x| x >= lo && x <= hi).count() as f64 / n as f64,
+        }
+    }
 }
 
 impl PairSummary {
     fn of(trace: &FollowerTrace) -> Self {
         let mse = MeanSquareErrors::of(trace.records.iter().map(|r| &r.step));
+        let detected = MeanSquareErrors::of(
+            trace
+                .records
+                .iter()
+                .filter(|r| r.step.measured.iter().all(|v| v.is_finite()))
+                .map(|r| &r.step),
+        );
+        let coasting = MeanSquareErrors::of(
+            trace
+                .records
+                .iter()
+                .filter(|r| r.status == Some(Status::Coasting))
+                .map(|r| &r.step),
+        );
+        let nis: Vec<f64> = trace
+            .records
+            .iter()
+            .filter(|r| r.measurement == Some(MeasurementUse::Updated))
+            .filter_map(|r| r.nis)
+            .collect();
         Self {
             follower: trace.follower,
             leader: trace.leader,
@@ -182,6 +339,14 @@ impl PairSummary {
                 .iter()
                 .filter(|r| r.status == Some(Status::Coasting))
                 .count(),
+            mse_detected: detected.estimate,
+            mse_coasting: if coasting.estimated > 0 {
+                coasting.estimate
+            } else {
+                [f64::NAN; 5]
+            },
+            rms_velocity_after_2s: mse.rms_velocity_after_2s,
+            nis: NisSummary::of(&nis),
         }
     }
 }
@@ -205,6 +370,18 @@ pub struct DemoSummary {
     pub mse_meas_l12: f64,
     /// Mean square error of the vision measurement of `alpha12`, rad^2.
     pub mse_meas_alpha12: f64,
+    /// Mean square error of the vision measurement of `beta12`, rad^2.
+    pub mse_meas_beta12: f64,
+    /// Mean square errors of the tracked `l12`, `alpha12`, `beta12` over the frames in which
+    /// the leader was measured (the frames of the vision MSEs): m^2, rad^2, rad^2.
+    pub mse_detected: [f64; 3],
+    /// Mean square errors of the tracked `l12`, `alpha12`, `beta12` over the coasting frames
+    /// (NaN when none): m^2, rad^2, rad^2.
+    pub mse_coasting: [f64; 3],
+    /// RMS error of the tracked `v1` (m/s) and `w1` (rad/s) after `t = 2 s`.
+    pub rms_velocity_after_2s: [f64; 2],
+    /// NIS of the measurements robot 2's track used, against its 95 % chi-square bounds.
+    pub nis: NisSummary,
     /// Frames processed by robot 2's pipeline (including `t = 0`).
     pub frames: usize,
     /// Frames scored (every frame after `t = 0`, whose measurement only initialises the
@@ -271,6 +448,8 @@ pub struct DemoRun {
 struct Follower {
     pipeline: Pipeline,
     controller: SeparationBearingController,
+    /// Set-point changes of the scenario applied so far.
+    setpoints_applied: usize,
     inputs: Inputs,
     trace: FollowerTrace,
 }
@@ -295,6 +474,8 @@ struct StepContext<'a> {
     t: f64,
     occluded: bool,
     poses: &'a [Pose],
+    /// The poses one step earlier (at step 0, the start).
+    previous: &'a [Pose],
     /// Inputs over `(t_{k-1}, t_k]` of every robot (index 0 the leader's).
     applied: &'a [Inputs],
 }
@@ -351,10 +532,10 @@ fn run_demo_inner(
     mut on_frame: impl FnMut(&DemoFrame<'_>),
 ) -> Result<DemoRun, DemoError> {
     validate(config)?;
-    let camera = CameraSpec::default();
+    let camera = config.camera;
     let world = World {
         config,
-        mount: CameraMount::default(),
+        mount: config.mount,
         camera,
         k: pose::Intrinsics::from_hfov(
             camera.hfov_deg.to_radians(),
@@ -364,7 +545,15 @@ fn run_demo_inner(
         rig: RigModel::reference(),
         dict: Dictionary::paper(),
     };
-    let mut poses = starting_line(config.robots);
+    let mut poses = match &config.scenario {
+        Some(spec) => {
+            let [fx, fy, ft] = spec.follower;
+            let [lx, ly, lt] = spec.leader;
+            vec![Pose::new(lx, ly, lt), Pose::new(fx, fy, ft)]
+        }
+        None => starting_line(config.robots),
+    };
+    let mut previous = poses.clone();
     let mut followers = start_followers(&world, &poses)?;
     let steps = (config.duration / config.dt).round() as usize;
     let mut leader_inputs_prev = Inputs::new(0.0, 0.0);
@@ -381,9 +570,14 @@ fn run_demo_inner(
                 .occlusion
                 .is_some_and(|(a, b)| t >= a - 1e-9 && t < b - 1e-9),
             poses: &poses,
+            previous: &previous,
             applied: &applied,
         };
-        let mut new_inputs = vec![reference_leader_inputs(t)];
+        let leader_now = match &config.scenario {
+            Some(spec) => spec.leader_inputs(t),
+            None => reference_leader_inputs(t),
+        };
+        let mut new_inputs = vec![leader_now];
         for (idx, f) in followers.iter_mut().enumerate() {
             let me = idx + 1;
             let (render, annotated, image) = f.frame(&world, &ctx, me, new_inputs[me - 1])?;
@@ -404,6 +598,7 @@ fn run_demo_inner(
         progress(step, steps);
         leader_inputs_prev = new_inputs[0];
         if step < steps {
+            previous.clone_from(&poses);
             for (p, u) in poses.iter_mut().zip(&new_inputs) {
                 *p = p.integrate_exact(*u, config.dt)?;
             }
@@ -425,6 +620,16 @@ fn validate(config: &DemoConfig) -> Result<(), DemoError> {
             value: config.robots as f64,
             expected: "2 to 6",
         });
+    }
+    if config.scenario.is_some() && config.robots != 2 {
+        return Err(DemoError::Config {
+            what: "robots",
+            value: config.robots as f64,
+            expected: "2 with a scenario file (it describes a leader and one follower)",
+        });
+    }
+    if let Some(spec) = &config.scenario {
+        spec.vision.check(config.dt).map_err(DemoError::Scenario)?;
     }
     for (what, value) in [("duration", config.duration), ("dt", config.dt)] {
         if !(value.is_finite() && value > 0.0) {
@@ -465,6 +670,7 @@ fn start_followers(world: &World<'_>, poses: &[Pose]) -> Result<Vec<Follower>, D
                     Tracker::new(TrackerConfig::reference(d, world.config.dt))?,
                 ),
                 controller: SeparationBearingController::new(d, ControllerConfig::hold(&start))?,
+                setpoints_applied: 0,
                 inputs: Inputs::new(0.0, 0.0),
                 trace: FollowerTrace {
                     follower: (j + 1) as u32,
@@ -478,10 +684,14 @@ fn start_followers(world: &World<'_>, poses: &[Pose]) -> Result<Vec<Follower>, D
 
 /// The scene follower `me` sees: every other robot, less robot 1 from robot 2 during the
 /// occlusion; frame `k` of follower `me` uses noise seed `seed + k n + me`.
-fn follower_scene(world: &World<'_>, ctx: &StepContext<'_>, me: usize) -> SceneSpec {
-    let n = ctx.poses.len();
-    let robots: Vec<RobotSpec> = ctx
-        .poses
+fn follower_scene(
+    world: &World<'_>,
+    ctx: &StepContext<'_>,
+    poses: &[Pose],
+    me: usize,
+) -> SceneSpec {
+    let n = poses.len();
+    let robots: Vec<RobotSpec> = poses
         .iter()
         .enumerate()
         .filter(|&(i, _)| i != me && !(ctx.occluded && me == 1 && i == 0))
@@ -495,9 +705,9 @@ fn follower_scene(world: &World<'_>, ctx: &StepContext<'_>, me: usize) -> SceneS
     SceneSpec {
         name: String::new(),
         camera_robot: Pose {
-            x: ctx.poses[me].x,
-            y: ctx.poses[me].y,
-            theta: ctx.poses[me].theta,
+            x: poses[me].x,
+            y: poses[me].y,
+            theta: poses[me].theta,
         },
         mount: world.mount,
         camera: world.camera,
@@ -511,6 +721,35 @@ fn follower_scene(world: &World<'_>, ctx: &StepContext<'_>, me: usize) -> SceneS
         },
         robots,
     }
+}
+
+/// The robots' poses at the sub-frame times of the exposure of step `ctx.step` (see the
+/// module documentation); without motion blur, only the poses at the frame time.
+fn exposure_poses(config: &DemoConfig, ctx: &StepContext<'_>) -> Result<Vec<Vec<Pose>>, DemoError> {
+    let Some(mb) = config.motion_blur else {
+        return Ok(vec![ctx.poses.to_vec()]);
+    };
+    let n = mb.subframes.max(1);
+    (0..n)
+        .map(|i| {
+            let s = mb.exposure_s * ((i as f64 + 0.5) / n as f64 - 0.5);
+            ctx.poses
+                .iter()
+                .zip(ctx.previous)
+                .zip(ctx.applied)
+                .map(|((now, before), u)| {
+                    if s < 0.0 {
+                        before.integrate_exact(*u, config.dt + s)
+                    } else if s > 0.0 {
+                        now.integrate_exact(*u, s)
+                    } else {
+                        Ok(*now)
+                    }
+                })
+                .collect::<Result<Vec<Pose>, _>>()
+                .map_err(DemoError::from)
+        })
+        .collect()
 }
 
 /// An annotated strip frame and the `robot/face` labels of the markers read in it.
@@ -531,9 +770,17 @@ impl Follower {
         let ahead = me - 1;
         let d = world.mount.offset;
         let (width, height) = (world.camera.width, world.camera.height);
-        let spec = follower_scene(world, ctx, me);
+        let specs = exposure_poses(world.config, ctx)?
+            .iter()
+            .map(|poses| follower_scene(world, ctx, poses, me))
+            .collect::<Vec<_>>();
+        let gradient = world.config.gradient.map(|g| synthcam::Gradient {
+            from: g.from,
+            to: g.to,
+            angle: g.angle_deg.to_radians(),
+        });
         let started = Instant::now();
-        let frame = scene::render_scene(&spec, &world.rig, world.dict)?.image;
+        let frame = scene::render_scene_exposure(&specs, gradient, &world.rig, world.dict)?.image;
         let render_s = started.elapsed().as_secs_f64();
         let done = self.pipeline.process(
             frame.as_raw(),
@@ -558,6 +805,9 @@ impl Follower {
         } else {
             None
         };
+        if me == 1 {
+            self.apply_setpoints(world, ctx.t)?;
+        }
         self.inputs = if world.config.closed_loop {
             track
                 .and_then(|l| {
@@ -598,9 +848,28 @@ impl Follower {
                 occluded: ctx.occluded && me == 1,
                 timing: done.timing,
                 l12_desired: self.controller.config().l12_desired,
+                nis: track.and_then(|l| l.nis),
             });
         }
         Ok((render_s, annotated, frame))
+    }
+
+    /// Applies the scenario's set-point changes due by `t` (in time order, each once), as
+    /// `reproduce dukf` does.
+    fn apply_setpoints(&mut self, world: &World<'_>, t: f64) -> Result<(), DemoError> {
+        let Some(spec) = &world.config.scenario else {
+            return Ok(());
+        };
+        let mut due: Vec<_> = spec.setpoints.iter().filter(|s| t >= s.at).collect();
+        due.sort_by(|a, b| a.at.total_cmp(&b.at));
+        for change in due.iter().skip(self.setpoints_applied) {
+            let mut goal = *self.controller.config();
+            goal.l12_desired = change.l12.unwrap_or(goal.l12_desired);
+            goal.alpha12_desired = change.alpha12.unwrap_or(goal.alpha12_desired);
+            self.controller = SeparationBearingController::new(world.mount.offset, goal)?;
+        }
+        self.setpoints_applied = self.setpoints_applied.max(due.len());
+        Ok(())
     }
 
     /// The frame with the markers read and each measured robot's rig drawn over it, and the
@@ -694,6 +963,19 @@ fn summarize(traces: &[FollowerTrace], config: &DemoConfig, render_s: f64) -> De
         mse_w1: first.mse[4],
         mse_meas_l12: first.mse_meas[0],
         mse_meas_alpha12: first.mse_meas[1],
+        mse_meas_beta12: first.mse_meas[2],
+        mse_detected: [
+            first.mse_detected[0],
+            first.mse_detected[1],
+            first.mse_detected[2],
+        ],
+        mse_coasting: [
+            first.mse_coasting[0],
+            first.mse_coasting[1],
+            first.mse_coasting[2],
+        ],
+        rms_velocity_after_2s: first.rms_velocity_after_2s,
+        nis: first.nis,
         frames,
         frames_scored: first.frames_scored,
         frames_detected: first.frames_detected,

@@ -18,7 +18,23 @@
 //! noise_std: [0.07, 0.03, 0.03]
 //! bias: [-0.0702, 0.0248, 0.0236]           # optional
 //! filter_x0: [1.5, 0.25, 0, 1.047, 0.233, 0.232]   # optional; the paper's by default
+//! vision:                                   # optional; only `demo --scenario` reads it
+//!   camera: {width: 640, height: 480, hfov_deg: 60}
+//!   mount: {height: 0.30, pan: 0.0, tilt: 0.0}      # metres, radians; offset = camera_offset
+//!   render:
+//!     supersampling: 4      # samples per pixel side, 1..=8
+//!     noise_sigma: 3.0      # grey levels
+//!     blur_sigma: 1.0       # optical blur, pixels
+//!     motion_blur: {exposure_s: 0.02, subframes: 3}  # optional
+//!     gradient: {from: 1.0, to: 0.333, angle_deg: 0}   # optional light factor across the image
+//!   occlusions: [{from: 3.5, to: 4.5}]      # seconds; [] for none; at most one interval
 //! ```
+//!
+//! The `vision` section ([`VisionSpec`]) drives the end-to-end demo (`demo --scenario FILE`,
+//! [`crate::demo::DemoConfig::from_scenario`]): every field is optional and defaults to the
+//! built-in demo's value, so a file without it gives exactly `demo`'s camera, rendering and
+//! occlusion. `reproduce dukf` ignores it; `noise_std`, `bias` and `filter_x0` are the
+//! dual-UKF experiment's and the demo ignores them (its measurements come from the images).
 
 use std::path::{Path, PathBuf};
 
@@ -32,6 +48,7 @@ use crate::scenario::{
     PAPER_BIAS, PAPER_X0, Scenario, ScenarioConfig, ScenarioError, SetpointChange,
     simulate_scheduled,
 };
+use crate::scene::CameraSpec;
 
 /// Errors of reading a scenario file.
 #[derive(Debug, thiserror::Error)]
@@ -185,6 +202,240 @@ pub struct Setpoint {
     pub alpha12: Option<f64>,
 }
 
+/// The camera mount of the vision demo, less its offset (the file's `camera_offset`).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MountSpec {
+    /// Height of the optical centre above the ground, metres (0.30, the markers' centres).
+    pub height: f64,
+    /// Pan, radians, left positive (0).
+    pub pan: f64,
+    /// Tilt of the optical axis below the horizontal, radians (0).
+    pub tilt: f64,
+}
+
+impl Default for MountSpec {
+    fn default() -> Self {
+        let m = formation_tracker::mount::CameraMount::default();
+        Self {
+            height: m.height,
+            pan: m.pan,
+            tilt: m.tilt,
+        }
+    }
+}
+
+/// Motion blur: each frame integrates the scene over an exposure centred on the frame time.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotionBlurSpec {
+    /// Exposure time, seconds (> 0, at most the frame period).
+    pub exposure_s: f64,
+    /// Sub-frames rendered and averaged over the exposure (odd, 3 to 15; default 5).
+    #[serde(default = "default_subframes")]
+    pub subframes: usize,
+}
+
+fn default_subframes() -> usize {
+    5
+}
+
+/// A linear lighting gradient across the image: the light factor goes from `from` on one
+/// side to `to` on the other, along the image direction `angle_deg` (0: left to right, 90:
+/// top to bottom). `from: 1, to: 0.333` is a 3:1 gradient.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GradientSpec {
+    /// Light factor at the start side (0 to 4).
+    pub from: f64,
+    /// Light factor at the end side (0 to 4).
+    pub to: f64,
+    /// Direction across the image, degrees (0 by default).
+    #[serde(default)]
+    pub angle_deg: f64,
+}
+
+/// How the vision demo renders its frames.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct VisionRenderSpec {
+    /// Samples per pixel side, 1..=8 (4).
+    pub supersampling: usize,
+    /// Sensor noise standard deviation, grey levels (3).
+    pub noise_sigma: f64,
+    /// Optical blur standard deviation, pixels (1).
+    pub blur_sigma: f64,
+    /// Motion blur (none by default).
+    pub motion_blur: Option<MotionBlurSpec>,
+    /// Lighting gradient (none by default: uniform light).
+    pub gradient: Option<GradientSpec>,
+}
+
+impl Default for VisionRenderSpec {
+    fn default() -> Self {
+        Self {
+            supersampling: 4,
+            noise_sigma: 3.0,
+            blur_sigma: 1.0,
+            motion_blur: None,
+            gradient: None,
+        }
+    }
+}
+
+/// An interval during which the leader is hidden from the follower's camera, seconds.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OcclusionSpec {
+    /// Start, seconds (included).
+    pub from: f64,
+    /// End, seconds (excluded).
+    pub to: f64,
+}
+
+fn default_occlusions() -> Vec<OcclusionSpec> {
+    vec![OcclusionSpec { from: 3.5, to: 4.5 }]
+}
+
+/// The vision demo's section of a scenario file (see the module documentation). Every field
+/// defaults to the built-in demo's.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct VisionSpec {
+    /// Image size and horizontal field of view (640 x 480, 60 degrees).
+    pub camera: CameraSpec,
+    /// The camera mount (0.30 m high, level, no pan).
+    pub mount: MountSpec,
+    /// Rendering effects.
+    pub render: VisionRenderSpec,
+    /// Occlusions of the leader (3.5 s to 4.5 s); `[]` for none, at most one.
+    #[serde(default = "default_occlusions")]
+    pub occlusions: Vec<OcclusionSpec>,
+}
+
+impl Default for VisionSpec {
+    fn default() -> Self {
+        Self {
+            camera: CameraSpec::default(),
+            mount: MountSpec::default(),
+            render: VisionRenderSpec::default(),
+            occlusions: default_occlusions(),
+        }
+    }
+}
+
+impl VisionSpec {
+    /// Checks every field, naming it (`vision.render.noise_sigma`, ...) in the error.
+    ///
+    /// # Errors
+    /// [`ScenarioFileError::Field`].
+    pub fn check(&self, frame_period: f64) -> Result<(), ScenarioFileError> {
+        let c = &self.camera;
+        if !(16..=4096).contains(&c.width) || !(16..=4096).contains(&c.height) {
+            return Err(field(
+                "vision.camera",
+                format!(
+                    "{} x {} pixels: width and height must be from 16 to 4096",
+                    c.width, c.height
+                ),
+            ));
+        }
+        if !(c.hfov_deg.is_finite() && c.hfov_deg > 1.0 && c.hfov_deg < 170.0) {
+            return Err(field(
+                "vision.camera.hfov_deg",
+                format!("{} degrees: must be in (1, 170)", c.hfov_deg),
+            ));
+        }
+        let m = &self.mount;
+        if !(m.height.is_finite() && (0.0..=10.0).contains(&m.height)) {
+            return Err(field(
+                "vision.mount.height",
+                format!("{} m: must be from 0 to 10 m", m.height),
+            ));
+        }
+        for (name, v) in [("vision.mount.pan", m.pan), ("vision.mount.tilt", m.tilt)] {
+            if !(v.is_finite() && v.abs() <= std::f64::consts::FRAC_PI_2) {
+                return Err(field(
+                    name,
+                    format!("{v} rad: must be within +-pi/2 (radians, not degrees)"),
+                ));
+            }
+        }
+        let r = &self.render;
+        if !(1..=8).contains(&r.supersampling) {
+            return Err(field(
+                "vision.render.supersampling",
+                format!("{}: must be 1 to 8 samples per pixel side", r.supersampling),
+            ));
+        }
+        for (name, v) in [
+            ("vision.render.noise_sigma", r.noise_sigma),
+            ("vision.render.blur_sigma", r.blur_sigma),
+        ] {
+            if !(v.is_finite() && (0.0..=50.0).contains(&v)) {
+                return Err(field(name, format!("{v}: must be from 0 to 50")));
+            }
+        }
+        if let Some(mb) = &r.motion_blur {
+            if !(mb.exposure_s.is_finite()
+                && mb.exposure_s > 0.0
+                && mb.exposure_s <= frame_period + 1e-12)
+            {
+                return Err(field(
+                    "vision.render.motion_blur.exposure_s",
+                    format!(
+                        "{} s: must be > 0 and at most the frame period {frame_period} s",
+                        mb.exposure_s
+                    ),
+                ));
+            }
+            if !((3..=15).contains(&mb.subframes) && mb.subframes % 2 == 1) {
+                return Err(field(
+                    "vision.render.motion_blur.subframes",
+                    format!(
+                        "{}: must be odd, from 3 to 15 (the middle one is at the frame time)",
+                        mb.subframes
+                    ),
+                ));
+            }
+        }
+        if let Some(g) = &r.gradient {
+            for (name, v) in [
+                ("vision.render.gradient.from", g.from),
+                ("vision.render.gradient.to", g.to),
+            ] {
+                if !(v.is_finite() && (0.0..=4.0).contains(&v)) {
+                    return Err(field(name, format!("{v}: a light factor from 0 to 4")));
+                }
+            }
+            if !g.angle_deg.is_finite() {
+                return Err(field("vision.render.gradient.angle_deg", "must be finite"));
+            }
+        }
+        if self.occlusions.len() > 1 {
+            return Err(field(
+                "vision.occlusions",
+                format!(
+                    "{} intervals given; the demo supports at most one",
+                    self.occlusions.len()
+                ),
+            ));
+        }
+        for (i, o) in self.occlusions.iter().enumerate() {
+            if !(o.from.is_finite() && o.to.is_finite() && o.from >= 0.0 && o.to > o.from) {
+                return Err(field(
+                    &format!("vision.occlusions[{i}]"),
+                    format!(
+                        "from {} s to {} s: must be finite with 0 <= from < to",
+                        o.from, o.to
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// A scenario file (see the module documentation).
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -213,6 +464,10 @@ pub struct ScenarioSpec {
     /// default).
     #[serde(default)]
     pub filter_x0: Option<[f64; 6]>,
+    /// The vision demo's camera, rendering and occlusions (`demo --scenario`); the built-in
+    /// demo's by default.
+    #[serde(default)]
+    pub vision: VisionSpec,
 }
 
 fn field(field: &str, reason: impl Into<String>) -> ScenarioFileError {
@@ -310,6 +565,7 @@ impl ScenarioSpec {
         if let Some(x0) = &self.filter_x0 {
             finite("filter_x0", x0)?;
         }
+        self.vision.check(1.0 / self.frame_rate)?;
         Ok(())
     }
 
@@ -453,5 +709,59 @@ mod tests {
         let run = spec.simulate(1, false).unwrap();
         let l_end = run.samples.last().unwrap().truth[3];
         assert!((l_end - 1.5).abs() < 0.01, "l12 at the end {l_end}");
+    }
+
+    #[test]
+    fn the_vision_section_defaults_to_the_built_in_demo() {
+        let spec = ScenarioSpec::parse(MINIMAL, false, Path::new("x.yaml")).unwrap();
+        assert_eq!(spec.vision, VisionSpec::default());
+        assert_eq!(spec.vision.camera, CameraSpec::default());
+        assert_eq!(
+            spec.vision.occlusions,
+            [OcclusionSpec { from: 3.5, to: 4.5 }]
+        );
+        let text = MINIMAL.to_owned()
+            + "vision:\n  camera: {width: 320, height: 240, hfov_deg: 50}\n  render:\n    \
+               motion_blur: {exposure_s: 0.01}\n    gradient: {from: 1, to: 0.5}\n  \
+               occlusions: []\n";
+        let spec = ScenarioSpec::parse(&text, false, Path::new("x.yaml")).unwrap();
+        let v = &spec.vision;
+        assert_eq!((v.camera.width, v.camera.height), (320, 240));
+        assert_eq!(v.render.motion_blur.unwrap().subframes, 5);
+        assert_eq!(v.render.gradient.unwrap().angle_deg, 0.0);
+        assert_eq!(v.render.supersampling, 4);
+        assert!(v.occlusions.is_empty());
+    }
+
+    #[test]
+    fn bad_vision_fields_are_named() {
+        for (section, what) in [
+            ("camera: {width: 8, height: 240}", "vision.camera"),
+            ("camera: {hfov_deg: 200}", "vision.camera.hfov_deg"),
+            ("mount: {pan: 30}", "radians, not degrees"),
+            ("render: {noise_sigma: -1}", "vision.render.noise_sigma"),
+            ("render: {supersampling: 0}", "vision.render.supersampling"),
+            (
+                "render: {motion_blur: {exposure_s: 0.1}}",
+                "at most the frame period",
+            ),
+            (
+                "render: {motion_blur: {exposure_s: 0.01, subframes: 4}}",
+                "must be odd",
+            ),
+            ("render: {gradient: {from: 1, to: -1}}", "gradient.to"),
+            ("occlusions: [{from: 2, to: 1}]", "vision.occlusions[0]"),
+            (
+                "occlusions: [{from: 1, to: 2}, {from: 3, to: 4}]",
+                "at most one",
+            ),
+            ("lens: fisheye", "unknown field"),
+        ] {
+            let text = format!("{MINIMAL}vision:\n  {section}\n");
+            let err = ScenarioSpec::parse(&text, false, Path::new("x.yaml"))
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains(what), "{section}: {err}");
+        }
     }
 }

@@ -602,3 +602,41 @@ pub fn render_scene_with_progress(
         })?;
     Ok(RenderedScene { image, truth })
 }
+
+/// Renders one frame exposed over several instants: `specs` are the scene at sub-frame times
+/// spread evenly over the exposure, in time order (motion blur, see
+/// [`synthcam::render_exposure`]), all with the same camera size and render effects (those
+/// of the middle one are used); `gradient` lights the image unevenly. The truth is that of
+/// the middle scene. One scene and no gradient give exactly [`render_scene`].
+///
+/// # Errors
+/// As [`render_scene`]; [`SceneError::Field`] when `specs` is empty.
+pub fn render_scene_exposure(
+    specs: &[SceneSpec],
+    gradient: Option<synthcam::Gradient>,
+    rig: &RigModel,
+    dictionary: &Dictionary,
+) -> Result<RenderedScene, SceneError> {
+    let Some(middle) = specs.get(specs.len() / 2) else {
+        return Err(field("specs", "an exposure needs at least one scene"));
+    };
+    let built: Vec<BuiltScene> = specs
+        .iter()
+        .map(|s| build_scene(s, rig, dictionary))
+        .collect::<Result<_, _>>()?;
+    let views: Vec<(&synthcam::Scene, &synthcam::Camera)> =
+        built.iter().map(|b| (&b.scene, &b.camera)).collect();
+    let mut settings = built[specs.len() / 2].settings;
+    settings.gradient = gradient;
+    let out = synthcam::render_exposure(&views, &settings)?;
+    let truth = truth_from(middle, &out.truth, rig, dictionary)?;
+    let (w, h) = (out.frame.width, out.frame.height);
+    let image =
+        image::GrayImage::from_raw(w as u32, h as u32, out.frame.data).ok_or_else(|| {
+            field(
+                "camera.width/height",
+                "the rendered frame does not match its size",
+            )
+        })?;
+    Ok(RenderedScene { image, truth })
+}

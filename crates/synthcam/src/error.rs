@@ -86,6 +86,12 @@ pub enum SynthError {
         /// The limit.
         max: usize,
     },
+    /// A motion-blurred exposure cannot be rendered ([`crate::render_exposure`]).
+    #[error("invalid exposure: {reason}")]
+    InvalidExposure {
+        /// What is wrong.
+        reason: &'static str,
+    },
     /// A texture's data does not match its declared size.
     #[error("invalid texture: {reason} ({rows} x {cols} declared, {len} values given)")]
     InvalidTexture {

@@ -126,7 +126,7 @@ pub use camera::{Camera, MAX_PIXELS, MIN_DEPTH};
 pub use error::{MAX_INTRINSIC, MAX_MAGNITUDE, SynthError};
 pub use render::{
     Frame, Gradient, MAX_SUPERSAMPLING, PixelFormat, RenderSettings, Rendered, Shading, render,
-    render_with_progress,
+    render_exposure, render_with_progress,
 };
 pub use scene::{Body, Face, FaceFrame, FacePlacement, Ground, Panel, Robot, Scene};
 pub use texture::{CellGrid, Filter, ImageTexture, SoftChecker, Texture, Uniform};

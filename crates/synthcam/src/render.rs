@@ -11,7 +11,7 @@ use crate::camera::Camera;
 use crate::error::{SynthError, finite, finite_vec, in_range};
 use crate::raycast::{Light, Prepared};
 use crate::scene::Scene;
-use crate::truth::{FrameTruth, ground_truth_prepared};
+use crate::truth::{FrameTruth, ground_truth, ground_truth_prepared};
 
 /// Largest supersampling factor (samples per pixel side).
 pub const MAX_SUPERSAMPLING: usize = 32;
@@ -234,6 +234,64 @@ pub fn render_with_progress(
         gaussian_blur(&mut radiance, w, h, settings.blur_sigma);
     }
     let frame = quantise(&radiance, w, h, settings);
+    Ok(Rendered { frame, truth })
+}
+
+/// Renders one frame exposed over a time interval: motion blur. `views` are the scene and
+/// camera at instants spread evenly over the exposure, in time order (e.g. the robots'
+/// poses at `n` sub-frame times); their radiances are averaged *before* the optical blur and
+/// the sensor noise, as a sensor integrates light over its exposure, so the noise is that
+/// of one frame. The ground truth is that of the middle view (`views[views.len() / 2]`):
+/// with an odd count spread symmetrically about the frame time, the truth at that time.
+/// One view is exactly [`render`].
+///
+/// # Errors
+/// As [`render`]; [`SynthError::InvalidExposure`] when `views` is empty or the views'
+/// cameras differ in size.
+pub fn render_exposure(
+    views: &[(&Scene, &Camera)],
+    settings: &RenderSettings,
+) -> Result<Rendered, SynthError> {
+    settings.validate()?;
+    let Some(&(mid_scene, mid_camera)) = views.get(views.len() / 2) else {
+        return Err(SynthError::InvalidExposure {
+            reason: "no sub-frame to expose",
+        });
+    };
+    let (w, h) = (mid_camera.width(), mid_camera.height());
+    if views.iter().any(|(_, c)| c.width() != w || c.height() != h) {
+        return Err(SynthError::InvalidExposure {
+            reason: "the sub-frames' cameras differ in size",
+        });
+    }
+    let light = settings.shading.map(|s| Light {
+        dir: s.light_dir.normalize(),
+        ambient: s.ambient,
+        shade_faces: s.shade_faces,
+    });
+    let mut sum = vec![0f32; w * h];
+    let mut truth = None;
+    for (i, &(scene, camera)) in views.iter().enumerate() {
+        scene.validate()?;
+        let prepared = Prepared::new(scene, camera, light.as_ref())?;
+        if i == views.len() / 2 {
+            truth = Some(ground_truth_prepared(scene, camera, &prepared)?);
+        }
+        let radiance = trace_image(&prepared, camera, settings, &|_, _| {});
+        for (s, r) in sum.iter_mut().zip(&radiance) {
+            *s += r;
+        }
+    }
+    let scale = 1.0 / views.len() as f32;
+    sum.iter_mut().for_each(|x| *x *= scale);
+    if settings.blur_sigma > 0.0 {
+        gaussian_blur(&mut sum, w, h, settings.blur_sigma);
+    }
+    let frame = quantise(&sum, w, h, settings);
+    let truth = match truth {
+        Some(t) => t,
+        None => ground_truth(mid_scene, mid_camera)?,
+    };
     Ok(Rendered { frame, truth })
 }
 

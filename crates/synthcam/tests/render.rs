@@ -375,3 +375,27 @@ fn camera_inside_nothing_and_looking_at_the_sky_renders_background() {
     let f = render(&s, &c, &RenderSettings::default()).unwrap().frame;
     assert!(f.data.iter().all(|&x| x == 204)); // 0.8 * 255
 }
+
+/// One sub-frame is exactly `render`; sub-frames of a moving robot change the frame and keep
+/// the middle view's truth; no sub-frame is an error.
+#[test]
+fn an_exposure_of_one_view_is_a_render_and_motion_blurs() {
+    let settings = noisy(4);
+    let cam = camera(160, 120);
+    let still = scene();
+    let one = render_exposure(&[(&still, &cam)], &settings).unwrap();
+    let plain = render(&still, &cam, &settings).unwrap();
+    assert_eq!(one.frame, plain.frame);
+    assert_eq!(one.truth, plain.truth);
+    let moved = |dy: f64| {
+        let mut s = scene();
+        s.robots[0].pose.y += dy;
+        s
+    };
+    let scenes = [moved(-0.02), scene(), moved(0.02)];
+    let views: Vec<(&Scene, &Camera)> = scenes.iter().map(|s| (s, &cam)).collect();
+    let blurred = render_exposure(&views, &settings).unwrap();
+    assert_eq!(blurred.truth, plain.truth);
+    assert_ne!(blurred.frame, plain.frame);
+    assert!(render_exposure(&[], &settings).is_err());
+}

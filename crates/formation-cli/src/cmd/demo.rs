@@ -8,6 +8,7 @@ use clap::Args as ClapArgs;
 use formation_sim::demo::{DemoConfig, DemoFrame, DemoRun, DemoSummary, run_demo_observed};
 use formation_sim::plot::{fig12_panels, fig13_panels, shade, write_png, write_svg};
 use formation_sim::reproduce::StepRecord;
+use formation_sim::scenario_file::ScenarioSpec;
 
 use super::CliError;
 
@@ -46,27 +47,52 @@ pub struct Args {
     /// DIR/frames --camera DIR/camera.yaml --inputs DIR/inputs.csv --fps 30`.
     #[arg(long, value_name = "DIR")]
     save_frames: Option<PathBuf>,
+    /// Run this scenario file (YAML, or JSON if named .json; the file of `reproduce dukf
+    /// --scenario`) instead of the built-in reference scenario: the robots' start, the
+    /// leader's inputs, the follower's set-points, frame rate and duration, and in its
+    /// optional `vision` section the camera, rendering (noise, blur, motion blur, lighting
+    /// gradient) and occlusion (docs/tracking.md). Two robots only.
+    /// fixtures/scenarios/far.yaml: the leader 3-4 m away.
+    #[arg(long, value_name = "FILE")]
+    scenario: Option<PathBuf>,
 }
 
 /// Runs `demo`.
 pub fn run(args: Args) -> Result<(), CliError> {
-    let mut config = DemoConfig {
-        robots: args.robots,
-        closed_loop: args.closed_loop,
-        ..DemoConfig::default()
+    let mut config = match &args.scenario {
+        Some(path) => {
+            if args.robots != 2 {
+                return Err(format!(
+                    "--robots {} with --scenario: a scenario file describes two robots (a leader and one follower)",
+                    args.robots
+                )
+                .into());
+            }
+            let spec = ScenarioSpec::load(path).map_err(|e| e.to_string())?;
+            DemoConfig {
+                closed_loop: args.closed_loop,
+                ..DemoConfig::from_scenario(&spec)
+            }
+        }
+        None => DemoConfig {
+            robots: args.robots,
+            closed_loop: args.closed_loop,
+            ..DemoConfig::default()
+        },
     };
     config.render.seed = args.seed;
     super::prepare_out_dir(&args.out)?;
     let mut saver = args
         .save_frames
         .as_deref()
-        .map(FrameSaver::new)
+        .map(|dir| FrameSaver::new(dir, &config))
         .transpose()?;
-    let mut mcap = McapSaver::new(&args.out.join("demo.mcap"), config.dt)?;
+    let mut mcap = McapSaver::new(&args.out.join("demo.mcap"), &config)?;
     let started = std::time::Instant::now();
     eprintln!(
-        "demo: rendering and tracking {} s at 30 frames/s, {} robot(s){}...",
+        "demo: rendering and tracking {} s at {:.0} frames/s, {} robot(s){}...",
         config.duration,
+        1.0 / config.dt,
         config.robots,
         if config.closed_loop {
             ", closed loop"
@@ -193,7 +219,7 @@ fn series_csv(run: &DemoRun) -> String {
         "follower,leader,t,l12_true,alpha12_true,beta12_true,l12_measured,alpha12_measured,\
          beta12_measured,l12_estimated,alpha12_estimated,beta12_estimated,l12_std,alpha12_std,\
          beta12_std,v1_true,w1_true,v1_estimated,w1_estimated,v1_std,w1_std,status,measurement,\
-         occluded,markers,leaders,detect_ms,pose_ms,track_ms\n",
+         occluded,markers,leaders,detect_ms,pose_ms,track_ms,nis\n",
     );
     for tr in &run.traces {
         for r in &tr.records {
@@ -206,7 +232,7 @@ fn series_csv(run: &DemoRun) -> String {
                 .map_or("none".to_owned(), |x| format!("{x:?}").to_lowercase());
             let _ = writeln!(
                 s,
-                "{},{},{:.6},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{status},{used},{},{},{},{:.4},{:.4},{:.4}",
+                "{},{},{:.6},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{status},{used},{},{},{},{:.4},{:.4},{:.4},{}",
                 tr.follower,
                 tr.leader,
                 st.t,
@@ -234,6 +260,7 @@ fn series_csv(run: &DemoRun) -> String {
                 r.timing.detect_ms,
                 r.timing.pose_ms,
                 r.timing.track_ms,
+                r.nis.map_or(String::new(), |x| format!("{x:.4}")),
             );
         }
     }
@@ -264,9 +291,39 @@ fn summary_text(s: &DemoSummary, wall_s: f64) -> String {
         "  alpha12    {:10.3e}   {:11.3e}   7.22e-5",
         s.mse_meas_alpha12, s.mse_alpha12
     );
-    let _ = writeln!(t, "  beta12                  {:11.3e}", s.mse_beta12);
+    let _ = writeln!(
+        t,
+        "  beta12     {:10.3e}   {:11.3e}",
+        s.mse_meas_beta12, s.mse_beta12
+    );
     let _ = writeln!(t, "  v1                      {:11.3e}", s.mse_v1);
     let _ = writeln!(t, "  w1                      {:11.3e}", s.mse_w1);
+    let _ = writeln!(
+        t,
+        "  tracked MSE over the {} frames with a measurement: l12 {:.3e}, alpha12 {:.3e}, beta12 {:.3e}; over the {} coasting frames: l12 {:.3e}, alpha12 {:.3e}, beta12 {:.3e}",
+        s.frames_detected,
+        s.mse_detected[0],
+        s.mse_detected[1],
+        s.mse_detected[2],
+        s.frames_coasting,
+        s.mse_coasting[0],
+        s.mse_coasting[1],
+        s.mse_coasting[2]
+    );
+    let _ = writeln!(
+        t,
+        "  velocity RMS after 2 s: v1 {:.4} m/s, w1 {:.4} rad/s",
+        s.rms_velocity_after_2s[0], s.rms_velocity_after_2s[1]
+    );
+    let _ = writeln!(
+        t,
+        "  NIS over {} updates: mean {:.2} (95 % bounds {:.2} to {:.2}), {:.0} % of frames inside the per-frame 95 % interval",
+        s.nis.frames,
+        s.nis.mean,
+        s.nis.mean_bounds_95[0],
+        s.nis.mean_bounds_95[1],
+        100.0 * s.nis.inside_95
+    );
     let _ = writeln!(
         t,
         "  frames {} (t = 0 initialises the tracker; of the {} scored, leader detected in {}, hidden in {}), coasting {}, max coasting l12 error {:.3} m",
@@ -326,9 +383,9 @@ struct FrameSaver {
 }
 
 impl FrameSaver {
-    fn new(dir: &Path) -> Result<Self, CliError> {
+    fn new(dir: &Path, config: &DemoConfig) -> Result<Self, CliError> {
         super::prepare_out_dir(&dir.join("frames"))?;
-        let camera = formation_sim::scene::CameraSpec::default();
+        let camera = config.camera;
         let k = pose::Intrinsics::from_hfov(
             camera.hfov_deg.to_radians(),
             camera.width as u32,
@@ -394,6 +451,7 @@ impl FrameSaver {
 struct McapSaver {
     path: PathBuf,
     dt: f64,
+    mount: formation_tracker::mount::CameraMount,
     pipeline: formation_tracker::pipeline::Pipeline,
     writer:
         Option<formation_tracker_cli::foxglove::FoxgloveWriter<std::io::BufWriter<std::fs::File>>>,
@@ -401,11 +459,11 @@ struct McapSaver {
 }
 
 impl McapSaver {
-    fn new(path: &Path, dt: f64) -> Result<Self, CliError> {
+    fn new(path: &Path, config: &DemoConfig) -> Result<Self, CliError> {
         use fiducial::{Detector, DetectorConfig, Dictionary};
-        use formation_tracker::mount::CameraMount;
         use formation_tracker::tracker::{Tracker, TrackerConfig};
-        let camera = formation_sim::scene::CameraSpec::default();
+        let (dt, mount) = (config.dt, config.mount);
+        let camera = config.camera;
         let (w, h) = (camera.width as u32, camera.height as u32);
         let intrinsics = pose::Intrinsics::from_hfov(camera.hfov_deg.to_radians(), w, h)?;
         let calibration = pose::calib::Calibration {
@@ -416,7 +474,7 @@ impl McapSaver {
             format: pose::calib::CalibrationFormat::Ros,
         };
         let rig = formation_tracker::rig::RigModel::reference();
-        let tracker = Tracker::new(TrackerConfig::reference(CameraMount::default().offset, dt))?;
+        let tracker = Tracker::new(TrackerConfig::reference(mount.offset, dt))?;
         let pipeline = formation_tracker::pipeline::Pipeline::new(
             Detector::with_dictionary(DetectorConfig::default(), Dictionary::paper().clone()),
             pose::PoseSolver::new(intrinsics),
@@ -437,6 +495,7 @@ impl McapSaver {
         Ok(Self {
             path: path.to_path_buf(),
             dt,
+            mount,
             pipeline,
             writer: Some(writer),
             error: None,
@@ -452,20 +511,17 @@ impl McapSaver {
         };
         let t = frame.step as f64 * self.dt;
         let (w, h) = (frame.image.width() as usize, frame.image.height() as usize);
-        let done = match self.pipeline.process(
-            frame.image.as_raw(),
-            w,
-            h,
-            t,
-            frame.inputs,
-            formation_tracker::mount::CameraMount::default(),
-        ) {
-            Ok(done) => done,
-            Err(e) => {
-                self.error = Some(format!("demo.mcap: frame {}: {e}", frame.step));
-                return;
-            }
-        };
+        let done =
+            match self
+                .pipeline
+                .process(frame.image.as_raw(), w, h, t, frame.inputs, self.mount)
+            {
+                Ok(done) => done,
+                Err(e) => {
+                    self.error = Some(format!("demo.mcap: frame {}: {e}", frame.step));
+                    return;
+                }
+            };
         let out = formation_tracker_cli::foxglove::FrameOut {
             frame: frame.step as u64,
             stamp_ns: (t * 1e9).round() as u64,
