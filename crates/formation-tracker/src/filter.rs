@@ -28,7 +28,7 @@ pub use smooth::{FilterStep, SmoothedStep};
 
 use std::cell::Cell;
 
-use dukf::{AngleMask, DualUkf, Euclidean, Ukf, UkfError, UtParams};
+use dukf::{AngleMask, DualUkf, Euclidean, Imm, Ukf, UkfError, UtParams, sojourn_transition};
 use nalgebra::{Matrix2, Matrix3, Matrix5, SMatrix, SVector, Vector2, Vector3};
 use unicycle::{
     Formation, Inputs, MEASUREMENT_ANGLES, PolarModel, PolarState, STATE_ANGLES, UnicycleError,
@@ -38,6 +38,10 @@ use unicycle::{
 type Matrix6 = SMatrix<f64, 6, 6>;
 type Vector6 = SVector<f64, 6>;
 type Dual = DualUkf<6, 2, 3, AngleMask<6>, Euclidean, AngleMask<3>>;
+/// The IMM's joint state `[x1, y1, theta1, l12, alpha12, beta12, v1, w1, a_v, a_w]`.
+type Joint = SVector<f64, 10>;
+type Matrix10 = SMatrix<f64, 10, 10>;
+type ImmFilter = Imm<10, 2, AngleMask<10>>;
 
 /// Errors of the formation filter.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -74,8 +78,68 @@ pub struct FilterTuning {
     pub rr: Matrix2<f64>,
     /// Whether the state prediction adds `J Pw- J^T` (see the module documentation).
     pub propagate_parameter_uncertainty: bool,
-    /// Scaled unscented transform parameters, used by both filters.
+    /// Scaled unscented transform parameters, used by every filter.
     pub ut: UtParams,
+    /// Which causal filter runs: the IMM (the default) or the paper's dual UKF.
+    pub design: FilterDesign,
+    /// The IMM's settings (unused by the dual UKF).
+    pub imm: ImmTuning,
+}
+
+/// Which causal filter a [`FormationFilter`] runs (see the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FilterDesign {
+    /// The interacting multiple-model filter over the joint state `[x, v1, w1, a_v, a_w]`:
+    /// a constant-acceleration leader and a follower holding the formation.
+    Imm,
+    /// The paper's dual UKF: a state filter over `x` and a parameter filter over `[v1, w1]`
+    /// (a random walk with [`FilterTuning::rr`]).
+    Dual,
+}
+
+/// The settings of the IMM design; every number is a property of a robot or of the
+/// simulation, none of a scenario (`docs/dukf-reproduction.md`, "The IMM design").
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImmTuning {
+    /// The leader's largest jerk `[m/s^3, rad/s^3]`: model A's accelerations are a random
+    /// walk with per-step standard deviation `jerk * dt`.
+    pub jerk: Vector2<f64>,
+    /// Standard deviation of the initial leader accelerations `[m/s^2, rad/s^2]` (mean 0).
+    pub acceleration_std: Vector2<f64>,
+    /// Process noise per step on `[l12, alpha12, beta12]` in both models (m^2, rad^2, rad^2):
+    /// the model error of one RK4 step, not a motion.
+    pub formation_q: Vector3<f64>,
+    /// Model B ("the follower holds the formation"): standard deviation per step of the
+    /// formation rates `[l12', alpha12']` around 0 (`[m/s, rad/s]`); the leader velocity
+    /// that holds the formation absorbs it.
+    pub held_rate_std: Vector2<f64>,
+    /// Mean time a model stays in force, seconds (the switching matrix is
+    /// `Pi_jj = exp(-dt / sojourn)`).
+    pub sojourn: f64,
+    /// Initial probability of model A (constant-acceleration leader); model B gets the rest.
+    pub mu0_a: f64,
+}
+
+impl ImmTuning {
+    /// The reference settings: `jerk = [0.5, 0.5]` (about twice the largest jerk of any
+    /// fixture's leader), `acceleration_std = [0.2, 0.2]`, `formation_q = 1e-9` each,
+    /// `held_rate_std = [1e-3, 1e-3]`, `sojourn = 2 s`, `mu0_a = 0.5`.
+    pub fn reference() -> Self {
+        Self {
+            jerk: Vector2::new(0.5, 0.5),
+            acceleration_std: Vector2::new(0.2, 0.2),
+            formation_q: Vector3::new(1e-9, 1e-9, 1e-9),
+            held_rate_std: Vector2::new(1e-3, 1e-3),
+            sojourn: 2.0,
+            mu0_a: 0.5,
+        }
+    }
+}
+
+impl Default for ImmTuning {
+    fn default() -> Self {
+        Self::reference()
+    }
 }
 
 impl FilterTuning {
@@ -94,6 +158,8 @@ impl FilterTuning {
             rr: Matrix2::from_diagonal(&Vector2::new(1e-4, 1e-4)),
             propagate_parameter_uncertainty: true,
             ut: UtParams::new(1.0, 2.0, 0.0),
+            design: FilterDesign::Imm,
+            imm: ImmTuning::reference(),
         }
     }
 }
@@ -130,16 +196,45 @@ impl FilterConfig {
     }
 }
 
-/// A dual UKF tracking one leader's formation variables and velocities.
+/// The causal filter inside a [`FormationFilter`].
+#[derive(Debug, Clone)]
+enum Engine {
+    Dual(Box<Dual>),
+    Imm(Box<ImmEngine>),
+}
+
+/// The IMM, its two models' process noises and the measurement space.
+#[derive(Debug, Clone)]
+struct ImmEngine {
+    imm: ImmFilter,
+    q: [Matrix10; 2],
+}
+
+/// The estimates the accessors return, refreshed after every successful step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Snapshot {
+    state: PolarState,
+    state_covariance: Matrix6,
+    velocity: Vector2<f64>,
+    velocity_covariance: Matrix2<f64>,
+    /// Covariance of `[l12, alpha12, beta12]` with `[v1, w1]` (zero for the dual UKF).
+    cross: SMatrix<f64, 3, 2>,
+}
+
+/// A filter tracking one leader's formation variables and velocities: by default the IMM,
+/// or the paper's dual UKF ([`FilterTuning::design`]).
 #[derive(Debug, Clone)]
 pub struct FormationFilter {
     model: PolarModel,
     dt: f64,
     q: Matrix6,
+    rr: Matrix2<f64>,
     propagate: bool,
     ut: UtParams,
-    dual: Dual,
+    engine: Engine,
+    snapshot: Snapshot,
     last_nis: Option<f64>,
+    model_probabilities: Option<[f64; 2]>,
 }
 
 fn state_space() -> Result<AngleMask<6>, UkfError> {
@@ -170,6 +265,59 @@ fn process<'a>(
     }
 }
 
+/// The leader velocity `[v1, w1]` that keeps `l12` and `alpha12` constant at the state `x`
+/// given the follower's inputs `u` (spec 2.4 with `l12' = alpha12' = 0`):
+/// `v1 = (v2 cos(beta12) + d w2 sin(beta12)) / cos(alpha12)`,
+/// `w1 = (-v1 sin(alpha12) + v2 sin(beta12) - d w2 cos(beta12)) / l12`. Non-finite when
+/// `cos(alpha12) = 0` (the leader abeam: no speed holds the separation).
+pub fn formation_holding_velocity(x: &PolarState, u: &Vector2<f64>, d: f64) -> Vector2<f64> {
+    let (l, a, b) = (x[3], x[4], x[5]);
+    let (v2, w2) = (u[0], u[1]);
+    let v1 = (v2 * b.cos() + d * w2 * b.sin()) / a.cos();
+    let w1 = (-v1 * a.sin() + v2 * b.sin() - d * w2 * b.cos()) / l;
+    Vector2::new(v1, w1)
+}
+
+/// The IMM's two process functions over `z = [x, v1, w1, a_v, a_w]`: model 0 (A) moves the
+/// formation with the leader velocity `[v1, w1]` and integrates the accelerations into it;
+/// model 1 (B) moves it with the formation-holding velocity of the follower's inputs and
+/// stores that velocity in `[v1, w1]` (accelerations kept).
+fn imm_process<'a>(
+    model: &'a PolarModel,
+    u: &'a Vector2<f64>,
+    dt: f64,
+    failure: &'a Cell<Option<UnicycleError>>,
+) -> impl FnMut(usize, &Joint) -> Joint + 'a {
+    move |j, z| {
+        let x: PolarState = z.fixed_rows::<6>(0).into_owned();
+        let w = if j == 0 {
+            Vector2::new(z[6], z[7])
+        } else {
+            formation_holding_velocity(&x, u, model.d())
+        };
+        match model.f(&x, u, &w, dt) {
+            Ok(next) => {
+                let mut out = *z;
+                out.fixed_rows_mut::<6>(0).copy_from(&next);
+                if j == 0 {
+                    out[6] += z[8] * dt;
+                    out[7] += z[9] * dt;
+                } else {
+                    out[6] = w[0];
+                    out[7] = w[1];
+                }
+                out
+            }
+            Err(e) => {
+                if failure.get().is_none() {
+                    failure.set(Some(e));
+                }
+                Joint::repeat(f64::NAN)
+            }
+        }
+    }
+}
+
 /// The filter's result, preferring the model's own error when a sigma point was refused.
 fn outcome<T>(
     result: Result<T, UkfError>,
@@ -182,55 +330,144 @@ fn outcome<T>(
     }
 }
 
+impl ImmEngine {
+    fn new(config: &FilterConfig) -> Result<Self, FilterError> {
+        let t = &config.tuning;
+        let i = &t.imm;
+        let dt = config.dt;
+        let finite = i
+            .jerk
+            .iter()
+            .chain(i.acceleration_std.iter())
+            .all(|v| v.is_finite())
+            && i.formation_q
+                .iter()
+                .chain(i.held_rate_std.iter())
+                .all(|v| v.is_finite())
+            && (0.0..=1.0).contains(&i.mu0_a);
+        if !finite {
+            return Err(UkfError::InvalidModelProbabilities {
+                reason: "the IMM tuning needs finite noises and mu0_a in [0, 1]",
+            }
+            .into());
+        }
+        let mut z0 = Joint::zeros();
+        z0.fixed_rows_mut::<6>(0).copy_from(&config.x0);
+        z0[6] = t.w0[0];
+        z0[7] = t.w0[1];
+        let mut p0 = Matrix10::zeros();
+        p0.fixed_view_mut::<6, 6>(0, 0).copy_from(&t.p0);
+        p0.fixed_view_mut::<2, 2>(6, 6).copy_from(&t.pw0);
+        p0[(8, 8)] = i.acceleration_std[0].powi(2);
+        p0[(9, 9)] = i.acceleration_std[1].powi(2);
+        let space = AngleMask::<10>::from_indices(&STATE_ANGLES)?;
+        let ukf = Ukf::new(z0, p0, space, t.ut)?;
+        let mut qa = Matrix10::zeros();
+        for k in 0..3 {
+            qa[(k, k)] = t.q[(k, k)];
+            qa[(3 + k, 3 + k)] = i.formation_q[k];
+        }
+        qa[(8, 8)] = (i.jerk[0] * dt).powi(2);
+        qa[(9, 9)] = (i.jerk[1] * dt).powi(2);
+        let mut qb = qa;
+        qb[(3, 3)] += (i.held_rate_std[0] * dt).powi(2);
+        qb[(4, 4)] += (i.held_rate_std[1] * dt).powi(2);
+        let transition = sojourn_transition::<2>(dt, i.sojourn)?;
+        let imm = Imm::new([ukf, ukf], [i.mu0_a, 1.0 - i.mu0_a], transition)?;
+        Ok(Self { imm, q: [qa, qb] })
+    }
+
+    fn snapshot(&self) -> Snapshot {
+        let (z, p) = self.imm.estimate();
+        Snapshot {
+            state: z.fixed_rows::<6>(0).into_owned(),
+            state_covariance: p.fixed_view::<6, 6>(0, 0).into_owned(),
+            velocity: Vector2::new(z[6], z[7]),
+            velocity_covariance: p.fixed_view::<2, 2>(6, 6).into_owned(),
+            cross: p.fixed_view::<3, 2>(3, 6).into_owned(),
+        }
+    }
+}
+
+fn dual_snapshot(dual: &Dual) -> Snapshot {
+    Snapshot {
+        state: *dual.state(),
+        state_covariance: *dual.state_covariance(),
+        velocity: *dual.parameters(),
+        velocity_covariance: *dual.parameter_covariance(),
+        cross: SMatrix::zeros(),
+    }
+}
+
 impl FormationFilter {
     /// A filter from its configuration.
     ///
     /// # Errors
     /// A bad offset or time step, non-finite or non-positive-definite initial covariances, or
-    /// bad unscented-transform parameters.
+    /// bad unscented-transform parameters or IMM settings.
     pub fn new(config: &FilterConfig) -> Result<Self, FilterError> {
         if !(config.dt.is_finite() && config.dt > 0.0) {
             return Err(FilterError::InvalidTimeStep { dt: config.dt });
         }
         let model = PolarModel::new(config.d)?;
         let t = &config.tuning;
-        let state = Ukf::new(config.x0, t.p0, state_space()?, t.ut)?;
-        let params = Ukf::new(t.w0, t.pw0, Euclidean, t.ut)?;
-        let dual = DualUkf::new(state, params, t.q, t.rr, measurement_space()?)?;
+        let (engine, snapshot) = match t.design {
+            FilterDesign::Dual => {
+                let state = Ukf::new(config.x0, t.p0, state_space()?, t.ut)?;
+                let params = Ukf::new(t.w0, t.pw0, Euclidean, t.ut)?;
+                let dual = DualUkf::new(state, params, t.q, t.rr, measurement_space()?)?;
+                let snapshot = dual_snapshot(&dual);
+                (Engine::Dual(Box::new(dual)), snapshot)
+            }
+            FilterDesign::Imm => {
+                let engine = ImmEngine::new(config)?;
+                let snapshot = engine.snapshot();
+                (Engine::Imm(Box::new(engine)), snapshot)
+            }
+        };
         Ok(Self {
             model,
             dt: config.dt,
             q: t.q,
+            rr: t.rr,
             propagate: t.propagate_parameter_uncertainty,
             ut: t.ut,
-            dual,
+            engine,
+            snapshot,
             last_nis: None,
+            model_probabilities: match t.design {
+                FilterDesign::Imm => Some([t.imm.mu0_a, 1.0 - t.imm.mu0_a]),
+                FilterDesign::Dual => None,
+            },
         })
     }
 
-    /// Sets the state process noise for this step: `Q`, plus `F_w Pw- F_w^T` when
+    /// The dual filter's state process noise for this step: `Q`, plus `F_w Pw- F_w^T` when
     /// configured, with `F_w = df/dw` by central differences at the current estimates.
-    fn prepare_process_noise(&mut self, u: &Vector2<f64>) -> Result<(), FilterError> {
-        if !self.propagate {
-            return Ok(());
-        }
-        let x = *self.dual.state();
-        let w = *self.dual.parameters();
+    fn prepare_process_noise(
+        model: &PolarModel,
+        dt: f64,
+        q: &Matrix6,
+        dual: &mut Dual,
+        u: &Vector2<f64>,
+    ) -> Result<(), FilterError> {
+        let x = *dual.state();
+        let w = *dual.parameters();
         let mut fw = SMatrix::<f64, 6, 2>::zeros();
         for j in 0..2 {
             let h = 1e-6 * (1.0 + w[j].abs());
             let (mut wp, mut wm) = (w, w);
             wp[j] += h;
             wm[j] -= h;
-            let mut d = self.model.f(&x, u, &wp, self.dt)? - self.model.f(&x, u, &wm, self.dt)?;
+            let mut d = model.f(&x, u, &wp, dt)? - model.f(&x, u, &wm, dt)?;
             for i in STATE_ANGLES {
                 d[i] = wrap_angle(d[i]);
             }
             fw.set_column(j, &(d / (2.0 * h)));
         }
-        let pw = self.dual.parameter_covariance() + self.dual.parameter_noise();
-        let q = self.q + fw * pw * fw.transpose();
-        self.dual.set_process_noise((q + q.transpose()) * 0.5)?;
+        let pw = dual.parameter_covariance() + dual.parameter_noise();
+        let q = q + fw * pw * fw.transpose();
+        dual.set_process_noise((q + q.transpose()) * 0.5)?;
         Ok(())
     }
 
@@ -247,16 +484,40 @@ impl FormationFilter {
         u: Inputs,
     ) -> Result<(), FilterError> {
         let u: Vector2<f64> = u.into();
-        self.prepare_process_noise(&u)?;
         let failure = Cell::new(None);
-        let result = self.dual.step(
-            process(&self.model, &u, self.dt, &failure),
-            PolarModel::h,
-            y,
-            r,
-        );
-        let report = outcome(result, &failure)?;
-        self.last_nis = Some(report.state.nis);
+        match &mut self.engine {
+            Engine::Dual(dual) => {
+                let mut next = **dual;
+                if self.propagate {
+                    Self::prepare_process_noise(&self.model, self.dt, &self.q, &mut next, &u)?;
+                }
+                let result = next.step(
+                    process(&self.model, &u, self.dt, &failure),
+                    PolarModel::h,
+                    y,
+                    r,
+                );
+                let report = outcome(result, &failure)?;
+                **dual = next;
+                self.snapshot = dual_snapshot(dual);
+                self.last_nis = Some(report.state.nis);
+            }
+            Engine::Imm(engine) => {
+                check_inputs(&u)?;
+                let result = engine.imm.step(
+                    imm_process(&self.model, &u, self.dt, &failure),
+                    &engine.q,
+                    y,
+                    |z| Vector3::new(z[3], z[4], z[5]),
+                    r,
+                    &measurement_space()?,
+                );
+                let report = outcome(result, &failure)?;
+                self.snapshot = engine.snapshot();
+                self.last_nis = report.combined_nis;
+                self.model_probabilities = Some(report.probabilities);
+            }
+        }
         Ok(())
     }
 
@@ -267,42 +528,73 @@ impl FormationFilter {
     /// As [`FormationFilter::step`].
     pub fn predict_only(&mut self, u: Inputs) -> Result<(), FilterError> {
         let u: Vector2<f64> = u.into();
-        self.prepare_process_noise(&u)?;
         let failure = Cell::new(None);
-        let result = self
-            .dual
-            .predict_only(process(&self.model, &u, self.dt, &failure));
-        outcome(result, &failure)?;
+        match &mut self.engine {
+            Engine::Dual(dual) => {
+                let mut next = **dual;
+                if self.propagate {
+                    Self::prepare_process_noise(&self.model, self.dt, &self.q, &mut next, &u)?;
+                }
+                let result = next.predict_only(process(&self.model, &u, self.dt, &failure));
+                outcome(result, &failure)?;
+                **dual = next;
+                self.snapshot = dual_snapshot(dual);
+            }
+            Engine::Imm(engine) => {
+                check_inputs(&u)?;
+                let result = engine
+                    .imm
+                    .predict_only(imm_process(&self.model, &u, self.dt, &failure), &engine.q);
+                let report = outcome(result, &failure)?;
+                self.snapshot = engine.snapshot();
+                self.model_probabilities = Some(report.probabilities);
+            }
+        }
         self.last_nis = None;
         Ok(())
     }
 
-    /// The normalised innovation squared `nu^T S^-1 nu` of the state filter's last update
-    /// (chi-square with 3 degrees of freedom when the filter is consistent); `None` before
-    /// the first update and after a frame without a measurement.
+    /// The normalised innovation squared `nu^T S^-1 nu` of the last update (chi-square with 3
+    /// degrees of freedom when the filter is consistent; for the IMM, the probability-weighted
+    /// innovation against the mixture's innovation covariance); `None` before the first
+    /// update and after a frame without a measurement.
     pub fn last_nis(&self) -> Option<f64> {
         self.last_nis
     }
 
+    /// The IMM's model probabilities `[constant-acceleration leader, formation held]` after
+    /// the last step (`None` for the dual UKF).
+    pub fn model_probabilities(&self) -> Option<[f64; 2]> {
+        self.model_probabilities
+    }
+
+    /// Which design this filter runs.
+    pub fn design(&self) -> FilterDesign {
+        match self.engine {
+            Engine::Dual(_) => FilterDesign::Dual,
+            Engine::Imm(_) => FilterDesign::Imm,
+        }
+    }
+
     /// The state covariance (order `[x1, y1, theta1, l12, alpha12, beta12]`).
     pub fn state_covariance(&self) -> &Matrix6 {
-        self.dual.state_covariance()
+        &self.snapshot.state_covariance
     }
 
     /// The leader-velocity covariance (order `[v1, w1]`).
     pub fn leader_velocity_covariance(&self) -> &Matrix2<f64> {
-        self.dual.parameter_covariance()
+        &self.snapshot.velocity_covariance
     }
 
     /// The state estimate `[x1, y1, theta1, l12, alpha12, beta12]`.
     pub fn state(&self) -> &PolarState {
-        self.dual.state()
+        &self.snapshot.state
     }
 
     /// Standard deviations of the state estimate.
     pub fn state_std(&self) -> PolarState {
-        self.dual
-            .state_covariance()
+        self.snapshot
+            .state_covariance
             .diagonal()
             .map(|v| v.max(0.0).sqrt())
     }
@@ -319,28 +611,46 @@ impl FormationFilter {
 
     /// The estimated leader velocities `(v1, w1)`.
     pub fn leader_velocity(&self) -> Inputs {
-        (*self.dual.parameters()).into()
+        self.snapshot.velocity.into()
     }
 
-    /// The covariance of `[l12, alpha12, beta12, v1, w1]`: the state filter's block of the
-    /// formation variables and the parameter filter's of the velocities. The dual filter
-    /// keeps no cross-covariance between its two filters, so the formation-velocity terms
-    /// are zero (the smoother's joint pass has them; `docs/smoothing.md`).
+    /// The covariance of `[l12, alpha12, beta12, v1, w1]`. The IMM estimates them jointly, so
+    /// the formation-velocity terms are its own; the dual filter keeps no cross-covariance
+    /// between its two filters, so there they are zero (the smoother's joint pass has them;
+    /// `docs/smoothing.md`).
     pub fn estimate_covariance(&self) -> Matrix5<f64> {
+        let s = &self.snapshot;
         let mut c = Matrix5::zeros();
         c.fixed_view_mut::<3, 3>(0, 0)
-            .copy_from(&self.dual.state_covariance().fixed_view::<3, 3>(3, 3));
+            .copy_from(&s.state_covariance.fixed_view::<3, 3>(3, 3));
         c.fixed_view_mut::<2, 2>(3, 3)
-            .copy_from(self.dual.parameter_covariance());
+            .copy_from(&s.velocity_covariance);
+        c.fixed_view_mut::<3, 2>(0, 3).copy_from(&s.cross);
+        c.fixed_view_mut::<2, 3>(3, 0)
+            .copy_from(&s.cross.transpose());
         c
     }
 
     /// Standard deviations of `(v1, w1)`.
     pub fn leader_velocity_std(&self) -> Vector2<f64> {
-        self.dual
-            .parameter_covariance()
+        self.snapshot
+            .velocity_covariance
             .diagonal()
             .map(|v| v.max(0.0).sqrt())
+    }
+}
+
+/// The follower inputs must be finite (the IMM's model B divides by them only through the
+/// model, which reports a non-finite input as its own error).
+fn check_inputs(u: &Vector2<f64>) -> Result<(), FilterError> {
+    match u.iter().position(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(index) => Err(UnicycleError::NonFinite {
+            what: "follower inputs",
+            index,
+            value: u[index],
+        }
+        .into()),
     }
 }
 
