@@ -56,7 +56,8 @@ fn the_model_that_explains_the_data_wins() {
         moving.probabilities()
     );
     assert!((moving.estimate().0[1] - 1.0).abs() < 0.1);
-    // Standing at 2: model 1.
+    // Standing at 2: both models explain it (model 0 with a velocity near 0), so neither
+    // wins, and the combined estimate stands still at 2.
     let mut still = imm();
     for _ in 0..60 {
         still
@@ -71,11 +72,12 @@ fn the_model_that_explains_the_data_wins() {
             .unwrap();
     }
     assert!(
-        still.probabilities()[1] > 0.6,
+        still.probabilities()[1] > 0.3,
         "{:?}",
         still.probabilities()
     );
     assert!((still.estimate().0[0] - 2.0).abs() < 0.05);
+    assert!(still.estimate().0[1].abs() < 0.1);
 }
 
 #[test]

@@ -1,26 +1,48 @@
-//! The formation filter: Wan and van der Merwe's dual unscented Kalman filter (spec 5, crate
-//! `dukf`) over the unicycle polar model (spec 2.4, crate `unicycle`).
+//! The formation filter over the unicycle polar model (spec 2.4, crate `unicycle`): by
+//! default an interacting multiple-model (IMM) filter of three unscented filters (crate
+//! `dukf`), or, selectable with [`FilterTuning::design`], the paper's dual UKF (spec 5).
 //!
-//! [`FormationFilter`] is the piece the tracker reuses per leader: a state filter over
-//! `x = [x1, y1, theta1, l12, alpha12, beta12]` and a parameter filter over the leader's
-//! velocities `w = [v1, w1]` (a random walk), both fed the measurement
-//! `y = [l12, alpha12, beta12]` and the follower's own inputs `u = [v2, w2]`.
+//! [`FormationFilter`] is the piece the tracker reuses per leader. It is fed the measurement
+//! `y = [l12, alpha12, beta12]` and the follower's own inputs `u = [v2, w2]`, and estimates
+//! the state `x = [x1, y1, theta1, l12, alpha12, beta12]` and the leader's velocities
+//! `[v1, w1]`.
 //!
-//! # Parameter uncertainty in the state prediction
-//! In the plain dual filter the state filter treats `w^` as exact, so while `w^` is still
-//! wrong (at the start `w0 = [0, 0]` against a leader at 0.8 m/s) the state filter's
-//! covariance is far too small and its estimate drifts with the wrong velocity. With
-//! [`FilterTuning::propagate_parameter_uncertainty`] (on in the reference configuration) the
-//! state filter's process noise at each step is `Q + J Pw- J^T`, with `J = df/dw` at the
-//! current estimate (central differences) and `Pw- = Pw + Rr` the parameter filter's
-//! predicted covariance: the velocity uncertainty enters the state covariance exactly as a
-//! first-order propagation says it should. The measurement models are untouched.
+//! # The IMM design (the default)
+//! The three models share the joint state `z = [x, v1, w1, a_v, a_w]` (the leader's
+//! accelerations included), so they mix exactly (Blom and Bar-Shalom; `dukf::Imm`):
+//! - **A, the leader accelerates**: `[v1, w1]` move with `[a_v, a_w]`, which are a random walk
+//!   of per-step standard deviation `jerk * dt` ([`ImmTuning::jerk`], the leader's largest
+//!   jerk: a property of the robot, not of a scenario).
+//! - **B, the follower holds the formation**: the leader velocity is the one that keeps
+//!   `l12` and `alpha12` constant given the follower's known inputs
+//!   ([`formation_holding_velocity`]); the formation rates deviate from 0 by
+//!   [`ImmTuning::held_rate_std`]. `beta12` is still predicted through the model.
+//! - **C, the follower holds the bearing**: model A's speed, and the turn rate that keeps
+//!   `alpha12` constant ([`bearing_holding_turn_rate`]): the follower changes its separation
+//!   (a set-point step) while holding the bearing.
+//!
+//! The switching matrix has one constant, the mean time a model stays in force
+//! ([`ImmTuning::sojourn`], `Pi_jj = exp(-dt / sojourn)`). The follower knows that its own
+//! controller is holding the formation: models B and C use that knowledge, model A does not
+//! need it. `docs/dukf-reproduction.md` has the measurements.
+//!
+//! # The dual UKF and the parameter uncertainty in its state prediction
+//! A state filter over `x` and a parameter filter over `w = [v1, w1]` (a random walk with
+//! [`FilterTuning::rr`]). In the plain dual filter the state filter treats `w^` as exact, so
+//! while `w^` is still wrong (at the start `w0 = [0, 0]` against a leader at 0.8 m/s) the
+//! state filter's covariance is far too small and its estimate drifts with the wrong
+//! velocity. With [`FilterTuning::propagate_parameter_uncertainty`] (on in the reference
+//! configuration) the state filter's process noise at each step is `Q + J Pw- J^T`, with
+//! `J = df/dw` at the current estimate (central differences) and `Pw- = Pw + Rr` the
+//! parameter filter's predicted covariance.
 //!
 //! # Offline smoothing
 //! [`FormationFilter::record`] copies the estimates after a step into a [`FilterStep`];
 //! [`FormationFilter::smooth`] runs the unscented RTS smoother of `dukf` backwards over such a
 //! history, over the state and the leader velocities together (see `smooth.rs` and
-//! `docs/smoothing.md`), giving one [`SmoothedStep`] per recorded step.
+//! `docs/smoothing.md`), giving one [`SmoothedStep`] per recorded step. The smoother reruns its
+//! own joint forward pass (leader velocity a random walk with `Q` and `Rr`) from the first
+//! recorded estimate, so it works the same behind either causal design.
 
 mod smooth;
 
@@ -41,7 +63,7 @@ type Dual = DualUkf<6, 2, 3, AngleMask<6>, Euclidean, AngleMask<3>>;
 /// The IMM's joint state `[x1, y1, theta1, l12, alpha12, beta12, v1, w1, a_v, a_w]`.
 type Joint = SVector<f64, 10>;
 type Matrix10 = SMatrix<f64, 10, 10>;
-type ImmFilter = Imm<10, 2, AngleMask<10>>;
+type ImmFilter = Imm<10, 3, AngleMask<10>>;
 
 /// Errors of the formation filter.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -116,21 +138,23 @@ pub struct ImmTuning {
     /// Mean time a model stays in force, seconds (the switching matrix is
     /// `Pi_jj = exp(-dt / sojourn)`).
     pub sojourn: f64,
-    /// Initial probability of model A (constant-acceleration leader); model B gets the rest.
+    /// Initial probability of model A (constant-acceleration leader); models B and C share
+    /// the rest equally.
     pub mu0_a: f64,
 }
 
 impl ImmTuning {
     /// The reference settings: `jerk = [0.5, 0.5]` (about twice the largest jerk of any
     /// fixture's leader), `acceleration_std = [0.2, 0.2]`, `formation_q = 1e-9` each,
-    /// `held_rate_std = [1e-3, 1e-3]`, `sojourn = 2 s`, `mu0_a = 0.5`.
+    /// `held_rate_std = [0.01, 0.01]` (1 cm/s, 0.01 rad/s), `sojourn = 20 s`, `mu0_a = 0.5`
+    /// (the other two models share the rest).
     pub fn reference() -> Self {
         Self {
             jerk: Vector2::new(0.5, 0.5),
             acceleration_std: Vector2::new(0.2, 0.2),
             formation_q: Vector3::new(1e-9, 1e-9, 1e-9),
-            held_rate_std: Vector2::new(1e-3, 1e-3),
-            sojourn: 2.0,
+            held_rate_std: Vector2::new(0.01, 0.01),
+            sojourn: 20.0,
             mu0_a: 0.5,
         }
     }
@@ -207,7 +231,7 @@ enum Engine {
 #[derive(Debug, Clone)]
 struct ImmEngine {
     imm: ImmFilter,
-    q: [Matrix10; 2],
+    q: [Matrix10; 3],
 }
 
 /// The estimates the accessors return, refreshed after every successful step.
@@ -234,7 +258,7 @@ pub struct FormationFilter {
     engine: Engine,
     snapshot: Snapshot,
     last_nis: Option<f64>,
-    model_probabilities: Option<[f64; 2]>,
+    model_probabilities: Option<[f64; 3]>,
 }
 
 fn state_space() -> Result<AngleMask<6>, UkfError> {
@@ -278,10 +302,28 @@ pub fn formation_holding_velocity(x: &PolarState, u: &Vector2<f64>, d: f64) -> V
     Vector2::new(v1, w1)
 }
 
-/// The IMM's two process functions over `z = [x, v1, w1, a_v, a_w]`: model 0 (A) moves the
+/// The leader turn rate that keeps `alpha12` constant at the state `x` given the follower's
+/// inputs `u` and the leader speed `v1`: `w1 = (-v1 sin(alpha12) + v2 sin(beta12) - d w2
+/// cos(beta12)) / l12` (spec 2.4 with `alpha12' = 0`).
+pub fn bearing_holding_turn_rate(x: &PolarState, u: &Vector2<f64>, v1: f64, d: f64) -> f64 {
+    let (l, a, b) = (x[3], x[4], x[5]);
+    (-v1 * a.sin() + u[0] * b.sin() - d * u[1] * b.cos()) / l
+}
+
+/// The separation (m) below which an IMM sigma point is clamped before it is propagated (see
+/// [`imm_process`]); far below any real separation between two robots.
+const SIGMA_POINT_MIN_SEPARATION: f64 = 0.01;
+
+/// The IMM's three process functions over `z = [x, v1, w1, a_v, a_w]`: model 0 (A) moves the
 /// formation with the leader velocity `[v1, w1]` and integrates the accelerations into it;
 /// model 1 (B) moves it with the formation-holding velocity of the follower's inputs and
-/// stores that velocity in `[v1, w1]` (accelerations kept).
+/// stores that velocity in `[v1, w1]` (accelerations kept); model 2 (C) keeps model A's
+/// speed but turns at the rate that holds `alpha12` (the follower holds the bearing while
+/// its separation changes). The documented recovery for sigma points outside the model's
+/// domain: `l12` below [`SIGMA_POINT_MIN_SEPARATION`] is clamped to it, and a step the model
+/// refuses because the separation would cross zero is taken with the leader stopped, or not
+/// at all; so a wide covariance (coasting on the initial velocity prior) never fails a
+/// track. The mean is checked at construction: a non-positive initial `l12` is an error.
 fn imm_process<'a>(
     model: &'a PolarModel,
     u: &'a Vector2<f64>,
@@ -289,22 +331,47 @@ fn imm_process<'a>(
     failure: &'a Cell<Option<UnicycleError>>,
 ) -> impl FnMut(usize, &Joint) -> Joint + 'a {
     move |j, z| {
-        let x: PolarState = z.fixed_rows::<6>(0).into_owned();
-        let w = if j == 0 {
-            Vector2::new(z[6], z[7])
-        } else {
-            formation_holding_velocity(&x, u, model.d())
+        let mut x: PolarState = z.fixed_rows::<6>(0).into_owned();
+        // Sigma points outside the model's domain (drawn from a wide covariance while
+        // coasting) are clamped to a separation of `SIGMA_POINT_MIN_SEPARATION`.
+        if x[3] < SIGMA_POINT_MIN_SEPARATION {
+            x[3] = SIGMA_POINT_MIN_SEPARATION;
+        }
+        let w = match j {
+            0 => Vector2::new(z[6], z[7]),
+            1 => formation_holding_velocity(&x, u, model.d()),
+            _ => Vector2::new(z[6], bearing_holding_turn_rate(&x, u, z[6], model.d())),
         };
-        match model.f(&x, u, &w, dt) {
+        // The documented recovery: a sigma point whose separation the step would drive
+        // through zero (a leader speed many standard deviations out, e.g. while coasting with
+        // the wide initial velocity prior) is propagated with the leader stopped, so that the
+        // step succeeds and the spread of `l12` stays finite instead of failing the track.
+        let result = match model.f(&x, u, &w, dt) {
+            Err(UnicycleError::SeparationTooSmall { .. }) => {
+                match model.f(&x, u, &Vector2::new(0.0, w[1]), dt) {
+                    Err(UnicycleError::SeparationTooSmall { .. }) => Ok(x),
+                    other => other,
+                }
+            }
+            other => other,
+        };
+        match result {
             Ok(next) => {
                 let mut out = *z;
                 out.fixed_rows_mut::<6>(0).copy_from(&next);
-                if j == 0 {
-                    out[6] += z[8] * dt;
-                    out[7] += z[9] * dt;
-                } else {
-                    out[6] = w[0];
-                    out[7] = w[1];
+                match j {
+                    0 => {
+                        out[6] += z[8] * dt;
+                        out[7] += z[9] * dt;
+                    }
+                    1 => {
+                        out[6] = w[0];
+                        out[7] = w[1];
+                    }
+                    _ => {
+                        out[6] += z[8] * dt;
+                        out[7] = w[1];
+                    }
                 }
                 out
             }
@@ -351,6 +418,13 @@ impl ImmEngine {
             }
             .into());
         }
+        if !(config.x0[3] > SIGMA_POINT_MIN_SEPARATION) {
+            return Err(UnicycleError::SeparationTooSmall {
+                l12: config.x0[3],
+                min: SIGMA_POINT_MIN_SEPARATION,
+            }
+            .into());
+        }
         let mut z0 = Joint::zeros();
         z0.fixed_rows_mut::<6>(0).copy_from(&config.x0);
         z0[6] = t.w0[0];
@@ -372,9 +446,15 @@ impl ImmEngine {
         let mut qb = qa;
         qb[(3, 3)] += (i.held_rate_std[0] * dt).powi(2);
         qb[(4, 4)] += (i.held_rate_std[1] * dt).powi(2);
-        let transition = sojourn_transition::<2>(dt, i.sojourn)?;
-        let imm = Imm::new([ukf, ukf], [i.mu0_a, 1.0 - i.mu0_a], transition)?;
-        Ok(Self { imm, q: [qa, qb] })
+        let mut qc = qa;
+        qc[(4, 4)] += (i.held_rate_std[1] * dt).powi(2);
+        let transition = sojourn_transition::<3>(dt, i.sojourn)?;
+        let rest = 0.5 * (1.0 - i.mu0_a);
+        let imm = Imm::new([ukf, ukf, ukf], [i.mu0_a, rest, rest], transition)?;
+        Ok(Self {
+            imm,
+            q: [qa, qb, qc],
+        })
     }
 
     fn snapshot(&self) -> Snapshot {
@@ -436,7 +516,10 @@ impl FormationFilter {
             snapshot,
             last_nis: None,
             model_probabilities: match t.design {
-                FilterDesign::Imm => Some([t.imm.mu0_a, 1.0 - t.imm.mu0_a]),
+                FilterDesign::Imm => {
+                    let rest = 0.5 * (1.0 - t.imm.mu0_a);
+                    Some([t.imm.mu0_a, rest, rest])
+                }
                 FilterDesign::Dual => None,
             },
         })
@@ -562,9 +645,9 @@ impl FormationFilter {
         self.last_nis
     }
 
-    /// The IMM's model probabilities `[constant-acceleration leader, formation held]` after
-    /// the last step (`None` for the dual UKF).
-    pub fn model_probabilities(&self) -> Option<[f64; 2]> {
+    /// The IMM's model probabilities `[constant-acceleration leader, formation held, bearing
+    /// held]` after the last step (`None` for the dual UKF).
+    pub fn model_probabilities(&self) -> Option<[f64; 3]> {
         self.model_probabilities
     }
 
@@ -701,6 +784,12 @@ mod tests {
     fn separation_at_zero_is_the_models_error() {
         let mut config = config();
         config.x0[3] = 0.0;
+        // The IMM refuses it at construction; the dual UKF at its first step.
+        assert!(matches!(
+            FormationFilter::new(&config),
+            Err(FilterError::Model(UnicycleError::SeparationTooSmall { .. }))
+        ));
+        config.tuning.design = FilterDesign::Dual;
         let mut f = FormationFilter::new(&config).unwrap();
         let err = f.predict_only(Inputs::new(0.5, 0.0)).unwrap_err();
         assert!(
@@ -714,6 +803,8 @@ mod tests {
 
     #[test]
     fn coasting_grows_the_uncertainty_and_a_measurement_shrinks_it() {
+        // Also the regression test of the IMM's sigma-point clamp: coasting on the initial
+        // velocity prior (1 m/s) drew sigma points with l12 < 0, which failed the step.
         let mut f = filter();
         let s0 = f.formation_std()[0];
         for _ in 0..10 {
@@ -729,6 +820,60 @@ mod tests {
         .unwrap();
         assert!(f.formation_std()[0] < s1);
         assert!(f.leader_velocity_std()[0] < 1.0);
+    }
+
+    #[test]
+    fn the_imm_is_the_default_and_the_dual_ukf_stays_selectable() {
+        let mut imm = filter();
+        assert_eq!(imm.design(), FilterDesign::Imm);
+        let mut cfg = config();
+        cfg.tuning.design = FilterDesign::Dual;
+        let mut dual = FormationFilter::new(&cfg).unwrap();
+        assert_eq!(dual.design(), FilterDesign::Dual);
+        assert_eq!(dual.model_probabilities(), None);
+        let y = Vector3::new(1.03, 0.245, 0.245);
+        for _ in 0..30 {
+            imm.step(&y, &r(), Inputs::new(0.8, 0.0)).unwrap();
+            dual.step(&y, &r(), Inputs::new(0.8, 0.0)).unwrap();
+        }
+        let mu = imm.model_probabilities().unwrap();
+        assert!((mu.iter().sum::<f64>() - 1.0).abs() < 1e-12, "{mu:?}");
+        // The IMM estimates formation and velocity jointly: cross terms; the dual UKF none.
+        let c = imm.estimate_covariance();
+        assert!(c.fixed_view::<3, 2>(0, 3).amax() > 0.0);
+        assert!((c - c.transpose()).amax() < 1e-15);
+        assert_eq!(
+            dual.estimate_covariance().fixed_view::<3, 2>(0, 3).amax(),
+            0.0
+        );
+        assert!(imm.last_nis().is_some_and(|n| n.is_finite() && n >= 0.0));
+    }
+
+    #[test]
+    fn holding_velocities_hold_the_formation() {
+        // Through the model: with the holding velocity, l12' = alpha12' = 0.
+        let model = PolarModel::new(0.5).unwrap();
+        let x = PolarState::from_row_slice(&[1.5, 0.25, 0.3, 1.2, 0.3, -0.2]);
+        let u = Vector2::new(0.7, 0.15);
+        let w = formation_holding_velocity(&x, &u, 0.5);
+        let dx = model.derivative(&x, &u, &w).unwrap();
+        assert!(dx[3].abs() < 1e-12 && dx[4].abs() < 1e-12, "{dx:?}");
+        let w1 = bearing_holding_turn_rate(&x, &u, 0.9, 0.5);
+        let dx = model.derivative(&x, &u, &Vector2::new(0.9, w1)).unwrap();
+        assert!(dx[4].abs() < 1e-12 && dx[3].abs() > 0.1, "{dx:?}");
+    }
+
+    #[test]
+    fn bad_imm_settings_are_errors() {
+        let mut cfg = config();
+        cfg.tuning.imm.mu0_a = 1.5;
+        assert!(FormationFilter::new(&cfg).is_err());
+        let mut cfg = config();
+        cfg.tuning.imm.sojourn = 0.0;
+        assert!(FormationFilter::new(&cfg).is_err());
+        let mut cfg = config();
+        cfg.tuning.imm.jerk[0] = f64::NAN;
+        assert!(FormationFilter::new(&cfg).is_err());
     }
 
     #[test]
