@@ -295,7 +295,7 @@ fn write_header(md: &mut String, runs: &ReferenceRuns) {
         "Filter (the default, `FilterDesign::Imm`): the interacting multiple-model filter of \
          three unscented filters over [x1, y1, theta1, l12, alpha12, beta12, v1, w1, a_v, a_w] \
          (A: the leader accelerates, jerk [{}] m/s^3, rad/s^3; B: the follower holds the \
-         formation, rate deviations [{}] m/s, rad/s; C: the follower holds the bearing), mean \
+         formation, its held variables drifting by a random walk of per-step std [{}] x dt; C: the follower holds the bearing), mean \
          sojourn time {} s, initial probability of A {}, process noise on the pose \
          [{}] and on the formation [{}] per step; the same w0, Pw0, P0 and UT parameters as \
          the dual UKF. See \"The IMM design\" below.\n",

@@ -15,8 +15,8 @@
 //!   jerk: a property of the robot, not of a scenario).
 //! - **B, the follower holds the formation**: the leader velocity is the one that keeps
 //!   `l12` and `alpha12` constant given the follower's known inputs
-//!   ([`formation_holding_velocity`]); the formation rates deviate from 0 by
-//!   [`ImmTuning::held_rate_std`]. `beta12` is still predicted through the model.
+//!   ([`formation_holding_velocity`]); the held variables drift by a small random walk
+//!   ([`ImmTuning::held_rate_std`]). `beta12` is still predicted through the model.
 //! - **C, the follower holds the bearing**: model A's speed, and the turn rate that keeps
 //!   `alpha12` constant ([`bearing_holding_turn_rate`]): the follower changes its separation
 //!   (a set-point step) while holding the bearing.
@@ -131,9 +131,10 @@ pub struct ImmTuning {
     /// Process noise per step on `[l12, alpha12, beta12]` in both models (m^2, rad^2, rad^2):
     /// the model error of one RK4 step, not a motion.
     pub formation_q: Vector3<f64>,
-    /// Model B ("the follower holds the formation"): standard deviation per step of the
-    /// formation rates `[l12', alpha12']` around 0 (`[m/s, rad/s]`); the leader velocity
-    /// that holds the formation absorbs it.
+    /// Models B and C ("the follower holds the formation / the bearing"): the held variables
+    /// (`l12` and `alpha12` in B, `alpha12` in C) move by a random walk of per-step standard
+    /// deviation `held_rate_std * dt` (m, rad), i.e. a drift of the held formation at up to
+    /// about `held_rate_std` (`[m/s, rad/s]`).
     pub held_rate_std: Vector2<f64>,
     /// Mean time a model stays in force, seconds (the switching matrix is
     /// `Pi_jj = exp(-dt / sojourn)`).
