@@ -175,14 +175,14 @@ impl<const N: usize, const K: usize, S: Space<N> + Copy> Imm<N, K, S> {
             let space = self.filters[j].space();
             let xj = self.filters[j].state();
             let mut dx = SVector::<f64, N>::zeros();
-            for i in 0..K {
-                dx += space.residual(self.filters[i].state(), xj) * w[i];
+            for (fi, wi) in self.filters.iter().zip(w) {
+                dx += space.residual(fi.state(), xj) * wi;
             }
             let x0 = space.add(xj, &dx);
             let mut p0 = SMatrix::<f64, N, N>::zeros();
-            for i in 0..K {
-                let d = space.residual(self.filters[i].state(), &x0);
-                p0 += (self.filters[i].covariance() + d * d.transpose()) * w[i];
+            for (fi, wi) in self.filters.iter().zip(w) {
+                let d = space.residual(fi.state(), &x0);
+                p0 += (fi.covariance() + d * d.transpose()) * wi;
             }
             filters[j]
                 .reset(x0, (p0 + p0.transpose()) * 0.5)

@@ -419,7 +419,7 @@ impl ImmEngine {
             }
             .into());
         }
-        if !(config.x0[3] > SIGMA_POINT_MIN_SEPARATION) {
+        if config.x0[3].is_nan() || config.x0[3] <= SIGMA_POINT_MIN_SEPARATION {
             return Err(UnicycleError::SeparationTooSmall {
                 l12: config.x0[3],
                 min: SIGMA_POINT_MIN_SEPARATION,
