@@ -7,7 +7,7 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use dukf::{AngleMask, DualUkf, Euclidean, Ukf, UtParams};
+use dukf::{AngleMask, DualUkf, Euclidean, Imm, Ukf, UtParams, sojourn_transition};
 use nalgebra::{SMatrix, SVector};
 
 type V6 = SVector<f64, 6>;
@@ -118,5 +118,39 @@ fn bench(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, bench);
+/// One IMM step of two models over the same 6-state (model 0 moving with the toy's
+/// velocities, model 1 standing still), as the formation filter runs it (at 10 states there).
+fn bench_imm(c: &mut Criterion) {
+    let ys = measurements();
+    let (sx, sy) = spaces();
+    let x0 = V6::from_column_slice(&[1.5, 0.25, 0.0, 1.047, 0.233, 0.232]);
+    let p0 = SMatrix::<f64, 6, 6>::identity() * 0.01;
+    let q = SMatrix::<f64, 6, 6>::identity() * 1e-5;
+    let r = SMatrix::<f64, 3, 3>::from_diagonal(&V3::new(0.07, 0.03, 0.03));
+    let member = Ukf::new(x0, p0, sx, UtParams::default()).expect("valid filter");
+    let pi = sojourn_transition::<2>(DT, 2.0).expect("valid switching matrix");
+    let mut imm = Imm::new([member, member], [0.5, 0.5], pi).expect("valid IMM");
+    let (w, still) = (V2::new(0.25, 0.1), V2::zeros());
+    let qs = [q, q];
+    let mut k = 0;
+    c.bench_function("dukf/imm_step_2x6x3", |b| {
+        b.iter(|| {
+            let y = &ys[k % ys.len()];
+            k += 1;
+            black_box(
+                imm.step(
+                    |j, x| if j == 0 { f(x, &w) } else { f(x, &still) },
+                    &qs,
+                    black_box(y),
+                    h,
+                    &r,
+                    &sy,
+                )
+                .expect("imm step"),
+            )
+        });
+    });
+}
+
+criterion_group!(benches, bench, bench_imm);
 criterion_main!(benches);

@@ -227,6 +227,24 @@ pub enum UkfError {
         source: Box<UkfError>,
     },
 
+    /// The model probabilities or the switching matrix of an [`Imm`](crate::Imm) are not
+    /// probabilities.
+    #[error("invalid IMM model probabilities: {reason}")]
+    InvalidModelProbabilities {
+        /// What is wrong.
+        reason: &'static str,
+    },
+
+    /// One model of an IMM step failed; no model and no probability was changed.
+    #[error("IMM model {model}: {source}")]
+    Imm {
+        /// Index of the model that failed.
+        model: usize,
+        /// What went wrong in it.
+        #[source]
+        source: Box<UkfError>,
+    },
+
     /// The smoother was given no filtered estimates.
     #[error("the smoother needs at least one filtered estimate; the history is empty")]
     EmptyHistory,
@@ -251,11 +269,21 @@ impl UkfError {
         }
     }
 
-    /// The innermost error: for [`UkfError::Dual`] and [`UkfError::Smoothing`] the wrapped
-    /// error, otherwise `self`.
+    /// Wraps this error as coming from model `model` of an IMM step.
+    pub(crate) fn in_imm(self, model: usize) -> Self {
+        UkfError::Imm {
+            model,
+            source: Box::new(self),
+        }
+    }
+
+    /// The innermost error: for [`UkfError::Dual`], [`UkfError::Imm`] and
+    /// [`UkfError::Smoothing`] the wrapped error, otherwise `self`.
     pub fn root(&self) -> &UkfError {
         match self {
-            UkfError::Dual { source, .. } | UkfError::Smoothing { source, .. } => source.root(),
+            UkfError::Dual { source, .. }
+            | UkfError::Imm { source, .. }
+            | UkfError::Smoothing { source, .. } => source.root(),
             other => other,
         }
     }

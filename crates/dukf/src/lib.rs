@@ -11,6 +11,9 @@
 //!   over `x` with the parameters `w` held at their estimate, and a parameter filter over `w`
 //!   as a random walk observing the same `y` through `g(w) = h(f(x^_{k-1}, w))`.
 //!   [`DualUkf::step`] for a frame with a measurement, [`DualUkf::predict_only`] without.
+//! - [`Imm`]: the interacting multiple-model filter (Blom and Bar-Shalom) over `K`
+//!   unscented filters sharing one state, the models (`f(j, x)`, `Q_j`) supplied by the
+//!   caller; [`sojourn_transition`] builds its switching matrix from a mean sojourn time.
 //! - [`RtsSmoother`]: the unscented Rauch-Tung-Striebel smoother (Särkkä 2008) that runs
 //!   backwards over a finished forward pass's filtered estimates ([`Gaussian`]), recomputing
 //!   each prediction from the filtered sigma points; see its module for the equations and
@@ -126,6 +129,7 @@ pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 mod dual;
 mod error;
+mod imm;
 mod jitter;
 mod sigma;
 pub mod smoother;
@@ -135,6 +139,7 @@ mod ukf;
 
 pub use dual::{DualPredictReport, DualReport, DualUkf};
 pub use error::{Covariance, DualFilter, Function, Input, UkfError};
+pub use imm::{Imm, ImmReport, sojourn_transition};
 pub use jitter::{Factored, JitterPolicy, factor_repaired};
 pub use sigma::{SigmaPoints, UtParams, Weights};
 pub use smoother::{Gaussian, RtsSmoother, Smoothed};

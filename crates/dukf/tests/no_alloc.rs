@@ -1,4 +1,4 @@
-//! After construction, a UKF step and a dual step perform zero heap allocations.
+//! After construction, a UKF step, a dual step and an IMM step perform zero heap allocations.
 //!
 //! A counting global allocator (per thread, so the test harness's own threads do not
 //! interfere) counts every `alloc`/`realloc` made while the filters run.
@@ -7,7 +7,7 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
-use dukf::{AngleMask, DualUkf, Euclidean, Ukf, UtParams};
+use dukf::{AngleMask, DualUkf, Euclidean, Imm, Ukf, UtParams, sojourn_transition};
 use nalgebra::{SMatrix, SVector};
 
 struct Counting;
@@ -81,7 +81,7 @@ fn h(x: &V6) -> V3 {
 }
 
 #[test]
-fn ukf_and_dual_steps_do_not_allocate() {
+fn ukf_dual_and_imm_steps_do_not_allocate() {
     let x0 = V6::from_column_slice(&[1.5, 0.25, 0.0, 1.047, 0.233, 0.232]);
     let p0 = SMatrix::<f64, 6, 6>::identity() * 0.01;
     let q = SMatrix::<f64, 6, 6>::identity() * 1e-5;
@@ -118,6 +118,18 @@ fn ukf_and_dual_steps_do_not_allocate() {
     )
     .unwrap();
 
+    // A two-model IMM over the same state: model 0 with `w`, model 1 standing still.
+    let member = Ukf::new(x0, p0, state_space, UtParams::default()).unwrap();
+    let mut imm = Imm::new(
+        [member, member],
+        [0.5, 0.5],
+        sojourn_transition::<2>(DT, 2.0).unwrap(),
+    )
+    .unwrap();
+    let qs = [q, q];
+    let still = V2::zeros();
+    let fj = |j: usize, x: &V6| if j == 0 { f(x, &w) } else { f(x, &still) };
+
     let mut ok = true;
     let n = allocations_during(|| {
         for _ in 0..50 {
@@ -125,6 +137,9 @@ fn ukf_and_dual_steps_do_not_allocate() {
             ok &= ukf.update(&y, h, &r, &meas_space).is_ok();
             ok &= dual.step(f, h, &y, &r).is_ok();
             ok &= dual.predict_only(f).is_ok();
+            ok &= imm.step(fj, &qs, &y, h, &r, &meas_space).is_ok();
+            ok &= imm.predict_only(fj, &qs).is_ok();
+            ok &= imm.estimate().0.iter().all(|v| v.is_finite());
             ok &= singular
                 .predict(|x| V2::new(x[0], x[0]), &SMatrix::<f64, 2, 2>::zeros())
                 .is_ok_and(|rep| rep.jitter > 0.0);

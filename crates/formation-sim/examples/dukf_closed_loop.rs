@@ -17,8 +17,9 @@
 //! (measurement 6; its velocity columns are meaningless, it estimates no velocity).
 #![allow(clippy::unwrap_used)]
 
-use formation_sim::reproduce::{Baseline, baseline, paper_filter_config, run_filter};
+use formation_sim::reproduce::{Baseline, baseline, paper_filter_config_with, run_filter};
 use formation_sim::scenario::{PAPER_X0, Sample, Scenario, ScenarioConfig};
+use formation_tracker::filter::FilterDesign;
 use formation_tracker::filter::FormationFilter;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -45,7 +46,12 @@ fn closed_loop(seed: u64) -> Scenario {
     let start = Formation::from_poses(&config.leader0, &config.follower0, config.d).unwrap();
     let controller =
         SeparationBearingController::new(config.d, ControllerConfig::hold(&start)).unwrap();
-    let mut filter = FormationFilter::new(&paper_filter_config(config.d, config.dt)).unwrap();
+    let mut filter = FormationFilter::new(&paper_filter_config_with(
+        config.d,
+        config.dt,
+        FilterDesign::Dual,
+    ))
+    .unwrap();
     let noise: Vec<Normal<f64>> = config
         .noise_std
         .iter()
@@ -100,7 +106,11 @@ fn main() {
     let mut spread = vec![];
     for seed in lo..=hi {
         let s = closed_loop(seed);
-        let run = run_filter(&s, &paper_filter_config(s.config.d, s.config.dt)).unwrap();
+        let run = run_filter(
+            &s,
+            &paper_filter_config_with(s.config.d, s.config.dt, FilterDesign::Dual),
+        )
+        .unwrap();
         dual.push(run.summary);
         smooth.push(run.smoothed_summary);
         rw.push(baseline(&s, &x0, Baseline::RANDOM_WALK));

@@ -30,8 +30,9 @@
     clippy::too_many_lines,
     clippy::type_complexity
 )]
-use formation_sim::reproduce::{Baseline, baseline, paper_filter_config, run_filter};
+use formation_sim::reproduce::{Baseline, baseline, paper_filter_config_with, run_filter};
 use formation_sim::scenario::{PAPER_X0, ScenarioConfig, simulate};
+use formation_tracker::filter::FilterDesign;
 use nalgebra::{Matrix2, SMatrix, SVector, Vector2};
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -294,7 +295,7 @@ fn run_joint(
 
 /// One dual-UKF configuration (11 numbers) over the scenarios.
 fn run_dual(scen: &[formation_sim::scenario::Scenario], v: &[f64], line: &str) {
-    let mut cfg = paper_filter_config(0.5, 1.0 / 30.0);
+    let mut cfg = paper_filter_config_with(0.5, 1.0 / 30.0, FilterDesign::Dual);
     cfg.tuning.rr = Matrix2::from_diagonal(&Vector2::new(v[0], v[1]));
     cfg.tuning.q = SMatrix::<f64, 6, 6>::from_diagonal(&SVector::<f64, 6>::from_row_slice(&[
         v[5], v[5], v[5], v[2], v[3], v[4],

@@ -1,7 +1,8 @@
-//! The dual-UKF reproduction of the paper's Figs. 12-13: the formation filter run over a
-//! simulated [`Scenario`], step records, and the figures of merit.
+//! The reproduction of the paper's Figs. 12-13: the formation filter (the IMM by default,
+//! the paper's dual UKF on request) run over a simulated [`Scenario`], step records, and the
+//! figures of merit.
 
-use formation_tracker::filter::{FilterConfig, FilterError, FormationFilter};
+use formation_tracker::filter::{FilterConfig, FilterDesign, FilterError, FormationFilter};
 use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 use unicycle::{PolarModel, PolarState, wrap_angle};
@@ -20,9 +21,16 @@ pub enum ReproduceError {
 }
 
 /// The filter configuration of the reproduction: the paper's initial state `x0` with the
-/// reference tuning.
+/// reference tuning (the IMM design).
 pub fn paper_filter_config(d: f64, dt: f64) -> FilterConfig {
     FilterConfig::new(d, dt, PolarState::from_row_slice(&PAPER_X0))
+}
+
+/// [`paper_filter_config`] with the given filter design.
+pub fn paper_filter_config_with(d: f64, dt: f64, design: FilterDesign) -> FilterConfig {
+    let mut config = paper_filter_config(d, dt);
+    config.tuning.design = design;
+    config
 }
 
 /// One filtered frame of a reproduction run.
@@ -305,18 +313,35 @@ pub fn run_filter(
     })
 }
 
-/// The dual-UKF reproduction of the paper's Figs. 12-13: the reference scenario with `seed`
-/// (and the paper's bias if `bias`), filtered with [`paper_filter_config`].
+/// The reproduction of the paper's Figs. 12-13: the reference scenario with `seed` (and the
+/// paper's bias if `bias`), filtered with [`paper_filter_config`] (the default design, the
+/// IMM).
 ///
 /// # Errors
 /// Any [`ReproduceError`].
 pub fn reproduce(seed: u64, bias: bool) -> Result<Reproduction, ReproduceError> {
+    reproduce_with(seed, bias, FilterDesign::Imm)
+}
+
+/// As [`reproduce`] with the given filter design ([`FilterDesign::Dual`]: the paper's dual
+/// UKF, for comparison).
+///
+/// # Errors
+/// Any [`ReproduceError`].
+pub fn reproduce_with(
+    seed: u64,
+    bias: bool,
+    design: FilterDesign,
+) -> Result<Reproduction, ReproduceError> {
     let mut config = ScenarioConfig::reference(seed);
     if bias {
         config = config.with_paper_bias();
     }
     let scenario = simulate(&config)?;
-    run_filter(&scenario, &paper_filter_config(config.d, config.dt))
+    run_filter(
+        &scenario,
+        &paper_filter_config_with(config.d, config.dt, design),
+    )
 }
 
 /// Which single-measurement Kalman filter a [`baseline`] runs on each of `l12`, `alpha12`,

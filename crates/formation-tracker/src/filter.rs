@@ -1,26 +1,48 @@
-//! The formation filter: Wan and van der Merwe's dual unscented Kalman filter (spec 5, crate
-//! `dukf`) over the unicycle polar model (spec 2.4, crate `unicycle`).
+//! The formation filter over the unicycle polar model (spec 2.4, crate `unicycle`): by
+//! default an interacting multiple-model (IMM) filter of three unscented filters (crate
+//! `dukf`), or, selectable with [`FilterTuning::design`], the paper's dual UKF (spec 5).
 //!
-//! [`FormationFilter`] is the piece the tracker reuses per leader: a state filter over
-//! `x = [x1, y1, theta1, l12, alpha12, beta12]` and a parameter filter over the leader's
-//! velocities `w = [v1, w1]` (a random walk), both fed the measurement
-//! `y = [l12, alpha12, beta12]` and the follower's own inputs `u = [v2, w2]`.
+//! [`FormationFilter`] is the piece the tracker reuses per leader. It is fed the measurement
+//! `y = [l12, alpha12, beta12]` and the follower's own inputs `u = [v2, w2]`, and estimates
+//! the state `x = [x1, y1, theta1, l12, alpha12, beta12]` and the leader's velocities
+//! `[v1, w1]`.
 //!
-//! # Parameter uncertainty in the state prediction
-//! In the plain dual filter the state filter treats `w^` as exact, so while `w^` is still
-//! wrong (at the start `w0 = [0, 0]` against a leader at 0.8 m/s) the state filter's
-//! covariance is far too small and its estimate drifts with the wrong velocity. With
-//! [`FilterTuning::propagate_parameter_uncertainty`] (on in the reference configuration) the
-//! state filter's process noise at each step is `Q + J Pw- J^T`, with `J = df/dw` at the
-//! current estimate (central differences) and `Pw- = Pw + Rr` the parameter filter's
-//! predicted covariance: the velocity uncertainty enters the state covariance exactly as a
-//! first-order propagation says it should. The measurement models are untouched.
+//! # The IMM design (the default)
+//! The three models share the joint state `z = [x, v1, w1, a_v, a_w]` (the leader's
+//! accelerations included), so they mix exactly (Blom and Bar-Shalom; `dukf::Imm`):
+//! - **A, the leader accelerates**: `[v1, w1]` move with `[a_v, a_w]`, which are a random walk
+//!   of per-step standard deviation `jerk * dt` ([`ImmTuning::jerk`], the leader's largest
+//!   jerk: a property of the robot, not of a scenario).
+//! - **B, the follower holds the formation**: the leader velocity is the one that keeps
+//!   `l12` and `alpha12` constant given the follower's known inputs
+//!   ([`formation_holding_velocity`]); the held variables drift by a small random walk
+//!   ([`ImmTuning::held_rate_std`]). `beta12` is still predicted through the model.
+//! - **C, the follower holds the bearing**: model A's speed, and the turn rate that keeps
+//!   `alpha12` constant ([`bearing_holding_turn_rate`]): the follower changes its separation
+//!   (a set-point step) while holding the bearing.
+//!
+//! The switching matrix has one constant, the mean time a model stays in force
+//! ([`ImmTuning::sojourn`], `Pi_jj = exp(-dt / sojourn)`). The follower knows that its own
+//! controller is holding the formation: models B and C use that knowledge, model A does not
+//! need it. `docs/dukf-reproduction.md` has the measurements.
+//!
+//! # The dual UKF and the parameter uncertainty in its state prediction
+//! A state filter over `x` and a parameter filter over `w = [v1, w1]` (a random walk with
+//! [`FilterTuning::rr`]). In the plain dual filter the state filter treats `w^` as exact, so
+//! while `w^` is still wrong (at the start `w0 = [0, 0]` against a leader at 0.8 m/s) the
+//! state filter's covariance is far too small and its estimate drifts with the wrong
+//! velocity. With [`FilterTuning::propagate_parameter_uncertainty`] (on in the reference
+//! configuration) the state filter's process noise at each step is `Q + J Pw- J^T`, with
+//! `J = df/dw` at the current estimate (central differences) and `Pw- = Pw + Rr` the
+//! parameter filter's predicted covariance.
 //!
 //! # Offline smoothing
 //! [`FormationFilter::record`] copies the estimates after a step into a [`FilterStep`];
 //! [`FormationFilter::smooth`] runs the unscented RTS smoother of `dukf` backwards over such a
 //! history, over the state and the leader velocities together (see `smooth.rs` and
-//! `docs/smoothing.md`), giving one [`SmoothedStep`] per recorded step.
+//! `docs/smoothing.md`), giving one [`SmoothedStep`] per recorded step. The smoother reruns its
+//! own joint forward pass (leader velocity a random walk with `Q` and `Rr`) from the first
+//! recorded estimate, so it works the same behind either causal design.
 
 mod smooth;
 
@@ -28,7 +50,7 @@ pub use smooth::{FilterStep, SmoothedStep};
 
 use std::cell::Cell;
 
-use dukf::{AngleMask, DualUkf, Euclidean, Ukf, UkfError, UtParams};
+use dukf::{AngleMask, DualUkf, Euclidean, Imm, Ukf, UkfError, UtParams, sojourn_transition};
 use nalgebra::{Matrix2, Matrix3, Matrix5, SMatrix, SVector, Vector2, Vector3};
 use unicycle::{
     Formation, Inputs, MEASUREMENT_ANGLES, PolarModel, PolarState, STATE_ANGLES, UnicycleError,
@@ -38,6 +60,10 @@ use unicycle::{
 type Matrix6 = SMatrix<f64, 6, 6>;
 type Vector6 = SVector<f64, 6>;
 type Dual = DualUkf<6, 2, 3, AngleMask<6>, Euclidean, AngleMask<3>>;
+/// The IMM's joint state `[x1, y1, theta1, l12, alpha12, beta12, v1, w1, a_v, a_w]`.
+type Joint = SVector<f64, 10>;
+type Matrix10 = SMatrix<f64, 10, 10>;
+type ImmFilter = Imm<10, 3, AngleMask<10>>;
 
 /// Errors of the formation filter.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -74,8 +100,71 @@ pub struct FilterTuning {
     pub rr: Matrix2<f64>,
     /// Whether the state prediction adds `J Pw- J^T` (see the module documentation).
     pub propagate_parameter_uncertainty: bool,
-    /// Scaled unscented transform parameters, used by both filters.
+    /// Scaled unscented transform parameters, used by every filter.
     pub ut: UtParams,
+    /// Which causal filter runs: the IMM (the default) or the paper's dual UKF.
+    pub design: FilterDesign,
+    /// The IMM's settings (unused by the dual UKF).
+    pub imm: ImmTuning,
+}
+
+/// Which causal filter a [`FormationFilter`] runs (see the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FilterDesign {
+    /// The interacting multiple-model filter over the joint state `[x, v1, w1, a_v, a_w]`:
+    /// a constant-acceleration leader and a follower holding the formation.
+    Imm,
+    /// The paper's dual UKF: a state filter over `x` and a parameter filter over `[v1, w1]`
+    /// (a random walk with [`FilterTuning::rr`]).
+    Dual,
+}
+
+/// The settings of the IMM design; every number is a property of a robot or of the
+/// simulation, none of a scenario (`docs/dukf-reproduction.md`, "The IMM design").
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImmTuning {
+    /// The leader's largest jerk `[m/s^3, rad/s^3]`: model A's accelerations are a random
+    /// walk with per-step standard deviation `jerk * dt`.
+    pub jerk: Vector2<f64>,
+    /// Standard deviation of the initial leader accelerations `[m/s^2, rad/s^2]` (mean 0).
+    pub acceleration_std: Vector2<f64>,
+    /// Process noise per step on `[l12, alpha12, beta12]` in both models (m^2, rad^2, rad^2):
+    /// the model error of one RK4 step, not a motion.
+    pub formation_q: Vector3<f64>,
+    /// Models B and C ("the follower holds the formation / the bearing"): the held variables
+    /// (`l12` and `alpha12` in B, `alpha12` in C) move by a random walk of per-step standard
+    /// deviation `held_rate_std * dt` (m, rad), i.e. a drift of the held formation at up to
+    /// about `held_rate_std` (`[m/s, rad/s]`).
+    pub held_rate_std: Vector2<f64>,
+    /// Mean time a model stays in force, seconds (the switching matrix is
+    /// `Pi_jj = exp(-dt / sojourn)`).
+    pub sojourn: f64,
+    /// Initial probability of model A (constant-acceleration leader); models B and C share
+    /// the rest equally.
+    pub mu0_a: f64,
+}
+
+impl ImmTuning {
+    /// The reference settings: `jerk = [0.5, 0.5]` (about twice the largest jerk of any
+    /// fixture's leader), `acceleration_std = [0.2, 0.2]`, `formation_q = 1e-9` each,
+    /// `held_rate_std = [0.01, 0.01]` (1 cm/s, 0.01 rad/s), `sojourn = 20 s`, `mu0_a = 0.5`
+    /// (the other two models share the rest).
+    pub fn reference() -> Self {
+        Self {
+            jerk: Vector2::new(0.5, 0.5),
+            acceleration_std: Vector2::new(0.2, 0.2),
+            formation_q: Vector3::new(1e-9, 1e-9, 1e-9),
+            held_rate_std: Vector2::new(0.01, 0.01),
+            sojourn: 20.0,
+            mu0_a: 0.5,
+        }
+    }
+}
+
+impl Default for ImmTuning {
+    fn default() -> Self {
+        Self::reference()
+    }
 }
 
 impl FilterTuning {
@@ -94,6 +183,8 @@ impl FilterTuning {
             rr: Matrix2::from_diagonal(&Vector2::new(1e-4, 1e-4)),
             propagate_parameter_uncertainty: true,
             ut: UtParams::new(1.0, 2.0, 0.0),
+            design: FilterDesign::Imm,
+            imm: ImmTuning::reference(),
         }
     }
 }
@@ -130,16 +221,45 @@ impl FilterConfig {
     }
 }
 
-/// A dual UKF tracking one leader's formation variables and velocities.
+/// The causal filter inside a [`FormationFilter`].
+#[derive(Debug, Clone)]
+enum Engine {
+    Dual(Box<Dual>),
+    Imm(Box<ImmEngine>),
+}
+
+/// The IMM, its two models' process noises and the measurement space.
+#[derive(Debug, Clone)]
+struct ImmEngine {
+    imm: ImmFilter,
+    q: [Matrix10; 3],
+}
+
+/// The estimates the accessors return, refreshed after every successful step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Snapshot {
+    state: PolarState,
+    state_covariance: Matrix6,
+    velocity: Vector2<f64>,
+    velocity_covariance: Matrix2<f64>,
+    /// Covariance of `[l12, alpha12, beta12]` with `[v1, w1]` (zero for the dual UKF).
+    cross: SMatrix<f64, 3, 2>,
+}
+
+/// A filter tracking one leader's formation variables and velocities: by default the IMM,
+/// or the paper's dual UKF ([`FilterTuning::design`]).
 #[derive(Debug, Clone)]
 pub struct FormationFilter {
     model: PolarModel,
     dt: f64,
     q: Matrix6,
+    rr: Matrix2<f64>,
     propagate: bool,
     ut: UtParams,
-    dual: Dual,
+    engine: Engine,
+    snapshot: Snapshot,
     last_nis: Option<f64>,
+    model_probabilities: Option<[f64; 3]>,
 }
 
 fn state_space() -> Result<AngleMask<6>, UkfError> {
@@ -170,6 +290,102 @@ fn process<'a>(
     }
 }
 
+/// The leader velocity `[v1, w1]` that keeps `l12` and `alpha12` constant at the state `x`
+/// given the follower's inputs `u` (spec 2.4 with `l12' = alpha12' = 0`):
+/// `v1 = (v2 cos(beta12) + d w2 sin(beta12)) / cos(alpha12)`,
+/// `w1 = (-v1 sin(alpha12) + v2 sin(beta12) - d w2 cos(beta12)) / l12`. Non-finite when
+/// `cos(alpha12) = 0` (the leader abeam: no speed holds the separation).
+pub fn formation_holding_velocity(x: &PolarState, u: &Vector2<f64>, d: f64) -> Vector2<f64> {
+    let (l, a, b) = (x[3], x[4], x[5]);
+    let (v2, w2) = (u[0], u[1]);
+    let v1 = (v2 * b.cos() + d * w2 * b.sin()) / a.cos();
+    let w1 = (-v1 * a.sin() + v2 * b.sin() - d * w2 * b.cos()) / l;
+    Vector2::new(v1, w1)
+}
+
+/// The leader turn rate that keeps `alpha12` constant at the state `x` given the follower's
+/// inputs `u` and the leader speed `v1`: `w1 = (-v1 sin(alpha12) + v2 sin(beta12) - d w2
+/// cos(beta12)) / l12` (spec 2.4 with `alpha12' = 0`).
+pub fn bearing_holding_turn_rate(x: &PolarState, u: &Vector2<f64>, v1: f64, d: f64) -> f64 {
+    let (l, a, b) = (x[3], x[4], x[5]);
+    (-v1 * a.sin() + u[0] * b.sin() - d * u[1] * b.cos()) / l
+}
+
+/// The separation (m) below which an IMM sigma point is clamped before it is propagated (see
+/// [`imm_process`]); far below any real separation between two robots.
+const SIGMA_POINT_MIN_SEPARATION: f64 = 0.01;
+
+/// The IMM's three process functions over `z = [x, v1, w1, a_v, a_w]`: model 0 (A) moves the
+/// formation with the leader velocity `[v1, w1]` and integrates the accelerations into it;
+/// model 1 (B) moves it with the formation-holding velocity of the follower's inputs and
+/// stores that velocity in `[v1, w1]` (accelerations kept); model 2 (C) keeps model A's
+/// speed but turns at the rate that holds `alpha12` (the follower holds the bearing while
+/// its separation changes). The documented recovery for sigma points outside the model's
+/// domain: `l12` below [`SIGMA_POINT_MIN_SEPARATION`] is clamped to it, and a step the model
+/// refuses because the separation would cross zero is taken with the leader stopped, or not
+/// at all; so a wide covariance (coasting on the initial velocity prior) never fails a
+/// track. The mean is checked at construction: a non-positive initial `l12` is an error.
+fn imm_process<'a>(
+    model: &'a PolarModel,
+    u: &'a Vector2<f64>,
+    dt: f64,
+    failure: &'a Cell<Option<UnicycleError>>,
+) -> impl FnMut(usize, &Joint) -> Joint + 'a {
+    move |j, z| {
+        let mut x: PolarState = z.fixed_rows::<6>(0).into_owned();
+        // Sigma points outside the model's domain (drawn from a wide covariance while
+        // coasting) are clamped to a separation of `SIGMA_POINT_MIN_SEPARATION`.
+        if x[3] < SIGMA_POINT_MIN_SEPARATION {
+            x[3] = SIGMA_POINT_MIN_SEPARATION;
+        }
+        let w = match j {
+            0 => Vector2::new(z[6], z[7]),
+            1 => formation_holding_velocity(&x, u, model.d()),
+            _ => Vector2::new(z[6], bearing_holding_turn_rate(&x, u, z[6], model.d())),
+        };
+        // The documented recovery: a sigma point whose separation the step would drive
+        // through zero (a leader speed many standard deviations out, e.g. while coasting with
+        // the wide initial velocity prior) is propagated with the leader stopped, so that the
+        // step succeeds and the spread of `l12` stays finite instead of failing the track.
+        let result = match model.f(&x, u, &w, dt) {
+            Err(UnicycleError::SeparationTooSmall { .. }) => {
+                match model.f(&x, u, &Vector2::new(0.0, w[1]), dt) {
+                    Err(UnicycleError::SeparationTooSmall { .. }) => Ok(x),
+                    other => other,
+                }
+            }
+            other => other,
+        };
+        match result {
+            Ok(next) => {
+                let mut out = *z;
+                out.fixed_rows_mut::<6>(0).copy_from(&next);
+                match j {
+                    0 => {
+                        out[6] += z[8] * dt;
+                        out[7] += z[9] * dt;
+                    }
+                    1 => {
+                        out[6] = w[0];
+                        out[7] = w[1];
+                    }
+                    _ => {
+                        out[6] += z[8] * dt;
+                        out[7] = w[1];
+                    }
+                }
+                out
+            }
+            Err(e) => {
+                if failure.get().is_none() {
+                    failure.set(Some(e));
+                }
+                Joint::repeat(f64::NAN)
+            }
+        }
+    }
+}
+
 /// The filter's result, preferring the model's own error when a sigma point was refused.
 fn outcome<T>(
     result: Result<T, UkfError>,
@@ -182,55 +398,160 @@ fn outcome<T>(
     }
 }
 
+impl ImmEngine {
+    fn new(config: &FilterConfig) -> Result<Self, FilterError> {
+        let t = &config.tuning;
+        let i = &t.imm;
+        let dt = config.dt;
+        let finite = i
+            .jerk
+            .iter()
+            .chain(i.acceleration_std.iter())
+            .all(|v| v.is_finite())
+            && i.formation_q
+                .iter()
+                .chain(i.held_rate_std.iter())
+                .all(|v| v.is_finite())
+            && (0.0..=1.0).contains(&i.mu0_a);
+        if !finite {
+            return Err(UkfError::InvalidModelProbabilities {
+                reason: "the IMM tuning needs finite noises and mu0_a in [0, 1]",
+            }
+            .into());
+        }
+        if config.x0[3].is_nan() || config.x0[3] <= SIGMA_POINT_MIN_SEPARATION {
+            return Err(UnicycleError::SeparationTooSmall {
+                l12: config.x0[3],
+                min: SIGMA_POINT_MIN_SEPARATION,
+            }
+            .into());
+        }
+        let mut z0 = Joint::zeros();
+        z0.fixed_rows_mut::<6>(0).copy_from(&config.x0);
+        z0[6] = t.w0[0];
+        z0[7] = t.w0[1];
+        let mut p0 = Matrix10::zeros();
+        p0.fixed_view_mut::<6, 6>(0, 0).copy_from(&t.p0);
+        p0.fixed_view_mut::<2, 2>(6, 6).copy_from(&t.pw0);
+        p0[(8, 8)] = i.acceleration_std[0].powi(2);
+        p0[(9, 9)] = i.acceleration_std[1].powi(2);
+        let space = AngleMask::<10>::from_indices(&STATE_ANGLES)?;
+        let ukf = Ukf::new(z0, p0, space, t.ut)?;
+        let mut qa = Matrix10::zeros();
+        for k in 0..3 {
+            qa[(k, k)] = t.q[(k, k)];
+            qa[(3 + k, 3 + k)] = i.formation_q[k];
+        }
+        qa[(8, 8)] = (i.jerk[0] * dt).powi(2);
+        qa[(9, 9)] = (i.jerk[1] * dt).powi(2);
+        let mut qb = qa;
+        qb[(3, 3)] += (i.held_rate_std[0] * dt).powi(2);
+        qb[(4, 4)] += (i.held_rate_std[1] * dt).powi(2);
+        let mut qc = qa;
+        qc[(4, 4)] += (i.held_rate_std[1] * dt).powi(2);
+        let transition = sojourn_transition::<3>(dt, i.sojourn)?;
+        let rest = 0.5 * (1.0 - i.mu0_a);
+        let imm = Imm::new([ukf, ukf, ukf], [i.mu0_a, rest, rest], transition)?;
+        Ok(Self {
+            imm,
+            q: [qa, qb, qc],
+        })
+    }
+
+    fn snapshot(&self) -> Snapshot {
+        let (z, p) = self.imm.estimate();
+        Snapshot {
+            state: z.fixed_rows::<6>(0).into_owned(),
+            state_covariance: p.fixed_view::<6, 6>(0, 0).into_owned(),
+            velocity: Vector2::new(z[6], z[7]),
+            velocity_covariance: p.fixed_view::<2, 2>(6, 6).into_owned(),
+            cross: p.fixed_view::<3, 2>(3, 6).into_owned(),
+        }
+    }
+}
+
+fn dual_snapshot(dual: &Dual) -> Snapshot {
+    Snapshot {
+        state: *dual.state(),
+        state_covariance: *dual.state_covariance(),
+        velocity: *dual.parameters(),
+        velocity_covariance: *dual.parameter_covariance(),
+        cross: SMatrix::zeros(),
+    }
+}
+
 impl FormationFilter {
     /// A filter from its configuration.
     ///
     /// # Errors
     /// A bad offset or time step, non-finite or non-positive-definite initial covariances, or
-    /// bad unscented-transform parameters.
+    /// bad unscented-transform parameters or IMM settings.
     pub fn new(config: &FilterConfig) -> Result<Self, FilterError> {
         if !(config.dt.is_finite() && config.dt > 0.0) {
             return Err(FilterError::InvalidTimeStep { dt: config.dt });
         }
         let model = PolarModel::new(config.d)?;
         let t = &config.tuning;
-        let state = Ukf::new(config.x0, t.p0, state_space()?, t.ut)?;
-        let params = Ukf::new(t.w0, t.pw0, Euclidean, t.ut)?;
-        let dual = DualUkf::new(state, params, t.q, t.rr, measurement_space()?)?;
+        let (engine, snapshot) = match t.design {
+            FilterDesign::Dual => {
+                let state = Ukf::new(config.x0, t.p0, state_space()?, t.ut)?;
+                let params = Ukf::new(t.w0, t.pw0, Euclidean, t.ut)?;
+                let dual = DualUkf::new(state, params, t.q, t.rr, measurement_space()?)?;
+                let snapshot = dual_snapshot(&dual);
+                (Engine::Dual(Box::new(dual)), snapshot)
+            }
+            FilterDesign::Imm => {
+                let engine = ImmEngine::new(config)?;
+                let snapshot = engine.snapshot();
+                (Engine::Imm(Box::new(engine)), snapshot)
+            }
+        };
         Ok(Self {
             model,
             dt: config.dt,
             q: t.q,
+            rr: t.rr,
             propagate: t.propagate_parameter_uncertainty,
             ut: t.ut,
-            dual,
+            engine,
+            snapshot,
             last_nis: None,
+            model_probabilities: match t.design {
+                FilterDesign::Imm => {
+                    let rest = 0.5 * (1.0 - t.imm.mu0_a);
+                    Some([t.imm.mu0_a, rest, rest])
+                }
+                FilterDesign::Dual => None,
+            },
         })
     }
 
-    /// Sets the state process noise for this step: `Q`, plus `F_w Pw- F_w^T` when
+    /// The dual filter's state process noise for this step: `Q`, plus `F_w Pw- F_w^T` when
     /// configured, with `F_w = df/dw` by central differences at the current estimates.
-    fn prepare_process_noise(&mut self, u: &Vector2<f64>) -> Result<(), FilterError> {
-        if !self.propagate {
-            return Ok(());
-        }
-        let x = *self.dual.state();
-        let w = *self.dual.parameters();
+    fn prepare_process_noise(
+        model: &PolarModel,
+        dt: f64,
+        q: &Matrix6,
+        dual: &mut Dual,
+        u: &Vector2<f64>,
+    ) -> Result<(), FilterError> {
+        let x = *dual.state();
+        let w = *dual.parameters();
         let mut fw = SMatrix::<f64, 6, 2>::zeros();
         for j in 0..2 {
             let h = 1e-6 * (1.0 + w[j].abs());
             let (mut wp, mut wm) = (w, w);
             wp[j] += h;
             wm[j] -= h;
-            let mut d = self.model.f(&x, u, &wp, self.dt)? - self.model.f(&x, u, &wm, self.dt)?;
+            let mut d = model.f(&x, u, &wp, dt)? - model.f(&x, u, &wm, dt)?;
             for i in STATE_ANGLES {
                 d[i] = wrap_angle(d[i]);
             }
             fw.set_column(j, &(d / (2.0 * h)));
         }
-        let pw = self.dual.parameter_covariance() + self.dual.parameter_noise();
-        let q = self.q + fw * pw * fw.transpose();
-        self.dual.set_process_noise((q + q.transpose()) * 0.5)?;
+        let pw = dual.parameter_covariance() + dual.parameter_noise();
+        let q = q + fw * pw * fw.transpose();
+        dual.set_process_noise((q + q.transpose()) * 0.5)?;
         Ok(())
     }
 
@@ -247,16 +568,40 @@ impl FormationFilter {
         u: Inputs,
     ) -> Result<(), FilterError> {
         let u: Vector2<f64> = u.into();
-        self.prepare_process_noise(&u)?;
         let failure = Cell::new(None);
-        let result = self.dual.step(
-            process(&self.model, &u, self.dt, &failure),
-            PolarModel::h,
-            y,
-            r,
-        );
-        let report = outcome(result, &failure)?;
-        self.last_nis = Some(report.state.nis);
+        match &mut self.engine {
+            Engine::Dual(dual) => {
+                let mut next = **dual;
+                if self.propagate {
+                    Self::prepare_process_noise(&self.model, self.dt, &self.q, &mut next, &u)?;
+                }
+                let result = next.step(
+                    process(&self.model, &u, self.dt, &failure),
+                    PolarModel::h,
+                    y,
+                    r,
+                );
+                let report = outcome(result, &failure)?;
+                **dual = next;
+                self.snapshot = dual_snapshot(dual);
+                self.last_nis = Some(report.state.nis);
+            }
+            Engine::Imm(engine) => {
+                check_inputs(&u)?;
+                let result = engine.imm.step(
+                    imm_process(&self.model, &u, self.dt, &failure),
+                    &engine.q,
+                    y,
+                    |z| Vector3::new(z[3], z[4], z[5]),
+                    r,
+                    &measurement_space()?,
+                );
+                let report = outcome(result, &failure)?;
+                self.snapshot = engine.snapshot();
+                self.last_nis = report.combined_nis;
+                self.model_probabilities = Some(report.probabilities);
+            }
+        }
         Ok(())
     }
 
@@ -267,42 +612,73 @@ impl FormationFilter {
     /// As [`FormationFilter::step`].
     pub fn predict_only(&mut self, u: Inputs) -> Result<(), FilterError> {
         let u: Vector2<f64> = u.into();
-        self.prepare_process_noise(&u)?;
         let failure = Cell::new(None);
-        let result = self
-            .dual
-            .predict_only(process(&self.model, &u, self.dt, &failure));
-        outcome(result, &failure)?;
+        match &mut self.engine {
+            Engine::Dual(dual) => {
+                let mut next = **dual;
+                if self.propagate {
+                    Self::prepare_process_noise(&self.model, self.dt, &self.q, &mut next, &u)?;
+                }
+                let result = next.predict_only(process(&self.model, &u, self.dt, &failure));
+                outcome(result, &failure)?;
+                **dual = next;
+                self.snapshot = dual_snapshot(dual);
+            }
+            Engine::Imm(engine) => {
+                check_inputs(&u)?;
+                let result = engine
+                    .imm
+                    .predict_only(imm_process(&self.model, &u, self.dt, &failure), &engine.q);
+                let report = outcome(result, &failure)?;
+                self.snapshot = engine.snapshot();
+                self.model_probabilities = Some(report.probabilities);
+            }
+        }
         self.last_nis = None;
         Ok(())
     }
 
-    /// The normalised innovation squared `nu^T S^-1 nu` of the state filter's last update
-    /// (chi-square with 3 degrees of freedom when the filter is consistent); `None` before
-    /// the first update and after a frame without a measurement.
+    /// The normalised innovation squared `nu^T S^-1 nu` of the last update (chi-square with 3
+    /// degrees of freedom when the filter is consistent; for the IMM, the probability-weighted
+    /// innovation against the mixture's innovation covariance); `None` before the first
+    /// update and after a frame without a measurement.
     pub fn last_nis(&self) -> Option<f64> {
         self.last_nis
     }
 
+    /// The IMM's model probabilities `[constant-acceleration leader, formation held, bearing
+    /// held]` after the last step (`None` for the dual UKF).
+    pub fn model_probabilities(&self) -> Option<[f64; 3]> {
+        self.model_probabilities
+    }
+
+    /// Which design this filter runs.
+    pub fn design(&self) -> FilterDesign {
+        match self.engine {
+            Engine::Dual(_) => FilterDesign::Dual,
+            Engine::Imm(_) => FilterDesign::Imm,
+        }
+    }
+
     /// The state covariance (order `[x1, y1, theta1, l12, alpha12, beta12]`).
     pub fn state_covariance(&self) -> &Matrix6 {
-        self.dual.state_covariance()
+        &self.snapshot.state_covariance
     }
 
     /// The leader-velocity covariance (order `[v1, w1]`).
     pub fn leader_velocity_covariance(&self) -> &Matrix2<f64> {
-        self.dual.parameter_covariance()
+        &self.snapshot.velocity_covariance
     }
 
     /// The state estimate `[x1, y1, theta1, l12, alpha12, beta12]`.
     pub fn state(&self) -> &PolarState {
-        self.dual.state()
+        &self.snapshot.state
     }
 
     /// Standard deviations of the state estimate.
     pub fn state_std(&self) -> PolarState {
-        self.dual
-            .state_covariance()
+        self.snapshot
+            .state_covariance
             .diagonal()
             .map(|v| v.max(0.0).sqrt())
     }
@@ -319,28 +695,46 @@ impl FormationFilter {
 
     /// The estimated leader velocities `(v1, w1)`.
     pub fn leader_velocity(&self) -> Inputs {
-        (*self.dual.parameters()).into()
+        self.snapshot.velocity.into()
     }
 
-    /// The covariance of `[l12, alpha12, beta12, v1, w1]`: the state filter's block of the
-    /// formation variables and the parameter filter's of the velocities. The dual filter
-    /// keeps no cross-covariance between its two filters, so the formation-velocity terms
-    /// are zero (the smoother's joint pass has them; `docs/smoothing.md`).
+    /// The covariance of `[l12, alpha12, beta12, v1, w1]`. The IMM estimates them jointly, so
+    /// the formation-velocity terms are its own; the dual filter keeps no cross-covariance
+    /// between its two filters, so there they are zero (the smoother's joint pass has them;
+    /// `docs/smoothing.md`).
     pub fn estimate_covariance(&self) -> Matrix5<f64> {
+        let s = &self.snapshot;
         let mut c = Matrix5::zeros();
         c.fixed_view_mut::<3, 3>(0, 0)
-            .copy_from(&self.dual.state_covariance().fixed_view::<3, 3>(3, 3));
+            .copy_from(&s.state_covariance.fixed_view::<3, 3>(3, 3));
         c.fixed_view_mut::<2, 2>(3, 3)
-            .copy_from(self.dual.parameter_covariance());
+            .copy_from(&s.velocity_covariance);
+        c.fixed_view_mut::<3, 2>(0, 3).copy_from(&s.cross);
+        c.fixed_view_mut::<2, 3>(3, 0)
+            .copy_from(&s.cross.transpose());
         c
     }
 
     /// Standard deviations of `(v1, w1)`.
     pub fn leader_velocity_std(&self) -> Vector2<f64> {
-        self.dual
-            .parameter_covariance()
+        self.snapshot
+            .velocity_covariance
             .diagonal()
             .map(|v| v.max(0.0).sqrt())
+    }
+}
+
+/// The follower inputs must be finite (the IMM's model B divides by them only through the
+/// model, which reports a non-finite input as its own error).
+fn check_inputs(u: &Vector2<f64>) -> Result<(), FilterError> {
+    match u.iter().position(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(index) => Err(UnicycleError::NonFinite {
+            what: "follower inputs",
+            index,
+            value: u[index],
+        }
+        .into()),
     }
 }
 
@@ -391,6 +785,12 @@ mod tests {
     fn separation_at_zero_is_the_models_error() {
         let mut config = config();
         config.x0[3] = 0.0;
+        // The IMM refuses it at construction; the dual UKF at its first step.
+        assert!(matches!(
+            FormationFilter::new(&config),
+            Err(FilterError::Model(UnicycleError::SeparationTooSmall { .. }))
+        ));
+        config.tuning.design = FilterDesign::Dual;
         let mut f = FormationFilter::new(&config).unwrap();
         let err = f.predict_only(Inputs::new(0.5, 0.0)).unwrap_err();
         assert!(
@@ -404,6 +804,8 @@ mod tests {
 
     #[test]
     fn coasting_grows_the_uncertainty_and_a_measurement_shrinks_it() {
+        // Also the regression test of the IMM's sigma-point clamp: coasting on the initial
+        // velocity prior (1 m/s) drew sigma points with l12 < 0, which failed the step.
         let mut f = filter();
         let s0 = f.formation_std()[0];
         for _ in 0..10 {
@@ -419,6 +821,60 @@ mod tests {
         .unwrap();
         assert!(f.formation_std()[0] < s1);
         assert!(f.leader_velocity_std()[0] < 1.0);
+    }
+
+    #[test]
+    fn the_imm_is_the_default_and_the_dual_ukf_stays_selectable() {
+        let mut imm = filter();
+        assert_eq!(imm.design(), FilterDesign::Imm);
+        let mut cfg = config();
+        cfg.tuning.design = FilterDesign::Dual;
+        let mut dual = FormationFilter::new(&cfg).unwrap();
+        assert_eq!(dual.design(), FilterDesign::Dual);
+        assert_eq!(dual.model_probabilities(), None);
+        let y = Vector3::new(1.03, 0.245, 0.245);
+        for _ in 0..30 {
+            imm.step(&y, &r(), Inputs::new(0.8, 0.0)).unwrap();
+            dual.step(&y, &r(), Inputs::new(0.8, 0.0)).unwrap();
+        }
+        let mu = imm.model_probabilities().unwrap();
+        assert!((mu.iter().sum::<f64>() - 1.0).abs() < 1e-12, "{mu:?}");
+        // The IMM estimates formation and velocity jointly: cross terms; the dual UKF none.
+        let c = imm.estimate_covariance();
+        assert!(c.fixed_view::<3, 2>(0, 3).amax() > 0.0);
+        assert!((c - c.transpose()).amax() < 1e-15);
+        assert_eq!(
+            dual.estimate_covariance().fixed_view::<3, 2>(0, 3).amax(),
+            0.0
+        );
+        assert!(imm.last_nis().is_some_and(|n| n.is_finite() && n >= 0.0));
+    }
+
+    #[test]
+    fn holding_velocities_hold_the_formation() {
+        // Through the model: with the holding velocity, l12' = alpha12' = 0.
+        let model = PolarModel::new(0.5).unwrap();
+        let x = PolarState::from_row_slice(&[1.5, 0.25, 0.3, 1.2, 0.3, -0.2]);
+        let u = Vector2::new(0.7, 0.15);
+        let w = formation_holding_velocity(&x, &u, 0.5);
+        let dx = model.derivative(&x, &u, &w).unwrap();
+        assert!(dx[3].abs() < 1e-12 && dx[4].abs() < 1e-12, "{dx:?}");
+        let w1 = bearing_holding_turn_rate(&x, &u, 0.9, 0.5);
+        let dx = model.derivative(&x, &u, &Vector2::new(0.9, w1)).unwrap();
+        assert!(dx[4].abs() < 1e-12 && dx[3].abs() > 0.1, "{dx:?}");
+    }
+
+    #[test]
+    fn bad_imm_settings_are_errors() {
+        let mut cfg = config();
+        cfg.tuning.imm.mu0_a = 1.5;
+        assert!(FormationFilter::new(&cfg).is_err());
+        let mut cfg = config();
+        cfg.tuning.imm.sojourn = 0.0;
+        assert!(FormationFilter::new(&cfg).is_err());
+        let mut cfg = config();
+        cfg.tuning.imm.jerk[0] = f64::NAN;
+        assert!(FormationFilter::new(&cfg).is_err());
     }
 
     #[test]

@@ -1,4 +1,4 @@
-//! `docs/smoothing.md`: the offline smoother against the causal dual UKF on the reference
+//! `docs/smoothing.md`: the offline smoother against the causal filter (IMM) on the reference
 //! scenario (seeds 1..20 and the never-tuned 21..40) and the scenario fixtures. Written by
 //! `cargo xtask dukf-table` from the same runs as `docs/dukf-reproduction.md`.
 
@@ -48,13 +48,13 @@ fn table(md: &mut String, causal: &[Summary], smoothed: &[Summary], targets: boo
     if targets {
         let _ = writeln!(
             md,
-            "| figure | causal dual UKF | smoothed | smoothed / causal | target | result |\n\
+            "| figure | causal filter (IMM) | smoothed | smoothed / causal | target | result |\n\
              |---|---:|---:|---:|---|---|"
         );
     } else {
         let _ = writeln!(
             md,
-            "| figure | causal dual UKF | smoothed | smoothed / causal |\n|---|---:|---:|---:|"
+            "| figure | causal filter (IMM) | smoothed | smoothed / causal |\n|---|---:|---:|---:|"
         );
     }
     for (name, f, target) in FIELDS {

@@ -8,8 +8,9 @@ use std::path::{Path, PathBuf};
 
 use clap::{Args as ClapArgs, Subcommand};
 use formation_sim::plot::{fig12_panels, fig13_panels, write_png, write_svg};
-use formation_sim::reproduce::{Reproduction, StepRecord, Summary, reproduce};
+use formation_sim::reproduce::{Reproduction, StepRecord, Summary, reproduce_with, run_filter};
 use formation_sim::scenario_file::ScenarioSpec;
+use formation_tracker::filter::FilterDesign;
 
 use super::CliError;
 
@@ -30,8 +31,10 @@ enum What {
     /// Simulates the reference scenario (leader weaving at v1 = 0.8 + 0.2 sin(0.5 t) m/s,
     /// w1 = 0.2 sin(0.4 t) rad/s; follower holding formation, camera offset d = 0.5 m;
     /// 8 s at 30 Hz), measures (l12, alpha12, beta12) with Gaussian noise of standard
-    /// deviations (0.07 m, 0.03 rad, 0.03 rad), and filters with the dual UKF from the
-    /// paper's x0 = [1.5, 0.25, 0, 1.047, 0.233, 0.232], w0 = [0, 0], Pw0 = I.
+    /// deviations (0.07 m, 0.03 rad, 0.03 rad), and filters from the paper's x0 = [1.5,
+    /// 0.25, 0, 1.047, 0.233, 0.232], w0 = [0, 0], Pw0 = I with the formation filter: the
+    /// IMM of a constant-acceleration leader and a held formation (default) or, with
+    /// --dual, the paper's dual UKF.
     ///
     /// Writes into DIR: series.csv (one row per step: true / measured / estimated
     /// l12, alpha12, beta12 and true / estimated v1, w1), fig12.svg + fig12.png (l12 and
@@ -72,17 +75,30 @@ pub struct DukfArgs {
     /// and write series-smoothed.csv and summary-smoothed.json beside the causal ones.
     #[arg(long)]
     smooth: bool,
+    /// Filter with the paper's dual UKF instead of the default IMM formation filter (for
+    /// comparison; docs/dukf-reproduction.md).
+    #[arg(long)]
+    dual: bool,
 }
 
 /// Runs `reproduce`.
 pub fn run(args: Args) -> Result<(), CliError> {
     match args.what {
         What::Dukf(a) => {
-            let run = match &a.scenario {
-                None => run_dukf(&a.out, a.seed, a.bias)?,
-                Some(file) => run_dukf_scenario(&a.out, a.seed, a.bias, file)?,
+            let design = if a.dual {
+                FilterDesign::Dual
+            } else {
+                FilterDesign::Imm
             };
-            let mut text = summary_table(&run.summary);
+            let run = match &a.scenario {
+                None => run_dukf(&a.out, a.seed, a.bias, design)?,
+                Some(file) => run_dukf_scenario(&a.out, a.seed, a.bias, file, design)?,
+            };
+            let label = match design {
+                FilterDesign::Imm => "IMM formation filter,",
+                FilterDesign::Dual => "dual UKF,",
+            };
+            let mut text = summary_table(&run.summary).replacen("dual UKF,", label, 1);
             if a.smooth {
                 write_smoothed(&a.out, &run)?;
                 text.push('\n');
@@ -99,16 +115,21 @@ pub fn run(args: Args) -> Result<(), CliError> {
     }
 }
 
-/// Runs the dual-UKF reproduction and writes every output into `out`; progress goes to
-/// stderr.
-fn run_dukf(out: &Path, seed: u64, bias: bool) -> Result<Reproduction, CliError> {
+/// Runs the reproduction with `design` and writes every output into `out`; progress goes
+/// to stderr.
+fn run_dukf(
+    out: &Path,
+    seed: u64,
+    bias: bool,
+    design: FilterDesign,
+) -> Result<Reproduction, CliError> {
     eprintln!(
         "reproduce dukf: seed {seed}{}, writing to {}",
         if bias { ", with the paper's bias" } else { "" },
         out.display()
     );
     super::prepare_out_dir(out)?;
-    let run = reproduce(seed, bias)?;
+    let run = reproduce_with(seed, bias, design)?;
     write_outputs(out, &run)?;
     Ok(run)
 }
@@ -119,6 +140,7 @@ fn run_dukf_scenario(
     seed: u64,
     bias: bool,
     file: &Path,
+    design: FilterDesign,
 ) -> Result<Reproduction, CliError> {
     let spec = ScenarioSpec::load(file).map_err(|e| e.to_string())?;
     eprintln!(
@@ -128,7 +150,12 @@ fn run_dukf_scenario(
         out.display()
     );
     super::prepare_out_dir(out)?;
-    let run = spec.reproduce(seed, bias)?;
+    let scenario = spec
+        .simulate(seed, bias)
+        .map_err(formation_sim::reproduce::ReproduceError::from)?;
+    let mut config = spec.filter_config();
+    config.tuning.design = design;
+    let run = run_filter(&scenario, &config)?;
     write_outputs(out, &run)?;
     Ok(run)
 }

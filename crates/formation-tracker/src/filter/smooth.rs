@@ -122,10 +122,10 @@ impl FormationFilter {
         FilterStep {
             inputs: u,
             measurement,
-            state: *self.dual.state(),
-            state_covariance: *self.dual.state_covariance(),
-            velocity: *self.dual.parameters(),
-            velocity_covariance: *self.dual.parameter_covariance(),
+            state: self.snapshot.state,
+            state_covariance: self.snapshot.state_covariance,
+            velocity: self.snapshot.velocity,
+            velocity_covariance: self.snapshot.velocity_covariance,
         }
     }
 
@@ -149,8 +149,7 @@ impl FormationFilter {
         };
         let mut q = Matrix8::zeros();
         q.fixed_view_mut::<6, 6>(0, 0).copy_from(&self.q);
-        q.fixed_view_mut::<2, 2>(6, 6)
-            .copy_from(self.dual.parameter_noise());
+        q.fixed_view_mut::<2, 2>(6, 6).copy_from(&self.rr);
         let failure: Cell<Option<UnicycleError>> = Cell::new(None);
         let (model, dt) = (&self.model, self.dt);
         let process = |k: usize, z: &Augmented| -> Augmented {
