@@ -35,8 +35,9 @@ use crate::annotate::{AnnotateError, MarkerLabel, RigOverlay, annotate};
 use crate::reproduce::{MeanSquareErrors, StepRecord};
 use crate::scenario::reference_leader_inputs;
 use crate::scene::{self, CameraSpec, RenderSpec, RobotSpec, SceneError, SceneSpec};
+use formation_tracker::guided::GuidedConfig;
 use formation_tracker::mount::CameraMount;
-use formation_tracker::pipeline::{Pipeline, PipelineError, Timing};
+use formation_tracker::pipeline::{Pipeline, PipelineError, Scan, Timing};
 use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotConfig;
 use formation_tracker::tracker::{MeasurementUse, Status, Tracker, TrackerConfig, TrackerError};
@@ -92,6 +93,11 @@ pub struct DemoConfig {
     pub render: RenderSpec,
     /// Annotated frames kept for the strip: every this many steps (30: one a second).
     pub strip_every: usize,
+    /// The followers' camera (default: 640x480, 60 degrees horizontal field of view).
+    pub camera: CameraSpec,
+    /// Tracking-guided detection in every follower's pipeline (default `None`: every frame
+    /// is scanned whole); see `formation_tracker::guided`.
+    pub guided: Option<GuidedConfig>,
 }
 
 impl Default for DemoConfig {
@@ -109,6 +115,8 @@ impl Default for DemoConfig {
                 seed: 1,
             },
             strip_every: 30,
+            camera: CameraSpec::default(),
+            guided: None,
         }
     }
 }
@@ -131,6 +139,8 @@ pub struct DemoRecord {
     pub occluded: bool,
     /// Stage times of the pipeline.
     pub timing: Timing,
+    /// How the frame was searched (whole, or the predicted regions in guided mode).
+    pub scan: Scan,
     /// Desired separation of the follower's controller, m.
     pub l12_desired: f64,
 }
@@ -351,7 +361,7 @@ fn run_demo_inner(
     mut on_frame: impl FnMut(&DemoFrame<'_>),
 ) -> Result<DemoRun, DemoError> {
     validate(config)?;
-    let camera = CameraSpec::default();
+    let camera = config.camera;
     let world = World {
         config,
         mount: CameraMount::default(),
@@ -455,15 +465,17 @@ fn start_followers(world: &World<'_>, poses: &[Pose]) -> Result<Vec<Follower>, D
     (1..poses.len())
         .map(|j| {
             let start = Formation::from_poses(&poses[j - 1], &poses[j], d)?;
+            let mut pipeline = Pipeline::new(
+                Detector::with_dictionary(DetectorConfig::default(), world.dict.clone()),
+                pose::PoseSolver::new(world.k),
+                (w, h),
+                world.rig.clone(),
+                RobotConfig::default(),
+                Tracker::new(TrackerConfig::reference(d, world.config.dt))?,
+            );
+            pipeline.set_guided(world.config.guided)?;
             Ok(Follower {
-                pipeline: Pipeline::new(
-                    Detector::with_dictionary(DetectorConfig::default(), world.dict.clone()),
-                    pose::PoseSolver::new(world.k),
-                    (w, h),
-                    world.rig.clone(),
-                    RobotConfig::default(),
-                    Tracker::new(TrackerConfig::reference(d, world.config.dt))?,
-                ),
+                pipeline,
                 controller: SeparationBearingController::new(d, ControllerConfig::hold(&start))?,
                 inputs: Inputs::new(0.0, 0.0),
                 trace: FollowerTrace {
@@ -597,6 +609,7 @@ impl Follower {
                 leaders: done.report.leaders.len(),
                 occluded: ctx.occluded && me == 1,
                 timing: done.timing,
+                scan: done.scan,
                 l12_desired: self.controller.config().l12_desired,
             });
         }
