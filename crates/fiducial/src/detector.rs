@@ -291,13 +291,17 @@ impl Detector {
     /// `img`'s coordinates. Regions are cut to the frame and overlapping ones merged first
     /// ([`merge_overlapping`]); a marker read in two regions is reported once. A marker is
     /// found only if it lies wholly inside a region, `border_margin` pixels from its edge.
-    /// `out` is cleared first and keeps its capacity, as in [`Detector::detect`]; once the
-    /// buffers have grown to the largest region, a steady stream allocates nothing.
-    /// Returns the number of quads examined.
+    /// `factor` (1 to 4) is the scale of the quad search in the regions, as in
+    /// [`Detector::detect_coarse`]: a caller that knows the markers will be large (a tracker
+    /// knows how far its leaders are) passes 2 or more, and corners are still refined at full
+    /// resolution. `out` is cleared first and keeps its capacity, as in
+    /// [`Detector::detect`]; once the buffers have grown to the largest region, a steady
+    /// stream allocates nothing. Returns the number of quads examined.
     pub fn detect_in_regions(
         &mut self,
         img: &GrayView<'_>,
         regions: &[Region],
+        factor: usize,
         out: &mut Vec<Decoded>,
     ) -> usize {
         out.clear();
@@ -315,7 +319,7 @@ impl Detector {
             let Some(sub) = img.crop(r) else {
                 continue;
             };
-            self.find_quads_scaled(&sub, 1);
+            self.find_quads_scaled(&sub, factor.clamp(1, 4));
             examined += self.decode_quads(&sub, &mut found);
             let (dx, dy) = (r.x as f64, r.y as f64);
             for mut d in found.drain(..) {

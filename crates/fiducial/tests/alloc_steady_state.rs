@@ -128,7 +128,9 @@ fn steady_state_guided_detection_allocates_nothing() {
         let mut read = 0;
         for (f, r) in frames.iter().zip(&regions) {
             let img = GrayView::new(f, 640, 480).unwrap();
-            det.detect_in_regions(&img, r, out);
+            det.detect_in_regions(&img, r, 1, out);
+            read += out.len();
+            det.detect_in_regions(&img, r, 2, out);
             read += out.len();
             det.detect_coarse(&img, 2, out);
             det.detect(&img, out);

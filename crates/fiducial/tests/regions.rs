@@ -65,7 +65,7 @@ fn regions_read_what_the_full_frame_reads() {
         det.detect(&img, &mut full);
         assert!(full.len() >= 6, "seed {seed}: only {} markers", full.len());
         let regions: Vec<Region> = full.iter().map(|d| box_of(d, 10.0, 640, 480)).collect();
-        det.detect_in_regions(&img, &regions, &mut roi);
+        det.detect_in_regions(&img, &regions, 1, &mut roi);
         let mut a: Vec<usize> = full.iter().map(|d| d.index).collect();
         let mut b: Vec<usize> = roi.iter().map(|d| d.index).collect();
         a.sort_unstable();
@@ -81,9 +81,9 @@ fn regions_read_what_the_full_frame_reads() {
         }
         // A region without any marker reads nothing; a region list of the whole frame
         // reads what the full scan reads.
-        det.detect_in_regions(&img, &[Region::new(0, 0, 8, 8)], &mut roi);
+        det.detect_in_regions(&img, &[Region::new(0, 0, 8, 8)], 1, &mut roi);
         assert!(roi.is_empty());
-        det.detect_in_regions(&img, &[Region::full(640, 480)], &mut roi);
+        det.detect_in_regions(&img, &[Region::full(640, 480)], 1, &mut roi);
         assert_eq!(roi.len(), full.len());
     }
 }
@@ -97,7 +97,20 @@ fn coarse_scan_finds_big_markers_with_full_resolution_corners() {
         let (mut full, mut coarse) = (Vec::new(), Vec::new());
         det.detect(&img, &mut full);
         det.detect_coarse(&img, 2, &mut coarse);
-        for f in full.iter().filter(|f| side(f) >= 40.0) {
+        check_coarse(seed, &full, &coarse, 40.0);
+        // Regions at a coarser scale: every marker of 80 px or more at 3 and at 4.
+        let everything = [Region::full(1280, 960)];
+        for factor in [3, 4] {
+            det.detect_in_regions(&img, &everything, factor, &mut coarse);
+            check_coarse(seed, &full, &coarse, 20.0 * factor as f64);
+        }
+    }
+}
+
+/// Every marker of `full` at least `min_side` px is in `coarse`, with the same corners.
+fn check_coarse(seed: u64, full: &[Decoded], coarse: &[Decoded], min_side: f64) {
+    {
+        for f in full.iter().filter(|f| side(f) >= min_side) {
             assert!(
                 coarse.iter().any(|c| c.index == f.index),
                 "seed {seed}: marker {} of side {:.0} px missed by the coarse scan",
@@ -105,8 +118,8 @@ fn coarse_scan_finds_big_markers_with_full_resolution_corners() {
                 side(f)
             );
         }
-        for c in &coarse {
-            let e = corner_error(&full, c);
+        for c in coarse {
+            let e = corner_error(full, c);
             assert!(
                 e < 0.05,
                 "seed {seed} id {}: corners moved {e:.3} px",

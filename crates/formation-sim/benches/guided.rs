@@ -6,7 +6,8 @@
 //! `detect_coarse2_WxH` scans it at half resolution (corners refined at full resolution,
 //! the periodic scan of guided mode from 1920 px wide); `detect_guided_WxH` searches only
 //! the leader's predicted region, as the pipeline computes it after three tracked frames
-//! (the rig reprojected at the predicted pose, default margins). The same `Detector` type
+//! (the rig reprojected at the predicted pose, default margins, quads searched at the
+//! scale the predicted marker size allows: 1 at 640x480, 4 at 3840x2160). The same `Detector` type
 //! and defaults as `track`; one core.
 
 use criterion::{Criterion, criterion_group, criterion_main};
@@ -24,7 +25,7 @@ use unicycle::{Inputs, Pose};
 const DT: f64 = 1.0 / 30.0;
 
 /// The frame and the leader's predicted region(s).
-fn setup(width: usize, height: usize) -> (Vec<u8>, Vec<Region>) {
+fn setup(width: usize, height: usize) -> (Vec<u8>, Vec<Region>, usize) {
     let camera = CameraSpec {
         width,
         height,
@@ -72,35 +73,28 @@ fn setup(width: usize, height: usize) -> (Vec<u8>, Vec<Region>) {
             .expect("the frame is processed");
     }
     let faces = rig.face_geometries().expect("reference rig");
-    let regions: Vec<Region> = pipeline
+    let cfg = GuidedConfig::default();
+    let predicted: Vec<_> = pipeline
         .tracker()
         .predict(3.0 * DT, still)
         .iter()
-        .filter_map(|p| {
-            leader_region(
-                p,
-                &faces,
-                &mount,
-                &k,
-                (width, height),
-                &GuidedConfig::default(),
-            )
-        })
+        .filter_map(|p| leader_region(p, &faces, &mount, &k, (width, height), &cfg))
         .collect();
-    assert_eq!(regions.len(), 1, "one leader tracked and predicted");
-    (image, regions)
+    assert_eq!(predicted.len(), 1, "one leader tracked and predicted");
+    let factor = predicted[0].factor(&cfg);
+    (image, vec![predicted[0].region], factor)
 }
 
 fn benches(c: &mut Criterion) {
     for (w, h) in [(640usize, 480usize), (3840, 2160)] {
-        let (pixels, regions) = setup(w, h);
+        let (pixels, regions, factor) = setup(w, h);
         let img = GrayView::new(&pixels, w, h).expect("valid frame");
         let mut det = Detector::new(DetectorConfig::default());
         let mut out = Vec::new();
         det.detect(&img, &mut out);
         let seen = out.len();
         assert!(seen >= 2, "{w}x{h}: only {seen} markers read");
-        det.detect_in_regions(&img, &regions, &mut out);
+        det.detect_in_regions(&img, &regions, factor, &mut out);
         assert_eq!(out.len(), seen, "{w}x{h}: the region holds every marker");
         let mut group = c.benchmark_group("formation-sim");
         if w > 1000 {
@@ -120,7 +114,7 @@ fn benches(c: &mut Criterion) {
         });
         group.bench_function(format!("detect_guided_{w}x{h}"), |b| {
             b.iter(|| {
-                det.detect_in_regions(black_box(&img), &regions, &mut out);
+                det.detect_in_regions(black_box(&img), &regions, factor, &mut out);
                 black_box(out.len())
             })
         });

@@ -79,6 +79,8 @@ pub enum Scan {
     },
     /// Only the predicted regions of the tracked leaders (guided mode).
     Guided {
+        /// Decimation factor of the quad search in the regions (1 = full resolution).
+        factor: usize,
         /// Regions searched (before overlapping ones are merged).
         regions: usize,
         /// Pixels in those regions, summed.
@@ -213,11 +215,15 @@ impl Pipeline {
         let periodic = g.since_full + 1 >= g.config.full_scan_period;
         let mut lost_sight = predictions.is_empty() || predictions.iter().any(|p| p.coasting);
         g.regions.clear();
+        let mut region_factor = 4;
         if !periodic && !lost_sight {
             let camera = self.solver.intrinsics();
             for p in &predictions {
                 match leader_region(p, &g.faces, mount, camera, size, &g.config) {
-                    Some(r) => g.regions.push(r),
+                    Some(r) => {
+                        region_factor = region_factor.min(r.factor(&g.config));
+                        g.regions.push(r.region);
+                    }
                     None => {
                         lost_sight = true;
                         break;
@@ -242,8 +248,9 @@ impl Pipeline {
         }
         g.since_full += 1;
         self.detector
-            .detect_in_regions(view, &g.regions, &mut self.decoded);
+            .detect_in_regions(view, &g.regions, region_factor, &mut self.decoded);
         Scan::Guided {
+            factor: region_factor,
             regions: g.regions.len(),
             pixels: g.regions.iter().map(Region::area).sum(),
         }
