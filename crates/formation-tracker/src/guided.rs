@@ -136,7 +136,7 @@ impl GuidedConfig {
                 return Err(bad(what, v, "finite and >= 0"));
             }
         }
-        if !(self.region_px_per_factor > 0.0) {
+        if self.region_px_per_factor.is_nan() || self.region_px_per_factor <= 0.0 {
             return Err(bad(
                 "region_px_per_factor",
                 self.region_px_per_factor,
