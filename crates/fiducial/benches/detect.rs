@@ -4,7 +4,8 @@
 //! blur 1, noise 3) at three frame sizes; `_tag36h11` the 640x480 scene with tag36h11
 //! markers and a tag36h11 detector; `_clean` (noise 0) against `_noisy` (noise 10) at
 //! 640x480; clutter without markers. `fiducial/find_quads_640x480` is the quad phase alone
-//! and `fiducial/baseline_sum_640x480` a plain pass summing the frame's bytes, measured in
+//! (`binarize_640x480` and `label_640x480` its first two stages apart) and
+//! `fiducial/baseline_sum_640x480` a plain pass summing the frame's bytes, measured in
 //! the same run so that ratios survive a loaded machine.
 
 use criterion::{Criterion, criterion_group, criterion_main};
@@ -122,6 +123,21 @@ fn benches(c: &mut Criterion) {
     let mut det = Detector::new(DetectorConfig::default());
     c.bench_function("fiducial/find_quads_640x480", |b| {
         b.iter(|| black_box(det.find_quads(black_box(&img)).len()))
+    });
+    // The stages of the quad phase apart: binarization (3x3 box and tile threshold), then
+    // run-length labelling of the binary image; the rest of find_quads is contour tracing,
+    // quad fitting and sub-pixel refinement of the surviving components.
+    let mut binarizer = fiducial::threshold::Binarizer::new();
+    let mut bin = Vec::new();
+    c.bench_function("fiducial/binarize_640x480", |b| {
+        b.iter(|| {
+            binarizer.binarize(black_box(&img), fiducial::Threshold::default(), &mut bin);
+            black_box(bin.len())
+        })
+    });
+    let mut labeller = fiducial::contour::Labeller::new();
+    c.bench_function("fiducial/label_640x480", |b| {
+        b.iter(|| black_box(labeller.label(black_box(&bin), 640).len()))
     });
     c.bench_function("fiducial/baseline_sum_640x480", |b| {
         b.iter(|| black_box(&vga).iter().map(|&v| u32::from(v)).sum::<u32>())

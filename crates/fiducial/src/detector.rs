@@ -26,6 +26,7 @@ use crate::error::FiducialError;
 use crate::image::{Corners, GrayView};
 use crate::quad::{QuadLimits, fit_quad};
 use crate::refine::{RefineConfig, Refiner};
+use crate::roi::{Region, merge_overlapping};
 use crate::split::{Rect, SplitParams, Splitter};
 use crate::threshold::{Binarizer, Threshold};
 
@@ -152,6 +153,12 @@ pub struct Detector {
     /// Boxes of large components that gave no quad, re-cut by [`Splitter`].
     retry: Vec<Rect>,
     splitter: Splitter,
+    /// The decimated frame of a coarse scan ([`Detector::detect_coarse`]).
+    small: Vec<u8>,
+    /// The merged regions of [`Detector::detect_in_regions`].
+    regions: Vec<Region>,
+    /// One region's markers before they are moved into frame coordinates.
+    region_out: Vec<Decoded>,
 }
 
 impl Default for Detector {
@@ -207,6 +214,9 @@ impl Detector {
             quads: Vec::new(),
             retry: Vec::new(),
             splitter: Splitter::default(),
+            small: Vec::new(),
+            regions: Vec::new(),
+            region_out: Vec::new(),
         }
     }
 
@@ -264,17 +274,7 @@ impl Detector {
             let Some(d) = best else {
                 continue;
             };
-            match out
-                .iter_mut()
-                .find(|o| o.dictionary == d.dictionary && o.index == d.index && overlaps(o, &d))
-            {
-                Some(o) => {
-                    if (d.distance, -d.contrast) < (o.distance, -o.contrast) {
-                        *o = d;
-                    }
-                }
-                None => out.push(d),
-            }
+            push_unique(out, d);
         }
         self.quads.len()
     }
@@ -299,6 +299,77 @@ impl Detector {
     /// quad-finding phase of detection (no decoding). The returned slice lives in the
     /// detector and is overwritten by the next call.
     pub fn find_quads(&mut self, img: &GrayView<'_>) -> &[Quad] {
+        self.find_quads_scaled(img, 1);
+        &self.quads
+    }
+
+    /// Markers in `regions` of `img` only (tracking-guided detection): every stage runs on
+    /// each region alone, through a view of `img` (no copy), and corners come back in
+    /// `img`'s coordinates. Regions are cut to the frame and overlapping ones merged first
+    /// ([`merge_overlapping`]); a marker read in two regions is reported once. A marker is
+    /// found only if it lies wholly inside a region, `border_margin` pixels from its edge.
+    /// `factor` (1 to 4) is the scale of the quad search in the regions, as in
+    /// [`Detector::detect_coarse`]: a caller that knows the markers will be large (a tracker
+    /// knows how far its leaders are) passes 2 or more, and corners are still refined at full
+    /// resolution. `out` is cleared first and keeps its capacity, as in
+    /// [`Detector::detect`]; once the buffers have grown to the largest region, a steady
+    /// stream allocates nothing. Returns the number of quads examined.
+    pub fn detect_in_regions(
+        &mut self,
+        img: &GrayView<'_>,
+        regions: &[Region],
+        factor: usize,
+        out: &mut Vec<Decoded>,
+    ) -> usize {
+        out.clear();
+        self.regions.clear();
+        self.regions.extend(
+            regions
+                .iter()
+                .filter_map(|r| r.clamped(img.width(), img.height())),
+        );
+        merge_overlapping(&mut self.regions);
+        let mut examined = 0;
+        let mut found = std::mem::take(&mut self.region_out);
+        for i in 0..self.regions.len() {
+            let r = self.regions[i];
+            let Some(sub) = img.crop(r) else {
+                continue;
+            };
+            self.find_quads_scaled(&sub, factor.clamp(1, 4));
+            examined += self.decode_quads(&sub, &mut found);
+            let (dx, dy) = (r.x as f64, r.y as f64);
+            for mut d in found.drain(..) {
+                for c in &mut d.corners {
+                    c.x += dx;
+                    c.y += dy;
+                }
+                push_unique(out, d);
+            }
+        }
+        self.region_out = found;
+        examined
+    }
+
+    /// Full-frame detection at a coarser scale, to find big markers cheaply: the frame is
+    /// averaged over `factor x factor` blocks (1 to 4; 1 is [`Detector::detect`]), quads
+    /// are found on that small frame, and their corners are then refined and decoded on the
+    /// full-resolution `img`, so corner accuracy is that of a full scan. Markers whose side
+    /// is below `factor` times `min_side` are not found. `out` as in [`Detector::detect`].
+    /// Returns the number of quads examined.
+    pub fn detect_coarse(
+        &mut self,
+        img: &GrayView<'_>,
+        factor: usize,
+        out: &mut Vec<Decoded>,
+    ) -> usize {
+        self.find_quads_scaled(img, factor.clamp(1, 4));
+        self.decode_quads(img, out)
+    }
+
+    /// The quad phase at `1 / factor` of the resolution (see [`Detector::detect_coarse`]);
+    /// corners are refined on `img` itself.
+    fn find_quads_scaled(&mut self, img: &GrayView<'_>, factor: usize) {
         self.quads.clear();
         let cfg = self.config;
         // The most cells across of any dictionary: the narrowest border cell the edge
@@ -308,22 +379,40 @@ impl Detector {
             .iter()
             .map(|d| f64::from(d.family().width_cells().max(d.family().height_cells())))
             .fold(0.0, f64::max);
-        let (w, h) = (img.width(), img.height());
+        let f = factor.max(1);
+        let (w, h) = if f == 1 {
+            (img.width(), img.height())
+        } else {
+            (img.width() / f, img.height() / f)
+        };
+        if w < 3 || h < 3 {
+            return;
+        }
         // Reserve for the frame size once, so that later frames of this size do not grow
         // the buffers (the run list grows only past one run per 16 pixels).
         if self.bin.capacity() < w * h {
             self.contour.reserve(2 * (w + h) + 16);
             self.quads.reserve(64);
         }
-        self.binarizer.binarize(img, cfg.threshold, &mut self.bin);
+        if f == 1 {
+            self.binarizer.binarize(img, cfg.threshold, &mut self.bin);
+        } else {
+            decimate(img, f, &mut self.small);
+            let Ok(small) = GrayView::new(&self.small, w, h) else {
+                return;
+            };
+            self.binarizer
+                .binarize(&small, cfg.threshold, &mut self.bin);
+        }
+        let scale = f as f64;
         let limits = QuadLimits {
-            min_side: cfg.min_side,
+            min_side: cfg.min_side / scale,
             min_angle_deg: cfg.min_angle_deg,
             line_tolerance: cfg.line_tolerance,
             line_tolerance_rel: cfg.line_tolerance_rel,
         };
         let m = cfg.border_margin.max(1);
-        let min_side = cfg.min_side.max(3.0) as u32;
+        let min_side = (cfg.min_side / scale).max(3.0) as u32;
         self.retry.clear();
         let components = self.labeller.label(&self.bin, w);
         for c in components {
@@ -353,10 +442,19 @@ impl Detector {
                 self.retry.push(rect);
                 continue;
             }
-            let Some(coarse) = fit_quad(&self.contour, &limits) else {
+            let Some(mut coarse) = fit_quad(&self.contour, &limits) else {
                 self.retry.push(rect);
                 continue;
             };
+            if f > 1 {
+                // Small pixel i covers full pixels f i .. f i + f - 1: its centre is at
+                // f i + (f - 1) / 2 in full-resolution pixel-centre coordinates.
+                let off = 0.5 * (scale - 1.0);
+                for c in &mut coarse {
+                    c[0] = c[0] * scale + off;
+                    c[1] = c[1] * scale + off;
+                }
+            }
             let Some((corners, contrast)) =
                 self.refiner
                     .refine(img, &coarse, &cfg.refine, cfg.min_angle_deg, cells_across)
@@ -368,8 +466,10 @@ impl Detector {
                 contrast,
             });
         }
-        self.split_retries(img, &limits, cells_across);
-        &self.quads
+        // Re-cuts run at full resolution only (their boxes are in this scan's pixels).
+        if f == 1 {
+            self.split_retries(img, &limits, cells_across);
+        }
     }
 
     /// Re-cuts the components that gave no quad ([`Splitter`]) and adds the quads found
@@ -418,6 +518,55 @@ impl Detector {
                         quads.push(Quad { corners, contrast });
                     }
                 });
+        }
+    }
+}
+
+/// Adds `d` to `out` unless a reading of the same marker is there (then the better of the
+/// two is kept: fewer bit errors, then higher contrast).
+fn push_unique(out: &mut Vec<Decoded>, d: Decoded) {
+    match out
+        .iter_mut()
+        .find(|o| o.dictionary == d.dictionary && o.index == d.index && overlaps(o, &d))
+    {
+        Some(o) => {
+            if (d.distance, -d.contrast) < (o.distance, -o.contrast) {
+                *o = d;
+            }
+        }
+        None => out.push(d),
+    }
+}
+
+/// The mean of each `f x f` block of `img` into `out` (`width / f` by `height / f`, row
+/// major; the last partial block of a row or column is dropped).
+fn decimate(img: &GrayView<'_>, f: usize, out: &mut Vec<u8>) {
+    let (w, h) = (img.width() / f, img.height() / f);
+    out.clear();
+    out.resize(w * h, 0);
+    let n = (f * f) as u32;
+    for (y, orow) in out.chunks_exact_mut(w.max(1)).enumerate().take(h) {
+        if f == 2 {
+            let (a, b) = (img.row(2 * y), img.row(2 * y + 1));
+            for ((o, pa), pb) in orow
+                .iter_mut()
+                .zip(a.chunks_exact(2))
+                .zip(b.chunks_exact(2))
+            {
+                let s = u32::from(pa[0]) + u32::from(pa[1]) + u32::from(pb[0]) + u32::from(pb[1]);
+                *o = ((s + 2) / 4) as u8;
+            }
+            continue;
+        }
+        for (x, o) in orow.iter_mut().enumerate() {
+            let mut s = 0u32;
+            for yy in f * y..f * y + f {
+                s += img.row(yy)[f * x..f * x + f]
+                    .iter()
+                    .map(|&v| u32::from(v))
+                    .sum::<u32>();
+            }
+            *o = ((s + n / 2) / n) as u8;
         }
     }
 }

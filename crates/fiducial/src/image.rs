@@ -135,6 +135,21 @@ impl<'a> GrayView<'a> {
         &self.data[start..start + self.width]
     }
 
+    /// The part of this image inside `region` (cut to the image), as a view of the same
+    /// buffer with the same stride: no copy. `None` if the region lies wholly outside.
+    /// Pixel `(x, y)` of the result is pixel `(x + r.x, y + r.y)` of this image, where `r`
+    /// is the region after cutting.
+    pub fn crop(&self, region: crate::roi::Region) -> Option<GrayView<'a>> {
+        let r = region.clamped(self.width, self.height)?;
+        let start = r.y * self.stride + r.x;
+        Some(Self {
+            data: &self.data[start..],
+            width: r.width,
+            height: r.height,
+            stride: self.stride,
+        })
+    }
+
     /// The pixel at integer coordinates, or `None` outside the image.
     #[inline]
     pub fn get(&self, x: usize, y: usize) -> Option<u8> {
@@ -175,5 +190,16 @@ mod tests {
         assert_eq!(v.row(2), &[8, 9, 10]);
         assert_eq!(v.get(2, 1), Some(6));
         assert_eq!(v.get(3, 1), None);
+    }
+
+    #[test]
+    fn crops_share_the_buffer() {
+        let buf: Vec<u8> = (0..20).collect();
+        let v = GrayView::new(&buf, 5, 4).unwrap();
+        let c = v.crop(crate::roi::Region::new(3, 1, 10, 2)).unwrap();
+        assert_eq!((c.width(), c.height(), c.stride()), (2, 2, 5));
+        assert_eq!(c.row(0), &[8, 9]);
+        assert_eq!(c.row(1), &[13, 14]);
+        assert!(v.crop(crate::roi::Region::new(5, 0, 1, 1)).is_none());
     }
 }

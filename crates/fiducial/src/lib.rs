@@ -99,6 +99,9 @@
 //! - [`quad`]: four-corner polygons from contours.
 //! - [`refine`]: sub-pixel corners from grey-level edge lines.
 //! - [`detector`](mod@detector): the pipeline ([`Detector`], [`DetectorConfig`]).
+//! - [`roi`]: regions of interest for tracking-guided detection
+//!   ([`Detector::detect_in_regions`]); [`Detector::detect_coarse`] scans a whole frame at
+//!   a coarser scale for big markers and refines their corners at full resolution.
 //!
 //! # Conventions
 //!
@@ -145,6 +148,7 @@ pub mod image;
 pub mod quad;
 pub mod refine;
 pub mod render;
+pub mod roi;
 pub mod split;
 pub mod standard;
 pub mod threshold;
@@ -160,6 +164,7 @@ pub use crate::error::FiducialError;
 pub use crate::family::MarkerFamily;
 pub use crate::image::{Corners, GrayView, ImageError};
 pub use crate::render::{RenderOptions, RenderedMarker, render_marker, render_svg};
+pub use crate::roi::Region;
 pub use crate::standard::{
     StandardDictionary, canonical_name, dictionary_by_name, dictionary_names, standard_dictionaries,
 };

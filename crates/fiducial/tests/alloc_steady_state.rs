@@ -6,7 +6,7 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
-use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Threshold};
+use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Region, Threshold};
 use marker_testkit::{SceneConfig, clutter_frame, marker_scene};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -92,6 +92,56 @@ fn steady_state_detection_allocates_nothing() {
     assert!(read >= 2 * 3 * 7, "only {read} markers read");
     let (allocs, _) = allocations_in_second_pass(Threshold::Otsu);
     assert_eq!(allocs, 0);
+}
+
+/// Guided mode: regions around each marker of the frame (as a tracker would predict them),
+/// and a coarse full scan, over the same stream twice; the second pass allocates nothing.
+#[test]
+fn steady_state_guided_detection_allocates_nothing() {
+    let frames = frames();
+    let mut det = Detector::new(DetectorConfig::default());
+    let mut out = Vec::new();
+    // The regions of each frame: every marker's box with a 12 px margin, from a full scan.
+    let regions: Vec<Vec<Region>> = frames
+        .iter()
+        .map(|f| {
+            det.detect(&GrayView::new(f, 640, 480).unwrap(), &mut out);
+            out.iter()
+                .filter_map(|d| {
+                    let xs = d.corners.map(|c| c.x);
+                    let ys = d.corners.map(|c| c.y);
+                    let lo = |v: [f64; 4]| v.iter().copied().fold(f64::INFINITY, f64::min);
+                    let hi = |v: [f64; 4]| v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                    Region::from_bounds(
+                        lo(xs) - 12.0,
+                        lo(ys) - 12.0,
+                        hi(xs) + 12.0,
+                        hi(ys) + 12.0,
+                        640,
+                        480,
+                    )
+                })
+                .collect()
+        })
+        .collect();
+    let pass = |det: &mut Detector, out: &mut Vec<_>| {
+        let mut read = 0;
+        for (f, r) in frames.iter().zip(&regions) {
+            let img = GrayView::new(f, 640, 480).unwrap();
+            det.detect_in_regions(&img, r, 1, out);
+            read += out.len();
+            det.detect_in_regions(&img, r, 2, out);
+            read += out.len();
+            det.detect_coarse(&img, 2, out);
+            det.detect(&img, out);
+        }
+        read
+    };
+    pass(&mut det, &mut out);
+    let before = allocs();
+    let read = pass(&mut det, &mut out);
+    assert_eq!(allocs() - before, 0);
+    assert!(read >= 3 * 7, "only {read} markers read in the regions");
 }
 
 #[test]

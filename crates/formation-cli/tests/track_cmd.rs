@@ -204,3 +204,79 @@ fn json_lines_name_the_source_of_each_frame() {
         .collect();
     assert_eq!(sources, ["frames/f0.png", "frames/f1.png", "frames/f2.png"]);
 }
+
+/// `--guided` (#12): the same leaders and estimates close to the full-frame run's; frames
+/// between the periodic full scans are searched in the predicted regions only, and every
+/// line says how it was searched.
+#[test]
+fn guided_mode_tracks_as_full_frame_does() {
+    let clip = common::reference_clip("guided", FRAMES);
+    let base = [
+        "frames",
+        "--camera",
+        "camera.yaml",
+        "--inputs",
+        "inputs.csv",
+        "--fps",
+        "30",
+        "--json",
+    ];
+    let (full_out, stderr, code) = track(&base, &clip.dir, None);
+    assert_eq!(code, Some(0), "{stderr}");
+    let mut args = base.to_vec();
+    args.extend(["--guided", "--full-scan-every", "5"]);
+    let (guided_out, stderr, code) = track(&args, &clip.dir, None);
+    assert_eq!(code, Some(0), "{stderr}");
+    let (full, guided) = (lines(&full_out), lines(&guided_out));
+    assert_eq!(full.len(), guided.len());
+    let mut in_regions = 0;
+    for (a, b) in full.iter().zip(&guided) {
+        assert_eq!(a["scan"]["mode"], "full");
+        assert_eq!(a["scan"]["factor"], 1);
+        match b["scan"]["mode"].as_str().unwrap() {
+            "guided" => {
+                in_regions += 1;
+                assert!(b["scan"]["pixels"].as_u64().unwrap() > 0);
+            }
+            mode => assert_eq!(mode, "full"),
+        }
+        let ids = |f: &serde_json::Value| -> Vec<u64> {
+            f["leaders"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|l| l["robot"].as_u64().unwrap())
+                .collect()
+        };
+        assert_eq!(ids(a), ids(b), "frame {}", a["frame"]);
+        for (la, lb) in a["leaders"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(b["leaders"].as_array().unwrap())
+        {
+            assert_eq!(la["status"], lb["status"]);
+            let (x, y) = (la["l12"].as_f64().unwrap(), lb["l12"].as_f64().unwrap());
+            assert!(
+                (x - y).abs() < 0.01,
+                "frame {}: l12 {x} against {y}",
+                a["frame"]
+            );
+        }
+    }
+    // Frame 0 and every fifth after it are full scans; the others are guided.
+    assert!(in_regions >= FRAMES / 2, "{in_regions} guided frames");
+    // --full-scan-every needs --guided, and 0 is refused.
+    let (_, stderr, code) = track(
+        &[&base[..], &["--full-scan-every", "3"]].concat(),
+        &clip.dir,
+        None,
+    );
+    assert_eq!(code, Some(2), "{stderr}");
+    let (_, stderr, code) = track(
+        &[&base[..], &["--guided", "--full-scan-every", "0"]].concat(),
+        &clip.dir,
+        None,
+    );
+    assert_eq!(code, Some(2), "{stderr}");
+}

@@ -46,8 +46,9 @@ use crate::reproduce::{MeanSquareErrors, StepRecord};
 use crate::scenario::reference_leader_inputs;
 use crate::scenario_file::{GradientSpec, MotionBlurSpec, ScenarioSpec};
 use crate::scene::{self, CameraSpec, RenderSpec, RobotSpec, SceneError, SceneSpec};
+use formation_tracker::guided::GuidedConfig;
 use formation_tracker::mount::CameraMount;
-use formation_tracker::pipeline::{Pipeline, PipelineError, Timing};
+use formation_tracker::pipeline::{Pipeline, PipelineError, Scan, Timing};
 use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotConfig;
 use formation_tracker::tracker::{MeasurementUse, Status, Tracker, TrackerConfig, TrackerError};
@@ -119,6 +120,9 @@ pub struct DemoConfig {
     /// reference inputs from the starting line (see the module documentation). Only with two
     /// robots.
     pub scenario: Option<ScenarioSpec>,
+    /// Tracking-guided detection in every follower's pipeline (default `None`: every frame
+    /// is scanned whole); see `formation_tracker::guided`.
+    pub guided: Option<GuidedConfig>,
 }
 
 impl DemoConfig {
@@ -151,6 +155,7 @@ impl DemoConfig {
             motion_blur: v.render.motion_blur,
             gradient: v.render.gradient,
             scenario: Some(spec.clone()),
+            guided: None,
         }
     }
 }
@@ -175,6 +180,7 @@ impl Default for DemoConfig {
             motion_blur: None,
             gradient: None,
             scenario: None,
+            guided: None,
         }
     }
 }
@@ -197,6 +203,8 @@ pub struct DemoRecord {
     pub occluded: bool,
     /// Stage times of the pipeline.
     pub timing: Timing,
+    /// How the frame was searched (whole, or the predicted regions in guided mode).
+    pub scan: Scan,
     /// Desired separation of the follower's controller, m.
     pub l12_desired: f64,
     /// Normalised innovation squared of the leader's measurement when the tracker used it
@@ -660,15 +668,17 @@ fn start_followers(world: &World<'_>, poses: &[Pose]) -> Result<Vec<Follower>, D
     (1..poses.len())
         .map(|j| {
             let start = Formation::from_poses(&poses[j - 1], &poses[j], d)?;
+            let mut pipeline = Pipeline::new(
+                Detector::with_dictionary(DetectorConfig::default(), world.dict.clone()),
+                pose::PoseSolver::new(world.k),
+                (w, h),
+                world.rig.clone(),
+                RobotConfig::default(),
+                Tracker::new(TrackerConfig::reference(d, world.config.dt))?,
+            );
+            pipeline.set_guided(world.config.guided)?;
             Ok(Follower {
-                pipeline: Pipeline::new(
-                    Detector::with_dictionary(DetectorConfig::default(), world.dict.clone()),
-                    pose::PoseSolver::new(world.k),
-                    (w, h),
-                    world.rig.clone(),
-                    RobotConfig::default(),
-                    Tracker::new(TrackerConfig::reference(d, world.config.dt))?,
-                ),
+                pipeline,
                 controller: SeparationBearingController::new(d, ControllerConfig::hold(&start))?,
                 setpoints_applied: 0,
                 inputs: Inputs::new(0.0, 0.0),
@@ -847,6 +857,7 @@ impl Follower {
                 leaders: done.report.leaders.len(),
                 occluded: ctx.occluded && me == 1,
                 timing: done.timing,
+                scan: done.scan,
                 l12_desired: self.controller.config().l12_desired,
                 nis: track.and_then(|l| l.nis),
             });

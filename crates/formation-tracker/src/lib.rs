@@ -23,6 +23,9 @@
 //! - [`tracker`]: [`tracker::Tracker`], one [`filter::FormationFilter`] per leader robot
 //!   over time: per-frame pose measurements in, formation variables and leader velocities
 //!   out, with coasting, loss and re-acquisition, planar-ambiguity resolution and gating.
+//! - [`guided`]: tracking-guided detection: each leader's predicted image region
+//!   (its rig reprojected at the predicted pose, with a margin from the prediction's
+//!   covariance), and when to scan the full frame ([`guided::GuidedConfig`]).
 //! - [`pipeline`]: one camera frame (a grey image) through detection, robot poses and the
 //!   tracker, with the time of each stage.
 //!
@@ -33,6 +36,7 @@
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 pub mod filter;
+pub mod guided;
 pub mod mount;
 pub mod pipeline;
 pub mod rig;

@@ -4,7 +4,10 @@
 //! decoded markers', the observations'), so a steady stream reuses them. Per frame:
 //!
 //! 1. **Detect** markers with `fiducial::Detector` (dictionary index and corners in the
-//!    marker's own order).
+//!    marker's own order): on the whole frame, or, in guided mode
+//!    ([`Pipeline::set_guided`], [`crate::guided`]), only in the regions where the tracker
+//!    predicts its leaders, with a full-frame scan every `full_scan_period` frames and
+//!    whenever a track coasts. [`PipelineFrame::scan`] says which.
 //! 2. **Pose** every robot with [`crate::robots::measure_robots`]: markers grouped by robot
 //!    through the rig's table, one joint pose per robot, an inconsistent face rejected, the
 //!    pose refined on the ground plane and turned into `(l12, alpha12, beta12)` with its
@@ -20,14 +23,15 @@
 
 use std::time::Instant;
 
-use fiducial::{Decoded, Detector, GrayView};
+use fiducial::{Decoded, Detector, GrayView, Region};
 use nalgebra::{Matrix3, Vector3};
 use pose::PoseSolver;
 use serde::Serialize;
 use unicycle::Inputs;
 
+use crate::guided::{GuidedConfig, GuidedError, leader_region};
 use crate::mount::CameraMount;
-use crate::rig::RigModel;
+use crate::rig::{Face, RigModel};
 use crate::robots::{MarkerObservation, RobotConfig, RobotMeasurement, measure_robots};
 use crate::tracker::{
     FormationMeasurement, FrameInput, FrameReport, Observation, PoseMeasurement, Tracker,
@@ -55,6 +59,33 @@ pub enum PipelineError {
     /// The tracker refused the frame.
     #[error(transparent)]
     Tracker(#[from] TrackerError),
+    /// A guided-mode setting is out of range.
+    #[error(transparent)]
+    Guided(#[from] GuidedError),
+    /// The rig's faces cannot be built (guided mode projects them).
+    #[error(transparent)]
+    Rig(#[from] crate::rig::RigError),
+}
+
+/// How a frame was searched for markers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(tag = "mode", rename_all = "snake_case")]
+pub enum Scan {
+    /// The whole frame, at `1 / factor` of the resolution for finding quads (corners are
+    /// always refined at full resolution; factor 1 is a plain full scan).
+    Full {
+        /// Decimation factor of the quad search (1 = full resolution).
+        factor: usize,
+    },
+    /// Only the predicted regions of the tracked leaders (guided mode).
+    Guided {
+        /// Decimation factor of the quad search in the regions (1 = full resolution).
+        factor: usize,
+        /// Regions searched (before overlapping ones are merged).
+        regions: usize,
+        /// Pixels in those regions, summed.
+        pixels: usize,
+    },
 }
 
 /// Milliseconds spent in each stage of one frame.
@@ -88,6 +119,18 @@ pub struct PipelineFrame {
     pub failures: Vec<String>,
     /// Stage times.
     pub timing: Timing,
+    /// How the frame was searched for markers.
+    pub scan: Scan,
+}
+
+/// Guided mode's settings and state.
+#[derive(Debug, Clone)]
+struct Guided {
+    config: GuidedConfig,
+    faces: Vec<Face>,
+    /// Frames since the last full scan.
+    since_full: u32,
+    regions: Vec<Region>,
 }
 
 /// Detector, pose solver, rig and tracker for one camera stream.
@@ -101,6 +144,7 @@ pub struct Pipeline {
     tracker: Tracker,
     decoded: Vec<Decoded>,
     markers: Vec<MarkerObservation>,
+    guided: Option<Guided>,
 }
 
 impl Pipeline {
@@ -122,6 +166,93 @@ impl Pipeline {
             tracker,
             decoded: Vec::new(),
             markers: Vec::new(),
+            guided: None,
+        }
+    }
+
+    /// Turns tracking-guided detection on (`Some`) or off (`None`, the default: every frame
+    /// is scanned whole). See [`crate::guided`].
+    ///
+    /// # Errors
+    /// A setting out of range, or a rig whose faces cannot be built; the pipeline is then
+    /// unchanged.
+    pub fn set_guided(&mut self, config: Option<GuidedConfig>) -> Result<(), PipelineError> {
+        self.guided = match config {
+            None => None,
+            Some(config) => {
+                config.validate()?;
+                Some(Guided {
+                    config,
+                    faces: self.rig.face_geometries()?,
+                    since_full: 0,
+                    regions: Vec::new(),
+                })
+            }
+        };
+        Ok(())
+    }
+
+    /// The guided-mode settings, if guided mode is on.
+    pub fn guided(&self) -> Option<&GuidedConfig> {
+        self.guided.as_ref().map(|g| &g.config)
+    }
+
+    /// Detects the markers of `view` into `self.decoded`, on the whole frame or in the
+    /// predicted regions (see [`crate::guided`]).
+    fn detect(
+        &mut self,
+        view: &GrayView<'_>,
+        t: f64,
+        follower: Inputs,
+        mount: &CameraMount,
+    ) -> Scan {
+        let Some(g) = self.guided.as_mut() else {
+            self.detector.detect(view, &mut self.decoded);
+            return Scan::Full { factor: 1 };
+        };
+        let size = (view.width(), view.height());
+        let predictions = self.tracker.predict(t, follower);
+        let periodic = g.since_full + 1 >= g.config.full_scan_period;
+        let mut lost_sight = predictions.is_empty() || predictions.iter().any(|p| p.coasting);
+        g.regions.clear();
+        let mut region_factor = 4;
+        if !periodic && !lost_sight {
+            let camera = self.solver.intrinsics();
+            for p in &predictions {
+                match leader_region(p, &g.faces, mount, camera, size, &g.config) {
+                    Some(r) => {
+                        region_factor = region_factor.min(r.factor(&g.config));
+                        g.regions.push(r.region);
+                    }
+                    None => {
+                        lost_sight = true;
+                        break;
+                    }
+                }
+            }
+        }
+        if periodic || lost_sight {
+            g.since_full = 0;
+            // A leader not seen where predicted is looked for at full resolution.
+            let factor = if lost_sight {
+                1
+            } else {
+                g.config.coarse_factor_for(size.0)
+            };
+            if factor > 1 {
+                self.detector.detect_coarse(view, factor, &mut self.decoded);
+            } else {
+                self.detector.detect(view, &mut self.decoded);
+            }
+            return Scan::Full { factor };
+        }
+        g.since_full += 1;
+        self.detector
+            .detect_in_regions(view, &g.regions, region_factor, &mut self.decoded);
+        Scan::Guided {
+            factor: region_factor,
+            regions: g.regions.len(),
+            pixels: g.regions.iter().map(Region::area).sum(),
         }
     }
 
@@ -160,7 +291,7 @@ impl Pipeline {
         }
         let view = GrayView::new(data, width, height)?;
         let start = Instant::now();
-        self.detector.detect(&view, &mut self.decoded);
+        let scan = self.detect(&view, t, follower, &mount);
         self.markers.clear();
         self.markers
             .extend(self.decoded.iter().map(|d| MarkerObservation {
@@ -195,6 +326,7 @@ impl Pipeline {
                 pose_ms: ms(detected, posed),
                 track_ms: ms(posed, tracked),
             },
+            scan,
         })
     }
 }

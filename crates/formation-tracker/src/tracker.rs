@@ -79,6 +79,7 @@
 
 mod config;
 mod io;
+mod predict;
 mod smooth;
 
 pub use config::{CHI2_3_999, TrackerConfig, TrackerError};
@@ -86,6 +87,7 @@ pub use io::{
     FormationMeasurement, FrameInput, FrameReport, LeaderReport, LostReason, MeasurementUse,
     Observation, PoseMeasurement, Status,
 };
+pub use predict::PredictedLeader;
 pub use smooth::SmoothedLeader;
 
 use std::collections::BTreeMap;

@@ -6,8 +6,9 @@ use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
 use fiducial::{Detector, DetectorConfig, Dictionary};
+use formation_tracker::guided::GuidedConfig;
 use formation_tracker::mount::CameraMount;
-use formation_tracker::pipeline::{Pipeline, PipelineError, PipelineFrame};
+use formation_tracker::pipeline::{Pipeline, PipelineError, PipelineFrame, Scan};
 use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotConfig;
 use formation_tracker::tracker::{LeaderReport, SmoothedLeader, Tracker, TrackerConfig};
@@ -99,6 +100,17 @@ pub struct Args {
     /// in memory until the end.
     #[arg(long)]
     pub(super) smooth: bool,
+    /// Tracking-guided detection: search only where the tracker predicts each leader's rig
+    /// (with a margin from the prediction's uncertainty), and scan the whole frame every
+    /// --full-scan-every frames, when a track coasts and while nothing is tracked. Much
+    /// faster on large frames (docs/tracking.md, docs/performance.md).
+    #[arg(long)]
+    pub(super) guided: bool,
+    /// With --guided: a full-frame scan at least every N frames, so that robots entering
+    /// the view are picked up within N frames.
+    #[arg(long, value_name = "N", requires = "guided", default_value_t = GuidedConfig::default().full_scan_period,
+          value_parser = clap::value_parser!(u32).range(1..))]
+    pub(super) full_scan_every: u32,
 }
 
 #[derive(Serialize)]
@@ -114,6 +126,7 @@ struct Line<'a> {
     markers: usize,
     failures: &'a [String],
     timing: TimingOut,
+    scan: Scan,
 }
 
 /// The bag fields of a JSON line (`docs/outputs.md`).
@@ -307,14 +320,21 @@ pub(super) fn build_pipeline(
     let solver = PoseSolver::new(calibration.intrinsics).with_distortion(calibration.distortion);
     // The rig's dictionary: our own unless the rig file names another (e.g. tag36h11).
     let dictionary = rig.marker_dictionary()?.clone();
-    Ok(Pipeline::new(
+    let mut pipeline = Pipeline::new(
         Detector::with_dictionary(DetectorConfig::default(), dictionary),
         solver,
         (calibration.width, calibration.height),
         rig,
         RobotConfig::default(),
         tracker,
-    ))
+    );
+    if args.guided {
+        pipeline.set_guided(Some(GuidedConfig {
+            full_scan_period: args.full_scan_every,
+            ..GuidedConfig::default()
+        }))?;
+    }
+    Ok(pipeline)
 }
 
 /// A smoothed leader's line with `--json`.
@@ -398,6 +418,7 @@ pub(super) fn write_frame(
             markers: done.markers,
             failures: &done.failures,
             timing,
+            scan: done.scan,
         };
         out.write_all(format!("{}\n", serde_json::to_string(&line)?).as_bytes())
             .map_err(super::StdoutError)?;

@@ -1,0 +1,126 @@
+//! Criterion benchmarks of tracking-guided detection (#12) on the demo scene: robot 2's
+//! camera looking at robot 1 at the demo's start (1.5 m ahead, 0.25 m to the left), rendered
+//! once at 640x480 and at 3840x2160 (one sample per pixel, noise 3, blur 1).
+//!
+//! Per size: `formation-sim/detect_full_WxH` scans the whole frame at full resolution;
+//! `detect_coarse2_WxH` scans it at half resolution (corners refined at full resolution,
+//! the periodic scan of guided mode from 1920 px wide); `detect_guided_WxH` searches only
+//! the leader's predicted region, as the pipeline computes it after three tracked frames
+//! (the rig reprojected at the predicted pose, default margins, quads searched at the
+//! scale the predicted marker size allows: 1 at 640x480, 4 at 3840x2160). The same `Detector` type
+//! and defaults as `track`; one core.
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Region};
+use formation_sim::scene::{self, CameraSpec, RenderSpec, RobotSpec, SceneSpec};
+use formation_tracker::guided::{GuidedConfig, leader_region};
+use formation_tracker::mount::CameraMount;
+use formation_tracker::pipeline::Pipeline;
+use formation_tracker::rig::RigModel;
+use formation_tracker::robots::RobotConfig;
+use formation_tracker::tracker::{Tracker, TrackerConfig};
+use std::hint::black_box;
+use unicycle::{Inputs, Pose};
+
+const DT: f64 = 1.0 / 30.0;
+
+/// The frame and the leader's predicted region(s).
+fn setup(width: usize, height: usize) -> (Vec<u8>, Vec<Region>, usize) {
+    let camera = CameraSpec {
+        width,
+        height,
+        hfov_deg: 60.0,
+    };
+    let mount = CameraMount::default();
+    let rig = RigModel::reference();
+    let dict = Dictionary::paper();
+    let spec = SceneSpec {
+        name: String::new(),
+        camera_robot: Pose::new(0.0, 0.0, 0.0),
+        mount,
+        camera,
+        render: RenderSpec {
+            supersampling: 1,
+            noise_sigma: 3.0,
+            blur_sigma: 1.0,
+            seed: 1,
+        },
+        robots: vec![RobotSpec {
+            robot: 1,
+            x: 1.5,
+            y: 0.25,
+            theta: 0.0,
+        }],
+    };
+    let image = scene::render_scene(&spec, &rig, dict)
+        .expect("the demo scene renders")
+        .image
+        .into_raw();
+    let k = pose::Intrinsics::from_hfov(60f64.to_radians(), width as u32, height as u32)
+        .expect("valid camera");
+    let mut pipeline = Pipeline::new(
+        Detector::with_dictionary(DetectorConfig::default(), dict.clone()),
+        pose::PoseSolver::new(k),
+        (width as u32, height as u32),
+        rig.clone(),
+        RobotConfig::default(),
+        Tracker::new(TrackerConfig::reference(mount.offset, DT)).expect("reference tracker"),
+    );
+    let still = Inputs::new(0.0, 0.0);
+    for i in 0..3 {
+        pipeline
+            .process(&image, width, height, i as f64 * DT, still, mount)
+            .expect("the frame is processed");
+    }
+    let faces = rig.face_geometries().expect("reference rig");
+    let cfg = GuidedConfig::default();
+    let predicted: Vec<_> = pipeline
+        .tracker()
+        .predict(3.0 * DT, still)
+        .iter()
+        .filter_map(|p| leader_region(p, &faces, &mount, &k, (width, height), &cfg))
+        .collect();
+    assert_eq!(predicted.len(), 1, "one leader tracked and predicted");
+    let factor = predicted[0].factor(&cfg);
+    (image, vec![predicted[0].region], factor)
+}
+
+fn benches(c: &mut Criterion) {
+    for (w, h) in [(640usize, 480usize), (3840, 2160)] {
+        let (pixels, regions, factor) = setup(w, h);
+        let img = GrayView::new(&pixels, w, h).expect("valid frame");
+        let mut det = Detector::new(DetectorConfig::default());
+        let mut out = Vec::new();
+        det.detect(&img, &mut out);
+        let seen = out.len();
+        assert!(seen >= 2, "{w}x{h}: only {seen} markers read");
+        det.detect_in_regions(&img, &regions, factor, &mut out);
+        assert_eq!(out.len(), seen, "{w}x{h}: the region holds every marker");
+        let mut group = c.benchmark_group("formation-sim");
+        if w > 1000 {
+            group.sample_size(20);
+        }
+        group.bench_function(format!("detect_full_{w}x{h}"), |b| {
+            b.iter(|| {
+                det.detect(black_box(&img), &mut out);
+                black_box(out.len())
+            })
+        });
+        group.bench_function(format!("detect_coarse2_{w}x{h}"), |b| {
+            b.iter(|| {
+                det.detect_coarse(black_box(&img), 2, &mut out);
+                black_box(out.len())
+            })
+        });
+        group.bench_function(format!("detect_guided_{w}x{h}"), |b| {
+            b.iter(|| {
+                det.detect_in_regions(black_box(&img), &regions, factor, &mut out);
+                black_box(out.len())
+            })
+        });
+        group.finish();
+    }
+}
+
+criterion_group!(guided, benches);
+criterion_main!(guided);
