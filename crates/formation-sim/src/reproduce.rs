@@ -23,7 +23,9 @@ pub enum ReproduceError {
 /// The filter configuration of the reproduction: the paper's initial state `x0` with the
 /// reference tuning (the IMM design).
 pub fn paper_filter_config(d: f64, dt: f64) -> FilterConfig {
-    FilterConfig::new(d, dt, PolarState::from_row_slice(&PAPER_X0))
+    let mut config = FilterConfig::new(d, dt, PolarState::from_row_slice(&PAPER_X0));
+    config.tuning.design = FilterDesign::Imm;
+    config
 }
 
 /// [`paper_filter_config`] with the given filter design.

@@ -38,7 +38,7 @@
 
 use std::path::{Path, PathBuf};
 
-use formation_tracker::filter::FilterConfig;
+use formation_tracker::filter::{FilterConfig, FilterDesign};
 use formation_tracker::textfile;
 use serde::Deserialize;
 use unicycle::{Inputs, PolarState, Pose};
@@ -617,13 +617,17 @@ impl ScenarioSpec {
         self.filter_x0.unwrap_or(PAPER_X0)
     }
 
-    /// The filter configuration: [`Self::filter_x0`] with the reference tuning.
+    /// The filter configuration: [`Self::filter_x0`] with the reference tuning and the
+    /// IMM design (the design `reproduce dukf` runs; the tracker's default is the dual UKF,
+    /// see `formation_tracker::filter`).
     pub fn filter_config(&self) -> FilterConfig {
-        FilterConfig::new(
+        let mut config = FilterConfig::new(
             self.camera_offset,
             1.0 / self.frame_rate,
             PolarState::from_row_slice(&self.filter_x0()),
-        )
+        );
+        config.tuning.design = FilterDesign::Imm;
+        config
     }
 
     /// Simulates and filters the scenario with `seed`.
