@@ -36,11 +36,11 @@ use rand_chacha::ChaCha8Rng;
 use serde_json::{Value, json};
 use unicycle::{PolarModel, wrap_angle};
 
-const USAGE: &str = "usage: cargo xtask compare [--quick] [--scenes N]
+const USAGE: &str = "usage: cargo xtask compare [--quick] [--scenes N] [--keep-frames]
 
-  --quick      few scenes, cases and seeds (for iterating; the document says so)
-  --scenes N   synthetic scenes per condition at 640x480 (default 12)";
-
+  --quick        few scenes, cases and seeds (for iterating; the document says so)
+  --scenes N     synthetic scenes per condition at 640x480 (default 12)
+  --keep-frames  keep the rendered frames in target/compare/frames (large)";
 
 /// The frame sizes timed.
 const RESOLUTIONS: [(usize, usize); 4] = [(640, 480), (1280, 720), (1920, 1080), (3840, 2160)];
@@ -68,11 +68,13 @@ struct Settings {
 
 pub fn run(args: &[String]) -> crate::Result {
     let mut quick = false;
+    let mut keep_frames = false;
     let mut scenes = None;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         match a.as_str() {
             "--quick" => quick = true,
+            "--keep-frames" => keep_frames = true,
             "--scenes" => scenes = Some(it.next().ok_or(USAGE)?.parse::<usize>()?),
             _ => return Err(USAGE.into()),
         }
@@ -156,12 +158,17 @@ pub fn run(args: &[String]) -> crate::Result {
     let img = root.join("docs/img");
     std::fs::create_dir_all(&img)?;
     figures::detection_time(&img.join("comparison-detection-time.svg"), &det.times)?;
-    figures::pose_error(&img.join("comparison-pose-error.svg"), &pose_errors_for_plot(&cases, &pose_ours, &peers)?)?;
+    figures::pose_error(
+        &img.join("comparison-pose-error.svg"),
+        &pose_errors_for_plot(&cases, &pose_ours, &peers)?,
+    )?;
     let path = root.join("docs/comparison.md");
     std::fs::write(&path, doc)?;
     update_readme(&root, &det.headline)?;
     // The frames are large (4K PNGs): the manifest and results stay, the frames go.
-    std::fs::remove_dir_all(work.join("frames"))?;
+    if !keep_frames {
+        std::fs::remove_dir_all(work.join("frames"))?;
+    }
     println!(
         "compare: wrote {} in {elapsed:.0} s ({})",
         path.display(),
@@ -173,7 +180,16 @@ pub fn run(args: &[String]) -> crate::Result {
 /// From the dev profile, run this command again in release (ours is timed in release).
 fn rerun_in_release(args: &[String]) -> crate::Result {
     let status = Command::new(env!("CARGO"))
-        .args(["run", "--release", "-q", "-p", "xtask", "--bin", "xtask", "--"])
+        .args([
+            "run",
+            "--release",
+            "-q",
+            "-p",
+            "xtask",
+            "--bin",
+            "xtask",
+            "--",
+        ])
         .arg("compare")
         .args(args)
         .env("XTASK_COMPARE_RELEASE", "1")
@@ -243,12 +259,48 @@ struct Condition {
 /// The conditions at 640x480; the last one ("combined") is also the one timed at every
 /// resolution.
 const CONDITIONS: [Condition; 6] = [
-    Condition { name: "base", blur: 1.0, noise: 3.0, lighting: 1.0, clutter: false },
-    Condition { name: "lighting 4:1", blur: 1.0, noise: 3.0, lighting: 4.0, clutter: false },
-    Condition { name: "blur 2", blur: 2.0, noise: 3.0, lighting: 1.0, clutter: false },
-    Condition { name: "noise 8", blur: 1.0, noise: 8.0, lighting: 1.0, clutter: false },
-    Condition { name: "clutter", blur: 1.0, noise: 3.0, lighting: 1.0, clutter: true },
-    Condition { name: "combined", blur: 1.0, noise: 3.0, lighting: 4.0, clutter: true },
+    Condition {
+        name: "base",
+        blur: 1.0,
+        noise: 3.0,
+        lighting: 1.0,
+        clutter: false,
+    },
+    Condition {
+        name: "lighting 4:1",
+        blur: 1.0,
+        noise: 3.0,
+        lighting: 4.0,
+        clutter: false,
+    },
+    Condition {
+        name: "blur 2",
+        blur: 2.0,
+        noise: 3.0,
+        lighting: 1.0,
+        clutter: false,
+    },
+    Condition {
+        name: "noise 8",
+        blur: 1.0,
+        noise: 8.0,
+        lighting: 1.0,
+        clutter: false,
+    },
+    Condition {
+        name: "clutter",
+        blur: 1.0,
+        noise: 3.0,
+        lighting: 1.0,
+        clutter: true,
+    },
+    Condition {
+        name: "combined",
+        blur: 1.0,
+        noise: 3.0,
+        lighting: 4.0,
+        clutter: true,
+    },
 ];
 
 /// Black and white grey levels of the markers (before lighting).
@@ -267,7 +319,11 @@ struct Warp {
 impl Warp {
     /// Corners NW, NE, SE, SW for a pattern of width over height `aspect`.
     fn quad(&self, aspect: f64) -> [[f64; 2]; 4] {
-        let (sx, sy) = if aspect >= 1.0 { (1.0, 1.0 / aspect) } else { (aspect, 1.0) };
+        let (sx, sy) = if aspect >= 1.0 {
+            (1.0, 1.0 / aspect)
+        } else {
+            (aspect, 1.0)
+        };
         let (s, c) = self.theta.sin_cos();
         let unit = [[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]];
         let mut q = [[0.0; 2]; 4];
@@ -303,7 +359,10 @@ fn warps(w: usize, h: usize, n: usize, rng: &mut ChaCha8Rng) -> Vec<Warp> {
             jitter: [[0.0; 2]; 4],
         };
         for j in &mut warp.jitter {
-            *j = [rng.random_range(-0.12..=0.12), rng.random_range(-0.12..=0.12)];
+            *j = [
+                rng.random_range(-0.12..=0.12),
+                rng.random_range(-0.12..=0.12),
+            ];
         }
         let r = warp.radius();
         if 2.0 * r + 6.0 > wf.min(hf) {
@@ -314,8 +373,7 @@ fn warps(w: usize, h: usize, n: usize, rng: &mut ChaCha8Rng) -> Vec<Warp> {
             rng.random_range(r + 3.0..hf - r - 3.0),
         ];
         if out.iter().any(|o| {
-            (o.centre[0] - warp.centre[0]).hypot(o.centre[1] - warp.centre[1])
-                < o.radius() + r
+            (o.centre[0] - warp.centre[0]).hypot(o.centre[1] - warp.centre[1]) < o.radius() + r
         }) {
             continue;
         }
@@ -326,7 +384,13 @@ fn warps(w: usize, h: usize, n: usize, rng: &mut ChaCha8Rng) -> Vec<Warp> {
 
 /// Clutter under the markers: a smooth textured background, then rectangles, strokes and
 /// checker patches that keep clear of every marker's disc.
-fn draw_clutter(canvas: &mut Canvas, w: usize, h: usize, warps: &[Warp], rng: &mut ChaCha8Rng) -> crate::Result {
+fn draw_clutter(
+    canvas: &mut Canvas,
+    w: usize,
+    h: usize,
+    warps: &[Warp],
+    rng: &mut ChaCha8Rng,
+) -> crate::Result {
     let g = 16usize;
     let (gw, gh) = (w / g + 2, h / g + 2);
     let grid: Vec<u8> = (0..gw * gh)
@@ -356,7 +420,10 @@ fn draw_clutter(canvas: &mut Canvas, w: usize, h: usize, warps: &[Warp], rng: &m
                 )
             }
         };
-        let c = [rng.random_range(0.0..w as f64), rng.random_range(0.0..h as f64)];
+        let c = [
+            rng.random_range(0.0..w as f64),
+            rng.random_range(0.0..h as f64),
+        ];
         let theta = rng.random_range(0.0..std::f64::consts::TAU);
         let reach = 0.5 * sw.hypot(sh);
         if warps
@@ -370,7 +437,12 @@ fn draw_clutter(canvas: &mut Canvas, w: usize, h: usize, warps: &[Warp], rng: &m
             let (x, y) = (u * sw, v * sh);
             [c[0] + co * x - s * y, c[1] + s * x + co * y]
         });
-        canvas.draw_pattern(&pattern, &q, rng.random_range(5.0..70.0), rng.random_range(150.0..250.0));
+        canvas.draw_pattern(
+            &pattern,
+            &q,
+            rng.random_range(5.0..70.0),
+            rng.random_range(150.0..250.0),
+        );
     }
     Ok(())
 }
@@ -421,7 +493,9 @@ fn render_frames(s: &Settings, work: &Path) -> crate::Result<Vec<Frame>> {
     use rayon::prelude::*;
     let rendered: Vec<Result<Vec<Frame>, String>> = jobs
         .par_iter()
-        .map(|&(w, h, cond, seed)| render_job(w, h, cond, seed, &patterns, work).map_err(|e| e.to_string()))
+        .map(|&(w, h, cond, seed)| {
+            render_job(w, h, cond, seed, &patterns, work).map_err(|e| e.to_string())
+        })
         .collect();
     let mut frames = Vec::new();
     for r in rendered {
@@ -439,51 +513,64 @@ fn render_job(
     patterns: &[(Family, Vec<CellPattern>)],
     work: &Path,
 ) -> crate::Result<Vec<Frame>> {
-            let mut rng = ChaCha8Rng::seed_from_u64(1_000_000 + seed);
-            let markers = 8 * (w * h / (640 * 480)).max(1).min(4);
-            let ws = warps(w, h, markers, &mut rng);
-            let clutter_seed: u64 = rng.random();
-            let noise_seed: u64 = rng.random();
-            let mut out = Vec::new();
-            for (family, all) in patterns {
-                let mut pick = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed ^ family.key().len() as u64);
-                let mut ids: Vec<usize> = Vec::new();
-                while ids.len() < ws.len() {
-                    let i = pick.random_range(0..all.len());
-                    if !ids.contains(&i) {
-                        ids.push(i);
-                    }
-                }
-                let mut canvas = Canvas::new(w, h, WHITE)?;
-                if cond.clutter {
-                    draw_clutter(&mut canvas, w, h, &ws, &mut ChaCha8Rng::seed_from_u64(clutter_seed))?;
-                }
-                let mut truth = Vec::new();
-                for (warp, &id) in ws.iter().zip(&ids) {
-                    let q = warp.quad(all[id].aspect());
-                    canvas.draw_pattern(&all[id], &q, BLACK, WHITE);
-                    truth.push((id, q.map(|[x, y]| Point2::new(x, y))));
-                }
-                let pixels = canvas.render(&Effects {
-                    lighting: cond.lighting,
-                    blur: cond.blur,
-                    noise: cond.noise,
-                    seed: noise_seed,
-                    supersampling: if w > 640 { 3 } else { 8 },
-                })?;
-                let path = work.join("frames").join(format!(
-                    "{}x{}-{}-{seed}-{}.png",
-                    w,
-                    h,
-                    cond.name.replace([' ', ':'], "_"),
-                    family.key()
-                ));
-                image::GrayImage::from_raw(w as u32, h as u32, pixels)
-                    .ok_or("frame size mismatch")?
-                    .save(&path)?;
-                out.push(Frame { path, family: *family, condition: cond.name, width: w, height: h, truth });
+    let mut rng = ChaCha8Rng::seed_from_u64(1_000_000 + seed);
+    let markers = 8 * (w * h / (640 * 480)).clamp(1, 4);
+    let ws = warps(w, h, markers, &mut rng);
+    let clutter_seed: u64 = rng.random();
+    let noise_seed: u64 = rng.random();
+    let mut out = Vec::new();
+    for (family, all) in patterns {
+        let mut pick = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed ^ family.key().len() as u64);
+        let mut ids: Vec<usize> = Vec::new();
+        while ids.len() < ws.len() {
+            let i = pick.random_range(0..all.len());
+            if !ids.contains(&i) {
+                ids.push(i);
             }
-            Ok(out)
+        }
+        let mut canvas = Canvas::new(w, h, WHITE)?;
+        if cond.clutter {
+            draw_clutter(
+                &mut canvas,
+                w,
+                h,
+                &ws,
+                &mut ChaCha8Rng::seed_from_u64(clutter_seed),
+            )?;
+        }
+        let mut truth = Vec::new();
+        for (warp, &id) in ws.iter().zip(&ids) {
+            let q = warp.quad(all[id].aspect());
+            canvas.draw_pattern(&all[id], &q, BLACK, WHITE);
+            truth.push((id, q.map(|[x, y]| Point2::new(x, y))));
+        }
+        let pixels = canvas.render(&Effects {
+            lighting: cond.lighting,
+            blur: cond.blur,
+            noise: cond.noise,
+            seed: noise_seed,
+            supersampling: if w > 640 { 3 } else { 8 },
+        })?;
+        let path = work.join("frames").join(format!(
+            "{}x{}-{}-{seed}-{}.png",
+            w,
+            h,
+            cond.name.replace([' ', ':'], "_"),
+            family.key()
+        ));
+        image::GrayImage::from_raw(w as u32, h as u32, pixels)
+            .ok_or("frame size mismatch")?
+            .save(&path)?;
+        out.push(Frame {
+            path,
+            family: *family,
+            condition: cond.name,
+            width: w,
+            height: h,
+            truth,
+        });
+    }
+    Ok(out)
 }
 
 /// One detector's reads of one frame and its median time.
@@ -501,7 +588,11 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
     v.sort_by(f64::total_cmp);
     let n = v.len();
-    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
 }
 
 /// Times `det` on `img` (`reps` runs after one warm-up) and returns its reads.
@@ -530,7 +621,10 @@ fn load_gray(path: &Path) -> crate::Result<(Vec<u8>, usize, usize)> {
 fn run_ours(frames: &[Frame], reps: usize) -> crate::Result<Vec<Reads>> {
     let mut dets: Vec<(Family, Detector)> = Vec::new();
     for f in Family::ALL {
-        dets.push((f, Detector::with_dictionary(DetectorConfig::default(), f.dictionary()?.clone())));
+        dets.push((
+            f,
+            Detector::with_dictionary(DetectorConfig::default(), f.dictionary()?.clone()),
+        ));
     }
     let mut out = Vec::new();
     for frame in frames {
@@ -559,10 +653,16 @@ struct Convention {
     any_order: bool,
 }
 
-const OPENCV_CONVENTION: Convention = Convention { shift: 0.0, any_order: false };
+const OPENCV_CONVENTION: Convention = Convention {
+    shift: 0.0,
+    any_order: false,
+};
 /// AprilTag 3 puts pixel centres at half-integers (its maintainers, AprilRobotics/apriltag
 /// issue #121) and lists corners counter-clockwise from another corner.
-const APRILTAG_CONVENTION: Convention = Convention { shift: -0.5, any_order: true };
+const APRILTAG_CONVENTION: Convention = Convention {
+    shift: -0.5,
+    any_order: true,
+};
 
 /// Running totals of one detector over frames.
 #[derive(Default, Clone)]
@@ -576,28 +676,47 @@ struct Tally {
 }
 
 impl Tally {
-    fn add(&mut self, truth: &[(usize, [Point2<f64>; 4])], reads: &[(usize, [Point2<f64>; 4])], conv: Convention) {
+    fn add(
+        &mut self,
+        truth: &[(usize, [Point2<f64>; 4])],
+        reads: &[(usize, [Point2<f64>; 4])],
+        conv: Convention,
+    ) {
         self.total += truth.len();
         for (id, corners) in reads {
             let Some((_, t)) = truth.iter().find(|(tid, _)| tid == id) else {
                 self.wrong += 1;
                 continue;
             };
-            let c: Vec<Point2<f64>> = corners.iter().map(|p| Point2::new(p.x + conv.shift, p.y + conv.shift)).collect();
+            let c: Vec<Point2<f64>> = corners
+                .iter()
+                .map(|p| Point2::new(p.x + conv.shift, p.y + conv.shift))
+                .collect();
             let orders: Vec<[usize; 4]> = if conv.any_order {
                 (0..4)
-                    .flat_map(|r| [[r, (r + 1) % 4, (r + 2) % 4, (r + 3) % 4], [r, (r + 3) % 4, (r + 2) % 4, (r + 1) % 4]])
+                    .flat_map(|r| {
+                        [
+                            [r, (r + 1) % 4, (r + 2) % 4, (r + 3) % 4],
+                            [r, (r + 3) % 4, (r + 2) % 4, (r + 1) % 4],
+                        ]
+                    })
                     .collect()
             } else {
                 vec![[0, 1, 2, 3]]
             };
             let (se, order) = orders
                 .iter()
-                .map(|o| ((0..4).map(|i| (c[o[i]] - t[i]).norm_squared()).sum::<f64>(), *o))
+                .map(|o| {
+                    (
+                        (0..4).map(|i| (c[o[i]] - t[i]).norm_squared()).sum::<f64>(),
+                        *o,
+                    )
+                })
                 .min_by(|a, b| a.0.total_cmp(&b.0))
                 .unwrap_or((f64::INFINITY, [0, 1, 2, 3]));
             let side = (t[1] - t[0]).norm();
-            if !(se.sqrt() / 2.0 < 0.25 * side) {
+            let near = se.sqrt() / 2.0 < 0.25 * side;
+            if !near {
                 self.wrong += 1; // right id at the wrong place
                 continue;
             }
@@ -636,14 +755,54 @@ struct DetectorRow {
 }
 
 const DETECTORS: [DetectorRow; 8] = [
-    DetectorRow { label: "ours, own dictionary", family: Family::Own, peer: None, conv: OPENCV_CONVENTION },
-    DetectorRow { label: "ours, tag36h11", family: Family::Tag36h11, peer: None, conv: OPENCV_CONVENTION },
-    DetectorRow { label: "ours, DICT_4X4_100", family: Family::Aruco4x4, peer: None, conv: OPENCV_CONVENTION },
-    DetectorRow { label: "OpenCV ArUco, no refinement", family: Family::Aruco4x4, peer: Some("aruco_none"), conv: OPENCV_CONVENTION },
-    DetectorRow { label: "OpenCV ArUco, SUBPIX", family: Family::Aruco4x4, peer: Some("aruco_subpix"), conv: OPENCV_CONVENTION },
-    DetectorRow { label: "OpenCV ArUco3 mode", family: Family::Aruco4x4, peer: Some("aruco3"), conv: OPENCV_CONVENTION },
-    DetectorRow { label: "AprilTag 3, decimate 1", family: Family::Tag36h11, peer: Some("apriltag_d1"), conv: APRILTAG_CONVENTION },
-    DetectorRow { label: "AprilTag 3, decimate 2", family: Family::Tag36h11, peer: Some("apriltag_d2"), conv: APRILTAG_CONVENTION },
+    DetectorRow {
+        label: "ours, own dictionary",
+        family: Family::Own,
+        peer: None,
+        conv: OPENCV_CONVENTION,
+    },
+    DetectorRow {
+        label: "ours, tag36h11",
+        family: Family::Tag36h11,
+        peer: None,
+        conv: OPENCV_CONVENTION,
+    },
+    DetectorRow {
+        label: "ours, DICT_4X4_100",
+        family: Family::Aruco4x4,
+        peer: None,
+        conv: OPENCV_CONVENTION,
+    },
+    DetectorRow {
+        label: "OpenCV ArUco, no refinement",
+        family: Family::Aruco4x4,
+        peer: Some("aruco_none"),
+        conv: OPENCV_CONVENTION,
+    },
+    DetectorRow {
+        label: "OpenCV ArUco, SUBPIX",
+        family: Family::Aruco4x4,
+        peer: Some("aruco_subpix"),
+        conv: OPENCV_CONVENTION,
+    },
+    DetectorRow {
+        label: "OpenCV ArUco3 mode",
+        family: Family::Aruco4x4,
+        peer: Some("aruco3"),
+        conv: OPENCV_CONVENTION,
+    },
+    DetectorRow {
+        label: "AprilTag 3, decimate 1",
+        family: Family::Tag36h11,
+        peer: Some("apriltag_d1"),
+        conv: APRILTAG_CONVENTION,
+    },
+    DetectorRow {
+        label: "AprilTag 3, decimate 2",
+        family: Family::Tag36h11,
+        peer: Some("apriltag_d2"),
+        conv: APRILTAG_CONVENTION,
+    },
 ];
 
 /// A peer's reads of one frame from the results JSON (`{"markers": [[id, [[x, y] x4]]],
@@ -661,7 +820,10 @@ fn peer_reads(v: &Value) -> crate::Result<Reads> {
         }
         markers.push((id, c));
     }
-    Ok(Reads { markers, seconds: v["seconds"].as_f64().unwrap_or(f64::NAN) })
+    Ok(Reads {
+        markers,
+        seconds: v["seconds"].as_f64().unwrap_or(f64::NAN),
+    })
 }
 
 /// The headline ratios (their median time over ours at a resolution, the OpenCV variant
@@ -683,6 +845,9 @@ impl Headline {
     }
 }
 
+/// Labelled `(x, y)` series of a figure.
+type PlotSeries = Vec<(String, Vec<(f64, f64)>)>;
+
 struct DetectionResult {
     text: String,
     headline: Headline,
@@ -690,7 +855,11 @@ struct DetectionResult {
     times: Vec<(String, Vec<(f64, f64)>)>,
 }
 
-fn detection_section(frames: &[Frame], ours: &[Reads], peers: &Value) -> crate::Result<DetectionResult> {
+fn detection_section(
+    frames: &[Frame],
+    ours: &[Reads],
+    peers: &Value,
+) -> crate::Result<DetectionResult> {
     let mut text = String::new();
     // reads[d][f]: detector d on frame f (None: not its family).
     let mut reads: Vec<Vec<Option<Reads>>> = Vec::new();
@@ -702,7 +871,10 @@ fn detection_section(frames: &[Frame], ours: &[Reads], peers: &Value) -> crate::
                 continue;
             }
             row.push(Some(match d.peer {
-                None => Reads { markers: ours[i].markers.clone(), seconds: ours[i].seconds },
+                None => Reads {
+                    markers: ours[i].markers.clone(),
+                    seconds: ours[i].seconds,
+                },
                 Some(key) => peer_reads(&peers["detection"][key][i])?,
             }));
         }
@@ -744,7 +916,11 @@ fn detection_section(frames: &[Frame], ours: &[Reads], peers: &Value) -> crate::
         "| detector | markers | condition | recall (%) | wrong | corner RMS (px) | bias x, y (px) |\n| --- | --- | --- | --- | --- | --- | --- |"
     )?;
     for (d, row) in DETECTORS.iter().zip(&reads) {
-        for cond in CONDITIONS.iter().map(|c| c.name).chain(std::iter::once("all 640x480")) {
+        for cond in CONDITIONS
+            .iter()
+            .map(|c| c.name)
+            .chain(std::iter::once("all 640x480"))
+        {
             let mut t = Tally::default();
             for (frame, r) in frames.iter().zip(row) {
                 let Some(r) = r else { continue };
@@ -754,7 +930,11 @@ fn detection_section(frames: &[Frame], ours: &[Reads], peers: &Value) -> crate::
                 t.add(&frame.truth, &r.markers, d.conv);
             }
             let b = t.bias();
-            let label = if cond == "all 640x480" { format!("**{cond}**") } else { cond.to_string() };
+            let label = if cond == "all 640x480" {
+                format!("**{cond}**")
+            } else {
+                cond.to_string()
+            };
             writeln!(
                 text,
                 "| {} | {} | {label} | {:.1} | {} | {:.3} | {:+.3}, {:+.3} |",
@@ -778,7 +958,12 @@ fn detection_section(frames: &[Frame], ours: &[Reads], peers: &Value) -> crate::
          with `cv2.setNumThreads(1)`, AprilTag with `nthreads=1`). *x ours* is the detector's \
          time over ours on the same family's frames (ours on `DICT_4X4_100` for the ArUco \
          variants, ours on tag36h11 for AprilTag 3): above 1, ours is faster. Recall at each \
-         size is in parentheses.\n"
+         size is in parentheses. The peers' times include the Python call (microseconds, \
+         small against these milliseconds). OpenCV's ArUco3 mode searches a downscaled image \
+         for markers no smaller than a ratio of the frame; it is set to keep markers of \
+         about 30 px findable (`minSideLengthCanonicalImg` 16, \
+         `minMarkerLengthRatioOriginalImg` 6.4 px over the larger side), so its recall \
+         shows what that speed costs on markers of 20-40 px.\n"
     )?;
     let mut header = "| detector |".to_string();
     let mut sep = "| --- |".to_string();
@@ -804,17 +989,31 @@ fn detection_section(frames: &[Frame], ours: &[Reads], peers: &Value) -> crate::
             rec[di][ri] = t.recall();
         }
     }
-    let ours_of = |f: Family| DETECTORS.iter().position(|d| d.peer.is_none() && d.family == f).unwrap_or(0);
+    let ours_of = |f: Family| {
+        DETECTORS
+            .iter()
+            .position(|d| d.peer.is_none() && d.family == f)
+            .unwrap_or(0)
+    };
     for (di, d) in DETECTORS.iter().enumerate() {
         write!(text, "| {} |", d.label)?;
         let base = ours_of(d.family);
         for ri in 0..4 {
             let ratio = med[di][ri] / med[base][ri];
-            write!(text, " {:.3} ({:.0} %) | {:.2} |", med[di][ri], rec[di][ri], ratio)?;
+            write!(
+                text,
+                " {:.3} ({:.0} %) | {:.2} |",
+                med[di][ri], rec[di][ri], ratio
+            )?;
         }
         writeln!(text)?;
     }
-    let idx = |key: &str| DETECTORS.iter().position(|d| d.peer == Some(key)).unwrap_or(0);
+    let idx = |key: &str| {
+        DETECTORS
+            .iter()
+            .position(|d| d.peer == Some(key))
+            .unwrap_or(0)
+    };
     let aruco = idx("aruco_none");
     let april = idx("apriltag_d1");
     let a4 = ours_of(Family::Aruco4x4);
@@ -839,7 +1038,10 @@ fn detection_section(frames: &[Frame], ours: &[Reads], peers: &Value) -> crate::
         headline.ours_4k_ms,
         med[aruco][3]
     )?;
-    writeln!(text, "![Detection time against frame size](img/comparison-detection-time.svg)\n")?;
+    writeln!(
+        text,
+        "![Detection time against frame size](img/comparison-detection-time.svg)\n"
+    )?;
     let times = DETECTORS
         .iter()
         .enumerate()
@@ -854,7 +1056,11 @@ fn detection_section(frames: &[Frame], ours: &[Reads], peers: &Value) -> crate::
             )
         })
         .collect();
-    Ok(DetectionResult { text, headline, times })
+    Ok(DetectionResult {
+        text,
+        headline,
+        times,
+    })
 }
 
 // ---------------------------------------------------------------------------------------
@@ -871,7 +1077,10 @@ fn real_frames(root: &Path) -> crate::Result<Vec<RealFrame>> {
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|e| e == "png"))
         .map(|p| RealFrame {
-            name: p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
+            name: p
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default(),
             path: p,
         })
         .collect();
@@ -880,7 +1089,10 @@ fn real_frames(root: &Path) -> crate::Result<Vec<RealFrame>> {
 }
 
 fn run_ours_real(real: &[RealFrame], reps: usize) -> crate::Result<Vec<Reads>> {
-    let mut det = Detector::with_dictionary(DetectorConfig::default(), dictionary_by_name("DICT_APRILTAG_36h11")?.clone());
+    let mut det = Detector::with_dictionary(
+        DetectorConfig::default(),
+        dictionary_by_name("DICT_APRILTAG_36h11")?.clone(),
+    );
     let mut out = Vec::new();
     for r in real {
         let (px, w, h) = load_gray(&r.path)?;
@@ -902,7 +1114,10 @@ fn real_section(real: &[RealFrame], ours: &[Reads], peers: &Value) -> crate::Res
          frame (ms, one thread).\n",
         real.len()
     )?;
-    writeln!(text, "| detector | ids read | also by AprilTag 3 | others | median time (ms) |\n| --- | --- | --- | --- | --- |")?;
+    writeln!(
+        text,
+        "| detector | ids read | also by AprilTag 3 | others | median time (ms) |\n| --- | --- | --- | --- | --- |"
+    )?;
     let ids_of = |r: &Reads| {
         let mut v: Vec<usize> = r.markers.iter().map(|m| m.0).collect();
         v.sort_unstable();
@@ -913,7 +1128,15 @@ fn real_section(real: &[RealFrame], ours: &[Reads], peers: &Value) -> crate::Res
     for i in 0..real.len() {
         reference.push(ids_of(&peer_reads(&peers["real"]["apriltag_d1"][i])?));
     }
-    let mut rows: Vec<(&str, Vec<Reads>)> = vec![("ours, tag36h11", ours.iter().map(|r| Reads { markers: r.markers.clone(), seconds: r.seconds }).collect())];
+    let mut rows: Vec<(&str, Vec<Reads>)> = vec![(
+        "ours, tag36h11",
+        ours.iter()
+            .map(|r| Reads {
+                markers: r.markers.clone(),
+                seconds: r.seconds,
+            })
+            .collect(),
+    )];
     for (label, key) in [
         ("OpenCV ArUco, no refinement", "aruco_none"),
         ("OpenCV ArUco, SUBPIX", "aruco_subpix"),
@@ -935,7 +1158,12 @@ fn real_section(real: &[RealFrame], ours: &[Reads], peers: &Value) -> crate::Res
             agree += ids.iter().filter(|i| refs.contains(i)).count();
         }
         let t = median(v.iter().map(|r| r.seconds).collect());
-        writeln!(text, "| {label} | {n} | {agree} | {} | {:.3} |", n - agree, 1e3 * t)?;
+        writeln!(
+            text,
+            "| {label} | {n} | {agree} | {} | {:.3} |",
+            n - agree,
+            1e3 * t
+        )?;
     }
     writeln!(text)?;
     Ok(text)
@@ -965,13 +1193,19 @@ fn pose_cases(per: usize) -> crate::Result<Vec<PoseCase>> {
     let mut poses = Vec::new();
     while poses.len() < per {
         let z = rng.random_range(0.5..3.0);
-        let (x, y) = (rng.random_range(-0.4..0.4) * z, rng.random_range(-0.3..0.3) * z);
+        let (x, y) = (
+            rng.random_range(-0.4..0.4) * z,
+            rng.random_range(-0.3..0.3) * z,
+        );
         let tilt = nalgebra::Rotation3::from_euler_angles(
             rng.random_range(-1.05..1.05),
             rng.random_range(-1.05..1.05),
             rng.random_range(-std::f64::consts::PI..std::f64::consts::PI),
         );
-        let flip = nalgebra::Rotation3::from_axis_angle(&nalgebra::Vector3::x_axis(), std::f64::consts::PI);
+        let flip = nalgebra::Rotation3::from_axis_angle(
+            &nalgebra::Vector3::x_axis(),
+            std::f64::consts::PI,
+        );
         let truth = Pose::from_matrix(&(flip * tilt).into_inner(), Vector3::new(x, y, z));
         let mut px = Vec::new();
         for p in &model {
@@ -989,8 +1223,17 @@ fn pose_cases(per: usize) -> crate::Result<Vec<PoseCase>> {
     for noise in POSE_NOISE {
         let mut nrng = ChaCha8Rng::seed_from_u64(5_000 + (noise * 100.0) as u64);
         for (truth, px) in &poses {
-            let corners = px.map(|p| Point2::new(p.x + noise * gauss(&mut nrng), p.y + noise * gauss(&mut nrng)));
-            cases.push(PoseCase { noise, truth: *truth, corners });
+            let corners = px.map(|p| {
+                Point2::new(
+                    p.x + noise * gauss(&mut nrng),
+                    p.y + noise * gauss(&mut nrng),
+                )
+            });
+            cases.push(PoseCase {
+                noise,
+                truth: *truth,
+                corners,
+            });
         }
     }
     Ok(cases)
@@ -1005,7 +1248,9 @@ struct OursPose {
 }
 
 fn run_pose_ours(cases: &[PoseCase], reps: usize) -> crate::Result<OursPose> {
-    let solver = PoseSolver::new(Intrinsics::from_matrix(&nalgebra::Matrix3::from_row_slice(&POSE_K))?);
+    let solver = PoseSolver::new(Intrinsics::from_matrix(
+        &nalgebra::Matrix3::from_row_slice(&POSE_K),
+    )?);
     let mut best = Vec::new();
     let mut alternative = Vec::new();
     for c in cases {
@@ -1029,7 +1274,11 @@ fn run_pose_ours(cases: &[PoseCase], reps: usize) -> crate::Result<OursPose> {
         }
         times.push(t.elapsed().as_secs_f64() / cases.len().max(1) as f64);
     }
-    Ok(OursPose { best, alternative, seconds: median(times) })
+    Ok(OursPose {
+        best,
+        alternative,
+        seconds: median(times),
+    })
 }
 
 fn rotation_angle(a: &Pose, b: &Pose) -> f64 {
@@ -1037,14 +1286,25 @@ fn rotation_angle(a: &Pose, b: &Pose) -> f64 {
 }
 
 /// Errors of a method on a case: rotation (degrees), translation (% of distance), flipped.
-fn pose_errors(case: &PoseCase, est: Option<&Pose>, ours: &OursPose, i: usize) -> Option<(f64, f64, bool)> {
+fn pose_errors(
+    case: &PoseCase,
+    est: Option<&Pose>,
+    ours: &OursPose,
+    i: usize,
+) -> Option<(f64, f64, bool)> {
     let est = est?;
     let rot = rotation_angle(est, &case.truth).to_degrees();
-    let tr = 100.0 * (est.translation - case.truth.translation).norm() / case.truth.translation.norm();
+    let tr =
+        100.0 * (est.translation - case.truth.translation).norm() / case.truth.translation.norm();
     // The two planar candidates on these corners (ours): the one nearer the truth is right.
     let flipped = match (&ours.best[i], &ours.alternative[i]) {
         (Some(b), Some(a)) if rotation_angle(a, b) > 1e-6 => {
-            let (right, wrong) = if rotation_angle(b, &case.truth) <= rotation_angle(a, &case.truth) { (b, a) } else { (a, b) };
+            let (right, wrong) = if rotation_angle(b, &case.truth) <= rotation_angle(a, &case.truth)
+            {
+                (b, a)
+            } else {
+                (a, b)
+            };
             rotation_angle(est, wrong) < rotation_angle(est, right)
         }
         _ => false,
@@ -1071,20 +1331,29 @@ const POSE_METHODS: [(&str, &str); 4] = [
 
 /// Per method and noise level: (median rotation error deg, median translation error %,
 /// flip rate %, failures).
-fn pose_table(cases: &[PoseCase], ours: &OursPose, peers: &Value) -> Vec<Vec<(f64, f64, f64, usize)>> {
+fn pose_table(
+    cases: &[PoseCase],
+    ours: &OursPose,
+    peers: &Value,
+) -> Vec<Vec<(f64, f64, f64, usize)>> {
     POSE_METHODS
         .iter()
         .map(|(_, key)| {
             POSE_NOISE
                 .iter()
                 .map(|&noise| {
-                    let (mut rot, mut tr, mut flips, mut fail, mut n) = (Vec::new(), Vec::new(), 0, 0, 0);
+                    let (mut rot, mut tr, mut flips, mut fail, mut n) =
+                        (Vec::new(), Vec::new(), 0, 0, 0);
                     for (i, c) in cases.iter().enumerate() {
                         if c.noise != noise {
                             continue;
                         }
                         n += 1;
-                        let est = if key.is_empty() { ours.best[i] } else { peer_pose(&peers["pose"][key]["poses"][i]) };
+                        let est = if key.is_empty() {
+                            ours.best[i]
+                        } else {
+                            peer_pose(&peers["pose"][key]["poses"][i])
+                        };
                         match pose_errors(c, est.as_ref(), ours, i) {
                             Some((r, t, f)) => {
                                 rot.push(r);
@@ -1094,19 +1363,33 @@ fn pose_table(cases: &[PoseCase], ours: &OursPose, peers: &Value) -> Vec<Vec<(f6
                             None => fail += 1,
                         }
                     }
-                    (median(rot), median(tr), 100.0 * flips as f64 / n.max(1) as f64, fail)
+                    (
+                        median(rot),
+                        median(tr),
+                        100.0 * flips as f64 / n.max(1) as f64,
+                        fail,
+                    )
                 })
                 .collect()
         })
         .collect()
 }
 
-fn pose_errors_for_plot(cases: &[PoseCase], ours: &OursPose, peers: &Value) -> crate::Result<Vec<(String, Vec<(f64, f64)>)>> {
+fn pose_errors_for_plot(
+    cases: &[PoseCase],
+    ours: &OursPose,
+    peers: &Value,
+) -> crate::Result<PlotSeries> {
     let table = pose_table(cases, ours, peers);
     Ok(POSE_METHODS
         .iter()
         .zip(&table)
-        .map(|((label, _), row)| (label.replace('`', ""), POSE_NOISE.iter().zip(row).map(|(n, r)| (*n, r.0)).collect()))
+        .map(|((label, _), row)| {
+            (
+                label.replace('`', ""),
+                POSE_NOISE.iter().zip(row).map(|(n, r)| (*n, r.0)).collect(),
+            )
+        })
         .collect())
 }
 
@@ -1129,20 +1412,35 @@ fn pose_section(cases: &[PoseCase], ours: &OursPose, peers: &Value) -> crate::Re
          estimate is nearer (in rotation) to the wrong one of the two planar candidates \
          than to the right one (the candidates are ours on the same corners; the right one is \
          the nearer to the truth) (%); *failed* solves that returned no pose; *time* mean \
-         time per solve (microseconds; median over {} passes over all cases).\n",
+         time per solve (microseconds; median over {} passes over all cases). The \
+         `solvePnP` times include the Python call into OpenCV (a few microseconds, which \
+         matters at this scale: the *x ours* column overstates OpenCV's own cost of \
+         IPPE_SQUARE, not of the iterative methods).\n",
         peers["pose"]["reps"].as_u64().unwrap_or(0)
     )?;
     let table = pose_table(cases, ours, peers);
     write!(text, "| method | time (us) | x ours |")?;
     let mut sep = "| --- | --- | --- |".to_string();
     for n in POSE_NOISE {
-        write!(text, " rotation (deg), {n} px | translation (%), {n} px | flip (%), {n} px |")?;
+        write!(
+            text,
+            " rotation (deg), {n} px | translation (%), {n} px | flip (%), {n} px |"
+        )?;
         sep.push_str(" --- | --- | --- |");
     }
     writeln!(text, " failed |\n{sep} --- |")?;
     for ((label, key), row) in POSE_METHODS.iter().zip(&table) {
-        let secs = if key.is_empty() { ours.seconds } else { peers["pose"][key]["seconds"].as_f64().unwrap_or(f64::NAN) };
-        write!(text, "| {label} | {:.1} | {:.2} |", 1e6 * secs, secs / ours.seconds)?;
+        let secs = if key.is_empty() {
+            ours.seconds
+        } else {
+            peers["pose"][key]["seconds"].as_f64().unwrap_or(f64::NAN)
+        };
+        write!(
+            text,
+            "| {label} | {:.1} | {:.2} |",
+            1e6 * secs,
+            secs / ours.seconds
+        )?;
         let mut fail = 0;
         for r in row {
             write!(text, " {:.3} | {:.2} | {:.1} |", r.0, r.1, r.2)?;
@@ -1150,12 +1448,18 @@ fn pose_section(cases: &[PoseCase], ours: &OursPose, peers: &Value) -> crate::Re
         }
         writeln!(text, " {fail} |")?;
     }
-    writeln!(text, "\n![Median rotation error against corner noise](img/comparison-pose-error.svg)\n")?;
+    writeln!(
+        text,
+        "\n![Median rotation error against corner noise](img/comparison-pose-error.svg)\n"
+    )?;
     Ok(text)
 }
 
 // ---------------------------------------------------------------------------------------
 // Filter
+
+/// Ours per seed: its figures and the truth `[l12, alpha12, beta12, v1, w1]` per step.
+type OursFilter = Vec<(FilterFigures, Vec<[f64; 5]>)>;
 
 /// Our filter's figures of one seed: time per step (s) and the five MSEs.
 struct FilterFigures {
@@ -1168,7 +1472,11 @@ fn mses(est: &[[f64; 5]], truth: &[[f64; 5]]) -> [f64; 5] {
     let mut acc = [0.0; 5];
     for (e, t) in est.iter().zip(truth) {
         for i in 0..5 {
-            let d = if i == 1 || i == 2 { wrap_angle(e[i] - t[i]) } else { e[i] - t[i] };
+            let d = if i == 1 || i == 2 {
+                wrap_angle(e[i] - t[i])
+            } else {
+                e[i] - t[i]
+            };
             acc[i] += d * d;
         }
     }
@@ -1178,7 +1486,7 @@ fn mses(est: &[[f64; 5]], truth: &[[f64; 5]]) -> [f64; 5] {
 /// Runs ours on the reference scenario, seeds `1..=seeds`, and exports each run (the
 /// model's settings, the tuning, the measurements, the follower inputs and the truth) for
 /// the script.
-fn filter_runs(seeds: u64) -> crate::Result<(Value, Vec<(FilterFigures, Vec<[f64; 5]>)>)> {
+fn filter_runs(seeds: u64) -> crate::Result<(Value, OursFilter)> {
     let mut exported = Vec::new();
     let mut ours = Vec::new();
     for seed in 1..=seeds {
@@ -1189,7 +1497,13 @@ fn filter_runs(seeds: u64) -> crate::Result<(Value, Vec<(FilterFigures, Vec<[f64
         let mut truth = Vec::new();
         for pair in scenario.samples.windows(2) {
             let h = PolarModel::h(&pair[1].truth);
-            truth.push([h[0], h[1], h[2], pair[0].leader_inputs.v, pair[0].leader_inputs.w]);
+            truth.push([
+                h[0],
+                h[1],
+                h[2],
+                pair[0].leader_inputs.v,
+                pair[0].leader_inputs.w,
+            ]);
         }
         // Timed: filter construction excluded, every step included.
         let mut best = f64::INFINITY;
@@ -1208,7 +1522,13 @@ fn filter_runs(seeds: u64) -> crate::Result<(Value, Vec<(FilterFigures, Vec<[f64
             est = e;
         }
         let steps = truth.len().max(1) as f64;
-        ours.push((FilterFigures { seconds_per_step: best / steps, mse: mses(&est, &truth) }, truth.clone()));
+        ours.push((
+            FilterFigures {
+                seconds_per_step: best / steps,
+                mse: mses(&est, &truth),
+            },
+            truth.clone(),
+        ));
         let tu = &fc.tuning;
         exported.push(json!({
             "seed": seed,
@@ -1268,26 +1588,45 @@ fn filter_section(ours: &[(FilterFigures, Vec<[f64; 5]>)], peers: &Value) -> cra
          velocities), measurement noise and measurements (exported from Rust), Merwe sigma \
          points with alpha 1, beta 2, kappa 0, angle-aware means and residuals. Columns: \
          *time per step* median over the seeds of a run's time over its steps (microseconds; \
-         ours best of 3 runs, release build; filterpy `time.perf_counter`); MSEs over all \
+         ours best of 3 runs, release build; filterpy one run, `time.perf_counter`, \
+         pure Python with NumPy and SciPy); MSEs over all \
          240 steps of every seed, then the median over the seeds (m^2, rad^2, rad^2, \
          (m/s)^2, (rad/s)^2; `v1`, `w1` against the leader's inputs over the step).\n",
         ours.len()
     )?;
-    writeln!(text, "| filter | time per step (us) | x ours | MSE l12 | MSE alpha12 | MSE beta12 | MSE v1 | MSE w1 | runs |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- |")?;
+    writeln!(
+        text,
+        "| filter | time per step (us) | x ours | MSE l12 | MSE alpha12 | MSE beta12 | MSE v1 | MSE w1 | runs |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+    )?;
     let ours_t = median(ours.iter().map(|o| o.0.seconds_per_step).collect());
     let row = |name: &str, figs: &[&FilterFigures], text: &mut String| -> crate::Result {
         let t = median(figs.iter().map(|f| f.seconds_per_step).collect());
         write!(text, "| {name} | {:.1} | {:.2} |", 1e6 * t, t / ours_t)?;
         for i in 0..5 {
-            write!(text, " {:.3e} |", median(figs.iter().map(|f| f.mse[i]).collect()))?;
+            write!(
+                text,
+                " {:.3e} |",
+                median(figs.iter().map(|f| f.mse[i]).collect())
+            )?;
         }
         writeln!(text, " {} |", figs.len())?;
         Ok(())
     };
-    row("ours, dual UKF", &ours.iter().map(|o| &o.0).collect::<Vec<_>>(), &mut text)?;
-    row("filterpy UKF, augmented state", &theirs.iter().collect::<Vec<_>>(), &mut text)?;
+    row(
+        "ours, dual UKF",
+        &ours.iter().map(|o| &o.0).collect::<Vec<_>>(),
+        &mut text,
+    )?;
+    row(
+        "filterpy UKF, augmented state",
+        &theirs.iter().collect::<Vec<_>>(),
+        &mut text,
+    )?;
     if failed > 0 {
-        writeln!(text, "\nfilterpy failed on {failed} seeds (see the script's message); they are left out of its row.")?;
+        writeln!(
+            text,
+            "\nfilterpy failed on {failed} seeds (see the script's message); they are left out of its row."
+        )?;
     }
     writeln!(text)?;
     Ok(text)
@@ -1308,10 +1647,15 @@ fn machine(peers: &Value) -> crate::Result<Machine> {
     let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
     let cpu = cpuinfo
         .lines()
-        .find_map(|l| l.strip_prefix("model name").and_then(|r| r.split(':').nth(1)))
+        .find_map(|l| {
+            l.strip_prefix("model name")
+                .and_then(|r| r.split(':').nth(1))
+        })
         .map(|s| s.trim().to_string())
         .unwrap_or_else(|| "unknown".into());
-    let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    let cores = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1);
     let rustc = Command::new("rustc")
         .arg("-V")
         .output()
@@ -1324,10 +1668,22 @@ fn machine(peers: &Value) -> crate::Result<Machine> {
             libs.push((k.clone(), val.as_str().unwrap_or("").to_string()));
         }
     }
-    Ok(Machine { cpu, cores, rustc, python: peers["python"].as_str().unwrap_or("").to_string(), libs })
+    Ok(Machine {
+        cpu,
+        cores,
+        rustc,
+        python: peers["python"].as_str().unwrap_or("").to_string(),
+        libs,
+    })
 }
 
-fn header(doc: &mut String, s: &Settings, m: &Machine, elapsed: f64, h: &Headline) -> crate::Result {
+fn header(
+    doc: &mut String,
+    s: &Settings,
+    m: &Machine,
+    elapsed: f64,
+    h: &Headline,
+) -> crate::Result {
     writeln!(doc, "# Side by side with the peers\n")?;
     writeln!(
         doc,
@@ -1336,16 +1692,32 @@ fn header(doc: &mut String, s: &Settings, m: &Machine, elapsed: f64, h: &Headlin
          versions below), on the same input files as ours, in the same run. Every figure is a \
          ratio or a measurement of that one run; timings on another machine differ, the \
          ratios much less. The run took {elapsed:.0} s.\n",
-        if s.quick { " --quick (few scenes: for iterating, not for quoting)" } else { "" }
+        if s.quick {
+            " --quick (few scenes: for iterating, not for quoting)"
+        } else {
+            ""
+        }
     )?;
-    writeln!(doc, "**Headline** (median time per frame, one thread, same markers): ours against OpenCV ArUco \
+    writeln!(
+        doc,
+        "**Headline** (median time per frame, one thread, same markers): ours against OpenCV ArUco \
          (no refinement) **{:.1}x** faster at 640x480 and **{:.1}x** at 3840x2160; against AprilTag 3 (decimate 1) on tag36h11 **{:.1}x** at 640x480.\n",
-        h.aruco_640, h.aruco_4k, h.apriltag_640)?;
+        h.aruco_640, h.aruco_4k, h.apriltag_640
+    )?;
     writeln!(doc, "## Machine and versions\n")?;
     writeln!(doc, "| item | value |\n| --- | --- |")?;
     writeln!(doc, "| CPU (`/proc/cpuinfo`) | {} |", m.cpu)?;
-    writeln!(doc, "| cores available | {} (every timing here uses one thread) |", m.cores)?;
-    writeln!(doc, "| formation-tracker | {} ({}, release profile) |", env!("CARGO_PKG_VERSION"), m.rustc)?;
+    writeln!(
+        doc,
+        "| cores available | {} (every timing here uses one thread) |",
+        m.cores
+    )?;
+    writeln!(
+        doc,
+        "| formation-tracker | {} ({}, release profile) |",
+        env!("CARGO_PKG_VERSION"),
+        m.rustc
+    )?;
     writeln!(doc, "| Python | {} |", m.python)?;
     for (k, v) in &m.libs {
         writeln!(doc, "| {k} | {v} |")?;
@@ -1394,7 +1766,8 @@ mod figures {
     use plotters::prelude::*;
     use plotters::style::{FontStyle, register_font};
 
-    static DEJAVU_SANS: &[u8] = include_bytes!("../../crates/formation-sim/assets/fonts/DejaVuSans.ttf");
+    static DEJAVU_SANS: &[u8] =
+        include_bytes!("../../crates/formation-sim/assets/fonts/DejaVuSans.ttf");
 
     const COLORS: [RGBColor; 8] = [
         RGBColor(200, 30, 30),
@@ -1408,7 +1781,8 @@ mod figures {
     ];
 
     fn font() -> crate::Result {
-        register_font("sans-serif", FontStyle::Normal, DEJAVU_SANS).map_err(|_| "the embedded font could not be registered")?;
+        register_font("sans-serif", FontStyle::Normal, DEJAVU_SANS)
+            .map_err(|_| "the embedded font could not be registered")?;
         Ok(())
     }
 
@@ -1417,11 +1791,27 @@ mod figures {
     }
 
     /// Lines over log-log axes: `series` of `(x, y)` with `y > 0`.
-    fn log_log(path: &Path, title: &str, x_desc: &str, y_desc: &str, series: &[(String, Vec<(f64, f64)>)], log_x: bool) -> crate::Result {
+    fn log_log(
+        path: &Path,
+        title: &str,
+        x_desc: &str,
+        y_desc: &str,
+        series: &[(String, Vec<(f64, f64)>)],
+        log_x: bool,
+    ) -> crate::Result {
         font()?;
-        let pts = || series.iter().flat_map(|s| s.1.iter()).filter(|p| p.0.is_finite() && p.1.is_finite() && p.1 > 0.0);
-        let (x0, x1) = pts().fold((f64::INFINITY, f64::NEG_INFINITY), |a, p| (a.0.min(p.0), a.1.max(p.0)));
-        let (y0, y1) = pts().fold((f64::INFINITY, f64::NEG_INFINITY), |a, p| (a.0.min(p.1), a.1.max(p.1)));
+        let pts = || {
+            series
+                .iter()
+                .flat_map(|s| s.1.iter())
+                .filter(|p| p.0.is_finite() && p.1.is_finite() && p.1 > 0.0)
+        };
+        let (x0, x1) = pts().fold((f64::INFINITY, f64::NEG_INFINITY), |a, p| {
+            (a.0.min(p.0), a.1.max(p.0))
+        });
+        let (y0, y1) = pts().fold((f64::INFINITY, f64::NEG_INFINITY), |a, p| {
+            (a.0.min(p.1), a.1.max(p.1))
+        });
         if !(x0.is_finite() && y0.is_finite()) {
             return Err(format!("{title}: nothing to draw").into());
         }
@@ -1429,7 +1819,11 @@ mod figures {
         root.fill(&WHITE).map_err(err)?;
         let y_range = (y0 * 0.7..y1 * 1.4).log_scale();
         let mut builder = ChartBuilder::on(&root);
-        builder.caption(title, ("sans-serif", 18)).margin(12).x_label_area_size(40).y_label_area_size(64);
+        builder
+            .caption(title, ("sans-serif", 18))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(64);
         macro_rules! draw {
             ($chart:expr) => {{
                 let mut chart = $chart;
@@ -1442,13 +1836,21 @@ mod figures {
                     .map_err(err)?;
                 for (i, (label, points)) in series.iter().enumerate() {
                     let c = COLORS[i % COLORS.len()];
-                    let p: Vec<(f64, f64)> = points.iter().copied().filter(|p| p.1.is_finite() && p.1 > 0.0).collect();
+                    let p: Vec<(f64, f64)> = points
+                        .iter()
+                        .copied()
+                        .filter(|p| p.1.is_finite() && p.1 > 0.0)
+                        .collect();
                     chart
                         .draw_series(LineSeries::new(p.clone(), c.stroke_width(2)))
                         .map_err(err)?
                         .label(label.as_str())
-                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
-                    chart.draw_series(p.iter().map(|&q| Circle::new(q, 3, c.filled()))).map_err(err)?;
+                        .legend(move |(x, y)| {
+                            PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2))
+                        });
+                    chart
+                        .draw_series(p.iter().map(|&q| Circle::new(q, 3, c.filled())))
+                        .map_err(err)?;
                 }
                 chart
                     .configure_series_labels()
@@ -1461,10 +1863,18 @@ mod figures {
             }};
         }
         if log_x {
-            draw!(builder.build_cartesian_2d((x0 * 0.8..x1 * 1.2).log_scale(), y_range).map_err(err)?);
+            draw!(
+                builder
+                    .build_cartesian_2d((x0 * 0.8..x1 * 1.2).log_scale(), y_range)
+                    .map_err(err)?
+            );
         } else {
             let pad = (x1 - x0).max(1e-9) * 0.05;
-            draw!(builder.build_cartesian_2d(x0 - pad..x1 + pad, y_range).map_err(err)?);
+            draw!(
+                builder
+                    .build_cartesian_2d(x0 - pad..x1 + pad, y_range)
+                    .map_err(err)?
+            );
         }
         root.present().map_err(err)?;
         Ok(())
@@ -1472,13 +1882,29 @@ mod figures {
 
     /// Median detection time against frame size, every detector.
     pub fn detection_time(path: &Path, series: &[(String, Vec<(f64, f64)>)]) -> crate::Result {
-        log_log(path, "Full-frame detection time (one thread)", "frame size (megapixels)", "median time per frame (ms)", series, true)
+        log_log(
+            path,
+            "Full-frame detection time (one thread)",
+            "frame size (megapixels)",
+            "median time per frame (ms)",
+            series,
+            true,
+        )
     }
 
     /// Median rotation error against corner noise, every pose method.
     pub fn pose_error(path: &Path, series: &[(String, Vec<(f64, f64)>)]) -> crate::Result {
-        let shown: Vec<(String, Vec<(f64, f64)>)> =
-            series.iter().map(|(l, p)| (l.clone(), p.iter().copied().filter(|q| q.0 > 0.0).collect())).collect();
-        log_log(path, "Single-marker pose: median rotation error", "corner noise sigma (px)", "median rotation error (degrees)", &shown, false)
+        let shown: Vec<(String, Vec<(f64, f64)>)> = series
+            .iter()
+            .map(|(l, p)| (l.clone(), p.iter().copied().filter(|q| q.0 > 0.0).collect()))
+            .collect();
+        log_log(
+            path,
+            "Single-marker pose: median rotation error",
+            "corner noise sigma (px)",
+            "median rotation error (degrees)",
+            &shown,
+            false,
+        )
     }
 }
