@@ -8,6 +8,7 @@ use std::process::ExitCode;
 
 mod bags;
 mod bench_report;
+mod compare;
 mod detector_accuracy;
 mod dictionaries;
 mod dictionary;
@@ -36,6 +37,10 @@ commands:
   dukf-table       run the dual-UKF reproduction over seeds 1..20 (with and without
                    the paper's bias) and write docs/dukf-reproduction.md
                    (--scenario FILE: that scenario file against the baselines, printed)
+  compare          ours side by side with OpenCV ArUco, AprilTag 3 (pupil-apriltags), OpenCV
+                   solvePnP and a filterpy UKF on identical inputs, in a Python venv under
+                   target/py-venv; writes docs/comparison.md and docs/img/comparison-*.svg
+                   (--quick: few scenes; --scenes N: scenes per condition at 640x480)
   unused-deps      fail if a workspace crate declares a dependency its code never names
   figures          run the demo and copy its figures into docs/img/ (the README's)
   solvepnp         OpenCV's single-marker poses (solvePnP IPPE_SQUARE) and lens projections
@@ -61,6 +66,7 @@ fn main() -> ExitCode {
         Some("figures") => figures::run(&args[1..]),
         Some("solvepnp") => solvepnp::run(&args[1..]),
         Some("bags") => bags::run(&args[1..]),
+        Some("compare") => compare::run(&args[1..]),
         _ => {
             eprint!("{USAGE}");
             return ExitCode::from(2);

@@ -1,5 +1,6 @@
 //! The one Python virtual environment of the xtask commands that run the peers (OpenCV for
-//! `dictionaries` and `solvepnp`, the ROS 2 bag packages for `bags`): `target/py-venv`, made
+//! `dictionaries`, `solvepnp` and `compare`, the ROS 2 bag packages for `bags`, pupil-apriltags
+//! and filterpy for `compare`): `target/py-venv`, made
 //! on first use, each command's pinned packages pip-installed when its import probe fails.
 //! One place for the pins, so that the commands sharing the venv never ask pip for two
 //! versions of one package.
@@ -13,6 +14,12 @@ use crate::Result;
 /// references are generated with it; pinned so that `dictionaries --check` is
 /// reproducible).
 pub const OPENCV: &str = "opencv-contrib-python-headless==5.0.0.93";
+
+/// AprilTag 3's Python bindings, pinned (the AprilTag peer of `compare`).
+pub const APRILTAGS: &str = "pupil-apriltags==1.0.4.post11";
+
+/// filterpy, pinned (the UKF peer of `compare`).
+pub const FILTERPY: &str = "filterpy==2.0.0";
 
 /// NumPy, pinned (OpenCV's and the bag writers' arrays).
 pub const NUMPY: &str = "numpy==2.4.6";
