@@ -244,6 +244,10 @@ impl Detector {
                     best = Some(d);
                 }
             }
+            // Not an entry as sampled: read it as a motion-blurred marker (issue #16).
+            let best = best.or_else(|| {
+                crate::blur::decode_blurred(img, &q.corners, &self.dictionaries, params)
+            });
             let Some(d) = best else {
                 continue;
             };
