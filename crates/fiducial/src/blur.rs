@@ -55,7 +55,7 @@ fn step_width(image: &GrayView<'_>, corners: &Corners, i: usize) -> Option<f64> 
     let (p, q) = (corners[i], corners[(i + 1) % 4]);
     let along = q - p;
     let len = along.norm();
-    if !(len > 4.0) {
+    if len.is_nan() || len <= 4.0 {
         return None;
     }
     let n = Vector2::new(along.y, -along.x) / len;
@@ -79,7 +79,7 @@ fn step_width(image: &GrayView<'_>, corners: &Corners, i: usize) -> Option<f64> 
             t += 0.5;
         }
     }
-    if !(sw > 0.0) {
+    if sw.is_nan() || sw <= 0.0 {
         return None;
     }
     let mean = s1 / sw;

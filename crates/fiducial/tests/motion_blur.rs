@@ -1,5 +1,6 @@
 //! Issue #16: markers smeared by motion blur (the camera moving while the shutter is open)
-//! are read through the blur-aware fallback, without wrong codes. Seeds 90,000 on: not the
+//! are read through the blur-aware fallback (`DetectorConfig::motion_blur`), without wrong
+//! codes. Seeds 90,000 on: not the
 //! scenes of `cargo xtask detector-accuracy`'s motion-blur rows (70,000 on).
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
@@ -23,7 +24,10 @@ fn read(length: f64, scenes: u64) -> (usize, usize, usize) {
         max_side: 70.0,
         ..SceneConfig::default()
     };
-    let mut det = Detector::new(DetectorConfig::default());
+    let mut det = Detector::new(DetectorConfig {
+        motion_blur: true,
+        ..DetectorConfig::default()
+    });
     let (mut total, mut found, mut wrong) = (0, 0, 0);
     let mut out = Vec::new();
     for seed in 0..scenes {
