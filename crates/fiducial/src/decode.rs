@@ -442,11 +442,34 @@ pub fn read_cells_with(
         }
     }
     let cells = (m * n) as usize;
+    reading_from_levels(
+        &mut border[..nb],
+        &mut quiet[..nq],
+        &data,
+        cells,
+        white_reference,
+        params,
+    )
+}
+
+/// The reading of sampled cell levels: `border` (black reference), `quiet` (the white
+/// reference with [`WhiteReference::QuietZone`]) and the first `cells` of `data`, checked
+/// for contrast and a dark border as [`read_cells_with`] does. `border` and `quiet` are
+/// reordered.
+pub(crate) fn reading_from_levels(
+    border: &mut [f64],
+    quiet: &mut [f64],
+    data: &[f64; 64],
+    cells: usize,
+    white_reference: WhiteReference,
+    params: &DecodeParams,
+) -> Result<CellReading, Rejection> {
+    let nb = border.len();
     let white = match white_reference {
-        WhiteReference::QuietZone => median(&mut quiet[..nq]),
+        WhiteReference::QuietZone => median(quiet),
         WhiteReference::DataCells => {
             let mut all = [0.0f64; MAX_BORDER + 64];
-            all[..nb].copy_from_slice(&border[..nb]);
+            all[..nb].copy_from_slice(border);
             all[nb..nb + cells].copy_from_slice(&data[..cells]);
             let all = &mut all[..nb + cells];
             all.sort_unstable_by(f64::total_cmp);
@@ -470,7 +493,7 @@ pub fn read_cells_with(
             }
         }
     };
-    let black = median(&mut border[..nb]);
+    let black = median(border);
     let contrast = white - black;
     if contrast.is_nan() || contrast < params.min_contrast.max(f64::MIN_POSITIVE) {
         return Err(Rejection::LowContrast {
@@ -479,7 +502,7 @@ pub fn read_cells_with(
         });
     }
     let threshold = 0.5 * (black + white);
-    let light = border[..nb].iter().filter(|&&v| v > threshold).count() as u32;
+    let light = border.iter().filter(|&&v| v > threshold).count() as u32;
     if light > params.max_light_border_cells {
         return Err(Rejection::BorderNotDark {
             light,
@@ -515,7 +538,7 @@ pub fn read_cells_with(
         light_border_cells: light,
         confidence: (margin / half).min(1.0),
         fit,
-        levels: data,
+        levels: *data,
     })
 }
 

@@ -137,6 +137,7 @@
 /// This crate's version (`CARGO_PKG_VERSION`), for tools that report what they were built from.
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
+mod blur;
 pub mod contour;
 pub mod cross_ratio;
 pub mod decode;
