@@ -117,7 +117,7 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(256))]
 
     /// With a linear process and an identity space, the URTSS run over the UKF's history is
-    /// the linear RTS smoother run over the linear Kalman filter's, to 1e-9 (relative to the
+    /// the linear RTS smoother run over the linear Kalman filter's, to 1e-7 (relative to the
     /// size of the numbers).
     #[test]
     fn linear_gaussian_equals_linear_rts(c in case()) {
@@ -127,12 +127,17 @@ proptest! {
         let smoother = RtsSmoother::new(Euclidean, c.params).unwrap();
         let got = smoother.smooth(&history, |_, x| c.a * x, |_| c.q).unwrap();
         prop_assert_eq!(got.estimates.len(), want.len());
+        // Two different computations (sigma points against matrix products) through up to
+        // 12 predictions and the inverse of each predicted covariance agree to rounding times
+        // its condition number: a draw with five predictions without update (A's spectral
+        // radius up to 1.3) differed by 6.5e-9, so 1e-7; a wrong gain or mean errs by 1e-2.
+        let tol = 1e-7;
         for (k, (g, (m, p))) in got.estimates.iter().zip(&want).enumerate() {
             let scale = 1.0 + m.amax().max(p.amax());
             let em = (g.mean - m).amax() / scale;
             let ep = (g.covariance - p).amax() / scale;
-            prop_assert!(em <= 1e-9, "step {}: mean error {:e}\n got {}\n want {}", k, em, g.mean, m);
-            prop_assert!(ep <= 1e-9, "step {}: covariance error {:e}\n got {}\n want {}", k, ep, g.covariance, p);
+            prop_assert!(em <= tol, "step {}: mean error {:e}\n got {}\n want {}", k, em, g.mean, m);
+            prop_assert!(ep <= tol, "step {}: covariance error {:e}\n got {}\n want {}", k, ep, g.covariance, p);
         }
         // Smoothing never loses information: Ps_k <= P_k (all eigenvalues of the difference
         // non-negative, up to rounding).
