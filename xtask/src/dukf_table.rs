@@ -187,7 +187,12 @@ pub fn run(args: &[String]) -> Result {
 
     let path = workspace_root()?.join("docs").join("dukf-reproduction.md");
     std::fs::write(&path, md)?;
-    let smoothing = smoothing::document(&runs.clean_runs, &runs.check_smoothed, &runs.check)?;
+    let smoothing = smoothing::document(
+        &runs.dual_runs,
+        &runs.check_dual_runs,
+        &runs.clean,
+        &runs.check,
+    )?;
     let smoothing_path = workspace_root()?.join("docs").join("smoothing.md");
     std::fs::write(&smoothing_path, smoothing)?;
     println!("dukf-table: wrote {}", smoothing_path.display());
@@ -206,6 +211,8 @@ pub fn run(args: &[String]) -> Result {
 /// bias over [`SEEDS`], the check seeds, the dual UKF and the two baselines on each.
 struct ReferenceRuns {
     clean_runs: Vec<Reproduction>,
+    dual_runs: Vec<Reproduction>,
+    check_dual_runs: Vec<Reproduction>,
     dual: Vec<Summary>,
     check_dual: Vec<Summary>,
     clean: Vec<Summary>,
@@ -225,14 +232,14 @@ impl ReferenceRuns {
         let mut biased = Vec::new();
         let mut rw = Vec::new();
         let mut cv = Vec::new();
-        let mut dual = Vec::new();
-        let mut check_dual = Vec::new();
+        let mut dual_runs = Vec::new();
+        let mut check_dual_runs = Vec::new();
         let dual_config =
             |c: &ScenarioConfig| paper_filter_config_with(c.d, c.dt, FilterDesign::Dual);
         for seed in SEEDS {
             eprintln!("dukf-table: seed {seed}");
             let scenario = simulate(&ScenarioConfig::reference(seed))?;
-            dual.push(run_filter(&scenario, &dual_config(&scenario.config))?.summary);
+            dual_runs.push(run_filter(&scenario, &dual_config(&scenario.config))?);
             rw.push(baseline(&scenario, &x0, Baseline::RANDOM_WALK));
             cv.push(baseline(&scenario, &x0, Baseline::CONSTANT_VELOCITY));
             clean_runs.push(reproduce(seed, false)?);
@@ -246,15 +253,19 @@ impl ReferenceRuns {
         for seed in CHECK_SEEDS {
             eprintln!("dukf-table: check seed {seed}");
             let scenario = simulate(&ScenarioConfig::reference(seed))?;
-            check_dual.push(run_filter(&scenario, &dual_config(&scenario.config))?.summary);
+            check_dual_runs.push(run_filter(&scenario, &dual_config(&scenario.config))?);
             check_rw.push(baseline(&scenario, &x0, Baseline::RANDOM_WALK));
             check_cv.push(baseline(&scenario, &x0, Baseline::CONSTANT_VELOCITY));
             let run = reproduce(seed, false)?;
             check.push(run.summary);
             check_smoothed.push(run.smoothed_summary);
         }
+        let dual = dual_runs.iter().map(|r| r.summary.clone()).collect();
+        let check_dual = check_dual_runs.iter().map(|r| r.summary.clone()).collect();
         Ok(Self {
             clean_runs,
+            dual_runs,
+            check_dual_runs,
             dual,
             check_dual,
             clean,
@@ -292,7 +303,7 @@ fn write_header(md: &mut String, runs: &ReferenceRuns) {
     let imm = &filter.tuning.imm;
     let _ = writeln!(
         md,
-        "Filter (the default, `FilterDesign::Imm`): the interacting multiple-model filter of \
+        "Filter (`reproduce dukf`'s, `FilterDesign::Imm`; the tracker's default is the dual UKF): the interacting multiple-model filter of \
          three unscented filters over [x1, y1, theta1, l12, alpha12, beta12, v1, w1, a_v, a_w] \
          (A: the leader accelerates, jerk [{}] m/s^3, rad/s^3; B: the follower holds the \
          formation, its held variables drifting by a random walk of per-step std [{}] x dt; C: the follower holds the bearing), mean \

@@ -23,7 +23,8 @@
 //! is reported with the reason ([`RobotMeasurement::rejections`]).
 //!
 //! A small cut (a few percent of a face's width) hides under the 6-DOF joint pose, which
-//! tilts to absorb it. On the ground plane (see below) the pose has three degrees of
+//! tilts to absorb it. With [`RobotConfig::plane_face_check`] (off by default: it also
+//! drops good steep faces, see there), on the ground plane (see below) the pose has three degrees of
 //! freedom for eight corners a face, so a cut face leaves a residual there: when a corner
 //! lies more than [`RobotConfig::corner_outlier_px`] from the joint planar fit, each face is
 //! left out in turn, the others are fitted on the plane, and the face that lets the others
@@ -104,6 +105,14 @@ pub struct RobotConfig {
     /// detector's corners are good to about 0.1 px.
     #[serde(default = "default_corner_outlier_px")]
     pub corner_outlier_px: f64,
+    /// Whether the ground-plane check of [`RobotConfig::corner_outlier_px`] runs (default
+    /// off). It drops every cut face of the occluder property test, but it also drops good
+    /// steep faces whose corners are noisier than the limit: on the paper's Fig. 11 scene
+    /// it drops robot 2's steep face 4 (a corner 0.53 px off) and the distance error grows
+    /// from 0.2 % to 0.8 %; on `random-scenes` seed 2026 it costs scene 13 its heading
+    /// limit. A limit that follows each face's own corner noise is the open part of #16.
+    #[serde(default)]
+    pub plane_face_check: bool,
 }
 
 /// [`RobotConfig::corner_outlier_px`] of a configuration that does not give it.
@@ -129,6 +138,7 @@ impl Default for RobotConfig {
             max_range_m: 20.0,
             max_floor_offset_m: 0.2,
             corner_outlier_px: 0.15,
+            plane_face_check: false,
         }
     }
 }
@@ -507,7 +517,7 @@ fn plane_outliers(
             .iter()
             .flat_map(|f| plane_corner_errors(solver, plane, f, &fit.pose))
             .fold(0.0, f64::max);
-        if worst.is_nan() || worst <= config.corner_outlier_px {
+        if !config.plane_face_check || worst.is_nan() || worst <= config.corner_outlier_px {
             return;
         }
         // (face, score, the rest's RMS, its farthest corner under the rest's pose)
