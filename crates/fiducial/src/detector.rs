@@ -412,7 +412,7 @@ impl Detector {
         if f == 1 {
             self.binarizer.binarize(img, cfg.threshold, &mut self.bin);
         } else {
-            decimate(img, f, &mut self.small);
+            crate::image::decimate(img, f, &mut self.small);
             let Ok(small) = GrayView::new(&self.small, w, h) else {
                 return;
             };
@@ -550,38 +550,5 @@ fn push_unique(out: &mut Vec<Decoded>, d: Decoded) {
             }
         }
         None => out.push(d),
-    }
-}
-
-/// The mean of each `f x f` block of `img` into `out` (`width / f` by `height / f`, row
-/// major; the last partial block of a row or column is dropped).
-fn decimate(img: &GrayView<'_>, f: usize, out: &mut Vec<u8>) {
-    let (w, h) = (img.width() / f, img.height() / f);
-    out.clear();
-    out.resize(w * h, 0);
-    let n = (f * f) as u32;
-    for (y, orow) in out.chunks_exact_mut(w.max(1)).enumerate().take(h) {
-        if f == 2 {
-            let (a, b) = (img.row(2 * y), img.row(2 * y + 1));
-            for ((o, pa), pb) in orow
-                .iter_mut()
-                .zip(a.chunks_exact(2))
-                .zip(b.chunks_exact(2))
-            {
-                let s = u32::from(pa[0]) + u32::from(pa[1]) + u32::from(pb[0]) + u32::from(pb[1]);
-                *o = ((s + 2) / 4) as u8;
-            }
-            continue;
-        }
-        for (x, o) in orow.iter_mut().enumerate() {
-            let mut s = 0u32;
-            for yy in f * y..f * y + f {
-                s += img.row(yy)[f * x..f * x + f]
-                    .iter()
-                    .map(|&v| u32::from(v))
-                    .sum::<u32>();
-            }
-            *o = ((s + n / 2) / n) as u8;
-        }
     }
 }

@@ -157,9 +157,82 @@ impl<'a> GrayView<'a> {
     }
 }
 
+/// The mean of each `f x f` block of `img` (`f` from 1 to 4, clamped) into `out` (`width / f`
+/// by `height / f`, row major; the last partial block of a row or column is dropped), each
+/// mean rounded half up. One pass over the rows, with the block size a compile-time
+/// constant so the inner sums unroll (the coarse scan of [`crate::Detector::detect_coarse`]
+/// and of guided detection).
+pub(crate) fn decimate(img: &GrayView<'_>, f: usize, out: &mut Vec<u8>) {
+    match f.clamp(1, 4) {
+        1 => decimate_by::<1>(img, out),
+        2 => decimate_by::<2>(img, out),
+        3 => decimate_by::<3>(img, out),
+        _ => decimate_by::<4>(img, out),
+    }
+}
+
+fn decimate_by<const F: usize>(img: &GrayView<'_>, out: &mut Vec<u8>) {
+    let (w, h) = (img.width() / F, img.height() / F);
+    // Every byte is written below: resize only.
+    out.resize(w * h, 0);
+    if w == 0 {
+        return;
+    }
+    let n = (F * F) as u32;
+    for (y, orow) in out.chunks_exact_mut(w).enumerate() {
+        let rows: [&[u8]; F] = std::array::from_fn(|k| &img.row(F * y + k)[..F * w]);
+        for (x, o) in orow.iter_mut().enumerate() {
+            let mut s = 0u32;
+            for r in &rows {
+                for &v in &r[F * x..F * x + F] {
+                    s += u32::from(v);
+                }
+            }
+            *o = ((s + n / 2) / n) as u8;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    proptest::proptest! {
+        #[test]
+        fn decimate_is_the_rounded_block_mean(
+            w in 1usize..30,
+            h in 1usize..20,
+            pad in 0usize..3,
+            f in 1usize..5,
+            seed in proptest::prelude::any::<u64>(),
+        ) {
+            // A strided view, so that rows are read through the stride.
+            let stride = w + pad;
+            let mut state = seed | 1;
+            let data: Vec<u8> = (0..stride * h)
+                .map(|_| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    state as u8
+                })
+                .collect();
+            let img = GrayView::with_stride(&data, w, h, stride).unwrap();
+            let mut out = vec![7u8; 1000];
+            decimate(&img, f, &mut out);
+            let (sw, sh) = (w / f, h / f);
+            proptest::prop_assert_eq!(out.len(), sw * sh);
+            for y in 0..sh {
+                for x in 0..sw {
+                    let s: u32 = (0..f * f)
+                        .map(|k| u32::from(data[(f * y + k / f) * stride + f * x + k % f]))
+                        .sum();
+                    let n = (f * f) as u32;
+                    proptest::prop_assert_eq!(u32::from(out[y * sw + x]), (s + n / 2) / n);
+                }
+            }
+        }
+    }
 
     #[test]
     fn rejects_bad_shapes() {

@@ -8,7 +8,8 @@
 //! the leader's predicted region, as the pipeline computes it after three tracked frames
 //! (the rig reprojected at the predicted pose, default margins, quads searched at the
 //! scale the predicted marker size allows: 1 at 640x480, 4 at 3840x2160). The same `Detector` type
-//! and defaults as `track`; one core.
+//! and defaults as `track`; one core. `formation-sim/baseline_sum_640x480` sums the 640x480
+//! frame's bytes: a fixed-work reference in the same run, for ratios on a loaded machine.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Region};
@@ -120,6 +121,12 @@ fn benches(c: &mut Criterion) {
         });
         group.finish();
     }
+    // A fixed-work reference measured in the same run (as in the fiducial benches), so that
+    // figures taken on a loaded machine can be compared as ratios.
+    let (pixels, _, _) = setup(640, 480);
+    c.bench_function("formation-sim/baseline_sum_640x480", |b| {
+        b.iter(|| black_box(&pixels).iter().map(|&v| u32::from(v)).sum::<u32>())
+    });
 }
 
 criterion_group!(guided, benches);
