@@ -3,7 +3,8 @@
 //! `fiducial/detect_*`: full detection (quads + decoding) of 8-marker scenes (20-120 px,
 //! blur 1, noise 3) at three frame sizes; `_tag36h11` the 640x480 scene with tag36h11
 //! markers and a tag36h11 detector; `_clean` (noise 0) against `_noisy` (noise 10) at
-//! 640x480; clutter without markers. `fiducial/find_quads_640x480` is the quad phase alone
+//! 640x480; clutter without markers; `detect_1920x1080_rayon` the 1920x1080 scene through
+//! `Detector::detect_parallel` (binarization on rayon's threads). `fiducial/find_quads_640x480` is the quad phase alone
 //! (`binarize_640x480` and `label_640x480` its first two stages apart) and
 //! `fiducial/baseline_sum_640x480` a plain pass summing the frame's bytes, measured in
 //! the same run so that ratios survive a loaded machine.
@@ -94,6 +95,18 @@ fn benches(c: &mut Criterion) {
         1920,
         1080,
     );
+    // The same 1920x1080 frame with binarization on the threads of rayon's pool (two on the
+    // reference machine): compare with detect_1920x1080 (do not pin this one to one core).
+    let hd = scene(1920, 1080, 3.0);
+    let img = GrayView::new(&hd, 1920, 1080).expect("valid frame");
+    let mut det = Detector::new(DetectorConfig::default());
+    let mut out = Vec::new();
+    c.bench_function("fiducial/detect_1920x1080_rayon", |b| {
+        b.iter(|| {
+            det.detect_parallel(black_box(&img), &mut out);
+            black_box(out.len())
+        })
+    });
     bench_detect(
         c,
         "fiducial/detect_640x480_clean",

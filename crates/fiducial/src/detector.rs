@@ -165,6 +165,9 @@ pub struct Detector {
     regions: Vec<Region>,
     /// One region's markers before they are moved into frame coordinates.
     region_out: Vec<Decoded>,
+    /// Bands of binarization run on rayon threads (1: single-threaded; see
+    /// [`Detector::detect_parallel`]).
+    bands: usize,
 }
 
 impl Default for Detector {
@@ -223,6 +226,7 @@ impl Detector {
             small: Vec::new(),
             regions: Vec::new(),
             region_out: Vec::new(),
+            bands: 1,
         }
     }
 
@@ -244,6 +248,21 @@ impl Detector {
     pub fn detect(&mut self, img: &GrayView<'_>, out: &mut Vec<Decoded>) -> usize {
         self.find_quads(img);
         self.decode_quads(img, out)
+    }
+
+    /// [`Detector::detect`] with binarization (the stage that reads every pixel) cut into
+    /// horizontal bands run on the threads of the current rayon pool. The output is identical
+    /// to [`Detector::detect`]'s (a test checks it). Frames under a megapixel are detected on
+    /// the calling thread alone, where the threads' start-up costs more than they save;
+    /// single-threaded [`Detector::detect`] stays the default. Unlike it, this may allocate
+    /// per frame (rayon's job queue).
+    pub fn detect_parallel(&mut self, img: &GrayView<'_>, out: &mut Vec<Decoded>) -> usize {
+        if img.width() * img.height() >= 1 << 20 {
+            self.bands = rayon::current_num_threads();
+        }
+        let n = self.detect(img, out);
+        self.bands = 1;
+        n
     }
 
     /// The decoding phase alone: reads every quad of the last [`Detector::find_quads`] call
@@ -410,7 +429,8 @@ impl Detector {
             self.quads.reserve(64);
         }
         if f == 1 {
-            self.binarizer.binarize(img, cfg.threshold, &mut self.bin);
+            self.binarizer
+                .binarize_parallel(img, cfg.threshold, &mut self.bin, self.bands);
         } else {
             crate::image::decimate(img, f, &mut self.small);
             let Ok(small) = GrayView::new(&self.small, w, h) else {

@@ -57,11 +57,21 @@ pub const DARK: u8 = 1;
 pub struct Binarizer {
     smooth: Vec<u8>,
     fine: Vec<u8>,
-    hsum: Vec<u16>,
     tile_min: Vec<u8>,
     tile_max: Vec<u8>,
     tile_thr: Vec<u8>,
+    /// Scratch rows of each band of rows (one band unless [`Binarizer::binarize_parallel`]).
+    bands: Vec<Band>,
+}
+
+/// The scratch rows one band of rows needs.
+#[derive(Debug, Default, Clone)]
+struct Band {
+    /// Three rows of horizontal 3-sums (a ring).
+    hsum: Vec<u16>,
+    /// Element-wise minimum of a tile row's rows, later its thresholds expanded per pixel.
     row_min: Vec<u8>,
+    /// Element-wise maximum of a tile row's rows.
     row_max: Vec<u8>,
 }
 
@@ -74,21 +84,119 @@ impl Binarizer {
     /// Writes the binary image of `img` into `out` (`width * height` bytes, row-major,
     /// [`DARK`] for dark pixels, 0 for light). `out` keeps its capacity between calls.
     pub fn binarize(&mut self, img: &GrayView<'_>, threshold: Threshold, out: &mut Vec<u8>) {
+        self.run(img, threshold, out, 1);
+    }
+
+    /// [`Binarizer::binarize`] on up to `bands` threads of the current rayon pool: the frame
+    /// is cut into horizontal bands of whole tile rows, each band is smoothed and reduced to
+    /// tile minima and maxima on its own thread, the tile thresholds are computed once, and
+    /// each band is then cut on its own thread. Every stage reads the same pixels as the
+    /// single-threaded pass, so the output is identical to [`Binarizer::binarize`]'s.
+    pub fn binarize_parallel(
+        &mut self,
+        img: &GrayView<'_>,
+        threshold: Threshold,
+        out: &mut Vec<u8>,
+        bands: usize,
+    ) {
+        self.run(img, threshold, out, bands.max(1));
+    }
+
+    fn run(&mut self, img: &GrayView<'_>, threshold: Threshold, out: &mut Vec<u8>, bands: usize) {
         let (w, h) = (img.width(), img.height());
-        self.box3(img);
-        // Both cuts below write every byte: resize only.
+        // Every byte of these is written below: resize only (no clear and refill).
+        self.smooth.resize(w * h, 0);
+        self.fine.resize(w * h, 0);
         out.resize(w * h, 0);
-        match threshold {
+        let (tile, min_contrast) = match threshold {
             Threshold::Adaptive {
                 tile_size,
                 min_contrast,
-            } => self.adaptive(w, h, tile_size.clamp(2, 64), min_contrast, out),
-            Threshold::Otsu => {
-                let t = otsu_level(&self.smooth);
-                for (o, &s) in out.iter_mut().zip(&self.fine) {
-                    *o = u8::from(s <= t);
-                }
+            } => (tile_size.clamp(2, 64), Some(min_contrast)),
+            // Otsu has no tiles; bands are still cut at multiples of 8 rows.
+            Threshold::Otsu => (8, None),
+        };
+        let (tx, ty) = (w.div_ceil(tile), h.div_ceil(tile));
+        let band_tiles = ty.div_ceil(bands.clamp(1, ty));
+        let band_rows = band_tiles * tile;
+        let count = h.div_ceil(band_rows);
+        if self.bands.len() < count {
+            self.bands.resize_with(count, Band::default);
+        }
+        self.tile_min.resize(tx * ty, 0);
+        self.tile_max.resize(tx * ty, 0);
+        // Phase 1: smoothing, and the tile minima and maxima, per band.
+        let adaptive = min_contrast.is_some();
+        let smooth_band = |(b, ((((sm, fi), mn), mx), band)): (
+            usize,
+            ((((&mut [u8], &mut [u8]), &mut [u8]), &mut [u8]), &mut Band),
+        )| {
+            box3_rows(img, b * band_rows, sm, fi, &mut band.hsum);
+            if adaptive {
+                tile_extremes(sm, w, tile, tx, band, mn, mx);
             }
+        };
+        if count == 1 {
+            smooth_band((
+                0,
+                (
+                    (
+                        (
+                            (&mut self.smooth[..], &mut self.fine[..]),
+                            &mut self.tile_min[..],
+                        ),
+                        &mut self.tile_max[..],
+                    ),
+                    &mut self.bands[0],
+                ),
+            ));
+        } else {
+            use rayon::prelude::*;
+            self.smooth
+                .par_chunks_mut(band_rows * w)
+                .zip(self.fine.par_chunks_mut(band_rows * w))
+                .zip(self.tile_min.par_chunks_mut(band_tiles * tx))
+                .zip(self.tile_max.par_chunks_mut(band_tiles * tx))
+                .zip(self.bands.par_iter_mut())
+                .enumerate()
+                .for_each(smooth_band);
+        }
+        let Some(min_contrast) = min_contrast else {
+            let t = otsu_level(&self.smooth);
+            for (o, &s) in out.iter_mut().zip(&self.fine) {
+                *o = u8::from(s <= t);
+            }
+            return;
+        };
+        // Phase 2: one threshold per tile, from its 3x3 tile neighbourhood.
+        tile_thresholds(
+            &self.tile_min,
+            &self.tile_max,
+            tx,
+            ty,
+            min_contrast,
+            &mut self.tile_thr,
+        );
+        // Phase 3: the cut, per band.
+        let cut_band = |((fi, o), (thr, band)): ((&[u8], &mut [u8]), (&[u8], &mut Band))| {
+            cut_rows(fi, o, thr, w, tile, &mut band.row_min);
+        };
+        if count == 1 {
+            cut_band((
+                (&self.fine[..], &mut out[..]),
+                (&self.tile_thr[..], &mut self.bands[0]),
+            ));
+        } else {
+            use rayon::prelude::*;
+            self.fine
+                .par_chunks(band_rows * w)
+                .zip(out.par_chunks_mut(band_rows * w))
+                .zip(
+                    self.tile_thr
+                        .par_chunks(band_tiles * tx)
+                        .zip(self.bands.par_iter_mut()),
+                )
+                .for_each(cut_band);
         }
     }
 
@@ -96,134 +204,163 @@ impl Binarizer {
     pub fn smoothed(&self) -> &[u8] {
         &self.smooth
     }
+}
 
-    /// 3x3 box filter with replicated borders into `self.smooth`, and the line-preserving
-    /// level into `self.fine`.
-    ///
-    /// Every row loop runs over slices of one length in 16-bit arithmetic (no sum exceeds
-    /// 9 * 255), so it vectorises; the output is identical to the scalar definition (a test
-    /// checks it against that).
-    fn box3(&mut self, img: &GrayView<'_>) {
-        let (w, h) = (img.width(), img.height());
-        // Every byte of both buffers is written below: resize only (no clear and refill).
-        self.smooth.resize(w * h, 0);
-        self.fine.resize(w * h, 0);
-        // Three rows of horizontal 3-sums, as a ring.
-        self.hsum.resize(3 * w, 0);
-        // hsum slot k holds the horizontal sums of row (y - 1 + k) (clamped).
-        let (s0, rest) = self.hsum.split_at_mut(w);
-        let (s1, s2) = rest.split_at_mut(w);
-        let mut slots = [s0, s1, s2];
-        hrow(img.row(0), slots[0]);
-        hrow(img.row(0), slots[1]);
-        hrow(img.row(1.min(h - 1)), slots[2]);
-        for (y, (out, fine)) in self
-            .smooth
-            .chunks_exact_mut(w)
-            .zip(self.fine.chunks_exact_mut(w))
-            .enumerate()
-        {
-            let (up, mid, down) = (
-                img.row(y.saturating_sub(1)),
-                img.row(y),
-                img.row((y + 1).min(h - 1)),
-            );
-            box_row(
-                [&*slots[0], &*slots[1], &*slots[2]],
-                [up, mid, down],
-                out,
-                fine,
-            );
-            if y + 1 < h {
-                slots.rotate_left(1);
-                hrow(img.row((y + 2).min(h - 1)), slots[2]);
-            }
+/// 3x3 box filter with replicated borders of the rows `y0 ..` of `img` that `smooth` holds
+/// (whole rows) into `smooth`, and the line-preserving level into `fine`.
+///
+/// Every row loop runs over slices of one length in 16-bit arithmetic (no sum exceeds
+/// 9 * 255), so it vectorises; the output is identical to the scalar definition (a test
+/// checks it against that).
+fn box3_rows(
+    img: &GrayView<'_>,
+    y0: usize,
+    smooth: &mut [u8],
+    fine: &mut [u8],
+    hsum: &mut Vec<u16>,
+) {
+    let (w, h) = (img.width(), img.height());
+    let rows = smooth.len() / w;
+    // Three rows of horizontal 3-sums, as a ring.
+    hsum.resize(3 * w, 0);
+    // hsum slot k holds the horizontal sums of row (y - 1 + k) (clamped).
+    let (s0, rest) = hsum.split_at_mut(w);
+    let (s1, s2) = rest.split_at_mut(w);
+    let mut slots = [s0, s1, s2];
+    hrow(img.row(y0.saturating_sub(1)), slots[0]);
+    hrow(img.row(y0), slots[1]);
+    hrow(img.row((y0 + 1).min(h - 1)), slots[2]);
+    for (i, (out, fine)) in smooth
+        .chunks_exact_mut(w)
+        .zip(fine.chunks_exact_mut(w))
+        .enumerate()
+    {
+        let y = y0 + i;
+        let (up, mid, down) = (
+            img.row(y.saturating_sub(1)),
+            img.row(y),
+            img.row((y + 1).min(h - 1)),
+        );
+        box_row(
+            [&*slots[0], &*slots[1], &*slots[2]],
+            [up, mid, down],
+            out,
+            fine,
+        );
+        if i + 1 < rows {
+            slots.rotate_left(1);
+            hrow(img.row((y + 2).min(h - 1)), slots[2]);
         }
     }
+}
 
-    fn adaptive(&mut self, w: usize, h: usize, tile: usize, min_contrast: u8, out: &mut [u8]) {
-        let tx = w.div_ceil(tile);
-        let ty = h.div_ceil(tile);
-        self.tile_min.clear();
-        self.tile_min.resize(tx * ty, u8::MAX);
-        self.tile_max.clear();
-        self.tile_max.resize(tx * ty, 0);
-        // Per tile row: element-wise min/max over its rows (vectorises), then one reduction
-        // per tile.
-        self.row_min.clear();
-        self.row_min.resize(w, 0);
-        self.row_max.clear();
-        self.row_max.resize(w, 0);
-        for (j, band) in self.smooth.chunks(tile * w).enumerate() {
-            let mut rows = band.chunks_exact(w);
-            if let Some(first) = rows.next() {
-                self.row_min.copy_from_slice(first);
-                self.row_max.copy_from_slice(first);
-            }
-            for row in rows {
-                for ((mn, mx), &v) in self
-                    .row_min
-                    .iter_mut()
-                    .zip(self.row_max.iter_mut())
-                    .zip(row)
-                {
-                    *mn = (*mn).min(v);
-                    *mx = (*mx).max(v);
-                }
-            }
-            let mins = &mut self.tile_min[j * tx..(j + 1) * tx];
-            let maxs = &mut self.tile_max[j * tx..(j + 1) * tx];
-            for (((cmin, cmax), mn), mx) in self
+/// Minimum and maximum of each tile of the band `smooth` (whole tile rows, `w` per row) into
+/// `mins` and `maxs` (`tx` per tile row): per tile row, element-wise min/max over its rows
+/// (vectorises), then one reduction per tile.
+fn tile_extremes(
+    smooth: &[u8],
+    w: usize,
+    tile: usize,
+    tx: usize,
+    band: &mut Band,
+    mins: &mut [u8],
+    maxs: &mut [u8],
+) {
+    band.row_min.resize(w, 0);
+    band.row_max.resize(w, 0);
+    for ((rows, mins), maxs) in smooth
+        .chunks(tile * w)
+        .zip(mins.chunks_mut(tx))
+        .zip(maxs.chunks_mut(tx))
+    {
+        let mut rows = rows.chunks_exact(w);
+        if let Some(first) = rows.next() {
+            band.row_min.copy_from_slice(first);
+            band.row_max.copy_from_slice(first);
+        }
+        for row in rows {
+            for ((mn, mx), &v) in band
                 .row_min
-                .chunks(tile)
-                .zip(self.row_max.chunks(tile))
-                .zip(mins)
-                .zip(maxs)
+                .iter_mut()
+                .zip(band.row_max.iter_mut())
+                .zip(row)
             {
-                *mn = cmin.iter().copied().fold(u8::MAX, u8::min);
-                *mx = cmax.iter().copied().fold(0, u8::max);
+                *mn = (*mn).min(v);
+                *mx = (*mx).max(v);
             }
         }
-        self.tile_thr.clear();
-        self.tile_thr.resize(tx * ty, 0);
-        for j in 0..ty {
-            let j0 = j.saturating_sub(1);
-            let j1 = (j + 1).min(ty - 1);
-            for i in 0..tx {
-                let i0 = i.saturating_sub(1);
-                let i1 = (i + 1).min(tx - 1);
-                let mut lo = u8::MAX;
-                let mut hi = 0u8;
-                for jj in j0..=j1 {
-                    let base = jj * tx;
-                    for k in base + i0..=base + i1 {
-                        lo = lo.min(self.tile_min[k]);
-                        hi = hi.max(self.tile_max[k]);
-                    }
-                }
-                // Threshold 0 means "nothing here is dark" (no value is below 0).
-                self.tile_thr[j * tx + i] = if hi.saturating_sub(lo) < min_contrast {
-                    0
-                } else {
-                    ((u16::from(lo) + u16::from(hi)).div_ceil(2)) as u8
-                };
-            }
-        }
-        // Per tile row: expand the thresholds to one per pixel, then compare whole rows.
-        for (j, (band, oband)) in self
-            .fine
-            .chunks(tile * w)
-            .zip(out.chunks_mut(tile * w))
-            .enumerate()
+        for (((cmin, cmax), mn), mx) in band
+            .row_min
+            .chunks(tile)
+            .zip(band.row_max.chunks(tile))
+            .zip(mins)
+            .zip(maxs)
         {
-            let thr = &self.tile_thr[j * tx..(j + 1) * tx];
-            for (chunk, &t) in self.row_min.chunks_mut(tile).zip(thr) {
-                chunk.fill(t);
-            }
-            for (row, orow) in band.chunks_exact(w).zip(oband.chunks_exact_mut(w)) {
-                for ((o, &v), &t) in orow.iter_mut().zip(row).zip(&self.row_min) {
-                    *o = u8::from(v < t);
+            *mn = cmin.iter().copied().fold(u8::MAX, u8::min);
+            *mx = cmax.iter().copied().fold(0, u8::max);
+        }
+    }
+}
+
+/// Each tile's threshold: the midpoint of the minimum and maximum over its 3x3 tile
+/// neighbourhood, or 0 ("nothing here is dark") where their difference is below
+/// `min_contrast`.
+fn tile_thresholds(
+    tile_min: &[u8],
+    tile_max: &[u8],
+    tx: usize,
+    ty: usize,
+    min_contrast: u8,
+    thr: &mut Vec<u8>,
+) {
+    thr.resize(tx * ty, 0);
+    for j in 0..ty {
+        let j0 = j.saturating_sub(1);
+        let j1 = (j + 1).min(ty - 1);
+        for i in 0..tx {
+            let i0 = i.saturating_sub(1);
+            let i1 = (i + 1).min(tx - 1);
+            let mut lo = u8::MAX;
+            let mut hi = 0u8;
+            for jj in j0..=j1 {
+                let base = jj * tx;
+                for k in base + i0..=base + i1 {
+                    lo = lo.min(tile_min[k]);
+                    hi = hi.max(tile_max[k]);
                 }
+            }
+            thr[j * tx + i] = if hi.saturating_sub(lo) < min_contrast {
+                0
+            } else {
+                ((u16::from(lo) + u16::from(hi)).div_ceil(2)) as u8
+            };
+        }
+    }
+}
+
+/// The cut of the band `fine` into `out`: per tile row, the thresholds `thr` (`w / tile`
+/// rounded up per tile row) expanded to one per pixel in `expanded`, then whole rows compared.
+fn cut_rows(
+    fine: &[u8],
+    out: &mut [u8],
+    thr: &[u8],
+    w: usize,
+    tile: usize,
+    expanded: &mut Vec<u8>,
+) {
+    let tx = w.div_ceil(tile);
+    expanded.resize(w, 0);
+    for ((band, oband), thr) in fine
+        .chunks(tile * w)
+        .zip(out.chunks_mut(tile * w))
+        .zip(thr.chunks(tx))
+    {
+        for (chunk, &t) in expanded.chunks_mut(tile).zip(thr) {
+            chunk.fill(t);
+        }
+        for (row, orow) in band.chunks_exact(w).zip(oband.chunks_exact_mut(w)) {
+            for ((o, &v), &t) in orow.iter_mut().zip(row).zip(expanded.iter()) {
+                *o = u8::from(v < t);
             }
         }
     }
@@ -430,6 +567,45 @@ mod tests {
             proptest::prop_assert_eq!(&b.smooth, &smooth);
             proptest::prop_assert_eq!(&b.fine, &fine);
             proptest::prop_assert_eq!(out.len(), w * h);
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn parallel_bands_give_the_single_threaded_output(
+            w in 1usize..90,
+            h in 1usize..90,
+            bands in 2usize..5,
+            tile in 2usize..12,
+            otsu in proptest::prelude::any::<bool>(),
+            seed in proptest::prelude::any::<u64>(),
+        ) {
+            let mut state = seed | 1;
+            let img: Vec<u8> = (0..w * h)
+                .map(|i| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    // Blocks of two levels with noise, so that both cuts fire.
+                    let base = if (i % w / 7 + i / w / 5) % 2 == 0 { 40 } else { 210 };
+                    (base + (state % 16) as u32) as u8
+                })
+                .collect();
+            let t = if otsu {
+                Threshold::Otsu
+            } else {
+                Threshold::Adaptive { tile_size: tile, min_contrast: 30 }
+            };
+            let view = GrayView::new(&img, w, h).unwrap();
+            let serial = binarize(&img, w, h, t);
+            let mut b = Binarizer::new();
+            let mut out = Vec::new();
+            b.binarize_parallel(&view, t, &mut out, bands);
+            proptest::prop_assert_eq!(&out, &serial);
+            // Reused, on the same frame, after a single-threaded call.
+            b.binarize(&view, t, &mut out);
+            b.binarize_parallel(&view, t, &mut out, bands);
+            proptest::prop_assert_eq!(&out, &serial);
         }
     }
 

@@ -125,7 +125,12 @@ fn benches(c: &mut Criterion) {
     // figures taken on a loaded machine can be compared as ratios.
     let (pixels, _, _) = setup(640, 480);
     c.bench_function("formation-sim/baseline_sum_640x480", |b| {
-        b.iter(|| black_box(&pixels).iter().map(|&v| u32::from(v)).sum::<u32>())
+        b.iter(|| {
+            black_box(&pixels)
+                .iter()
+                .map(|&v| u32::from(v))
+                .sum::<u32>()
+        })
     });
 }
 
