@@ -4,7 +4,8 @@
 //! blur 1, noise 3) at three frame sizes; `_tag36h11` the 640x480 scene with tag36h11
 //! markers and a tag36h11 detector; `_clean` (noise 0) against `_noisy` (noise 10) at
 //! 640x480; clutter without markers; `detect_1920x1080_rayon` the 1920x1080 scene through
-//! `Detector::detect_parallel` (binarization on rayon's threads). `fiducial/find_quads_640x480` is the quad phase alone
+//! `Detector::detect_parallel` (binarization on rayon's threads with `--features parallel`).
+//! `fiducial/find_quads_640x480` is the quad phase alone
 //! (`binarize_640x480` and `label_640x480` its first two stages apart) and
 //! `fiducial/baseline_sum_640x480` a plain pass summing the frame's bytes, measured in
 //! the same run so that ratios survive a loaded machine.
@@ -96,7 +97,8 @@ fn benches(c: &mut Criterion) {
         1080,
     );
     // The same 1920x1080 frame with binarization on the threads of rayon's pool (two on the
-    // reference machine): compare with detect_1920x1080 (do not pin this one to one core).
+    // reference machine; build with `--features parallel`, else the bands run one after the
+    // other): compare with detect_1920x1080 (do not pin this one to one core).
     let hd = scene(1920, 1080, 3.0);
     let img = GrayView::new(&hd, 1920, 1080).expect("valid frame");
     let mut det = Detector::new(DetectorConfig::default());

@@ -251,12 +251,14 @@ impl Detector {
     }
 
     /// [`Detector::detect`] with binarization (the stage that reads every pixel) cut into
-    /// horizontal bands run on the threads of the current rayon pool. The output is identical
+    /// horizontal bands run on the threads of the current rayon pool (crate feature
+    /// `parallel`; without it, this is [`Detector::detect`]). The output is identical
     /// to [`Detector::detect`]'s (a test checks it). Frames under a megapixel are detected on
     /// the calling thread alone, where the threads' start-up costs more than they save;
     /// single-threaded [`Detector::detect`] stays the default. Unlike it, this may allocate
     /// per frame (rayon's job queue).
     pub fn detect_parallel(&mut self, img: &GrayView<'_>, out: &mut Vec<Decoded>) -> usize {
+        #[cfg(feature = "parallel")]
         if img.width() * img.height() >= 1 << 20 {
             self.bands = rayon::current_num_threads();
         }

@@ -64,6 +64,20 @@ pub struct Binarizer {
     bands: Vec<Band>,
 }
 
+/// One band's work in phase 1 of [`Binarizer::binarize_parallel`]: its index, its rows of
+/// the smoothed and line-preserving frames, its tile rows of minima and maxima, its scratch.
+type SmoothBand<'a> = (
+    usize,
+    (
+        (((&'a mut [u8], &'a mut [u8]), &'a mut [u8]), &'a mut [u8]),
+        &'a mut Band,
+    ),
+);
+
+/// One band's work in phase 3: its rows of the line-preserving frame and of the output, its
+/// tile rows of thresholds, its scratch.
+type CutBand<'a> = ((&'a [u8], &'a mut [u8]), (&'a [u8], &'a mut Band));
+
 /// The scratch rows one band of rows needs.
 #[derive(Debug, Default, Clone)]
 struct Band {
@@ -87,7 +101,8 @@ impl Binarizer {
         self.run(img, threshold, out, 1);
     }
 
-    /// [`Binarizer::binarize`] on up to `bands` threads of the current rayon pool: the frame
+    /// [`Binarizer::binarize`] on up to `bands` threads of the current rayon pool (with the
+    /// crate feature `parallel`; without it the bands run one after the other): the frame
     /// is cut into horizontal bands of whole tile rows, each band is smoothed and reduced to
     /// tile minima and maxima on its own thread, the tile thresholds are computed once, and
     /// each band is then cut on its own thread. Every stage reads the same pixels as the
@@ -127,10 +142,7 @@ impl Binarizer {
         self.tile_max.resize(tx * ty, 0);
         // Phase 1: smoothing, and the tile minima and maxima, per band.
         let adaptive = min_contrast.is_some();
-        let smooth_band = |(b, ((((sm, fi), mn), mx), band)): (
-            usize,
-            ((((&mut [u8], &mut [u8]), &mut [u8]), &mut [u8]), &mut Band),
-        )| {
+        let smooth_band = |(b, ((((sm, fi), mn), mx), band)): SmoothBand<'_>| {
             box3_rows(img, b * band_rows, sm, fi, &mut band.hsum);
             if adaptive {
                 tile_extremes(sm, w, tile, tx, band, mn, mx);
@@ -151,13 +163,25 @@ impl Binarizer {
                 ),
             ));
         } else {
-            use rayon::prelude::*;
+            #[cfg(feature = "parallel")]
+            {
+                use rayon::prelude::*;
+                self.smooth
+                    .par_chunks_mut(band_rows * w)
+                    .zip(self.fine.par_chunks_mut(band_rows * w))
+                    .zip(self.tile_min.par_chunks_mut(band_tiles * tx))
+                    .zip(self.tile_max.par_chunks_mut(band_tiles * tx))
+                    .zip(self.bands.par_iter_mut())
+                    .enumerate()
+                    .for_each(smooth_band);
+            }
+            #[cfg(not(feature = "parallel"))]
             self.smooth
-                .par_chunks_mut(band_rows * w)
-                .zip(self.fine.par_chunks_mut(band_rows * w))
-                .zip(self.tile_min.par_chunks_mut(band_tiles * tx))
-                .zip(self.tile_max.par_chunks_mut(band_tiles * tx))
-                .zip(self.bands.par_iter_mut())
+                .chunks_mut(band_rows * w)
+                .zip(self.fine.chunks_mut(band_rows * w))
+                .zip(self.tile_min.chunks_mut(band_tiles * tx))
+                .zip(self.tile_max.chunks_mut(band_tiles * tx))
+                .zip(self.bands.iter_mut())
                 .enumerate()
                 .for_each(smooth_band);
         }
@@ -178,7 +202,7 @@ impl Binarizer {
             &mut self.tile_thr,
         );
         // Phase 3: the cut, per band.
-        let cut_band = |((fi, o), (thr, band)): ((&[u8], &mut [u8]), (&[u8], &mut Band))| {
+        let cut_band = |((fi, o), (thr, band)): CutBand<'_>| {
             cut_rows(fi, o, thr, w, tile, &mut band.row_min);
         };
         if count == 1 {
@@ -187,14 +211,27 @@ impl Binarizer {
                 (&self.tile_thr[..], &mut self.bands[0]),
             ));
         } else {
-            use rayon::prelude::*;
+            #[cfg(feature = "parallel")]
+            {
+                use rayon::prelude::*;
+                self.fine
+                    .par_chunks(band_rows * w)
+                    .zip(out.par_chunks_mut(band_rows * w))
+                    .zip(
+                        self.tile_thr
+                            .par_chunks(band_tiles * tx)
+                            .zip(self.bands.par_iter_mut()),
+                    )
+                    .for_each(cut_band);
+            }
+            #[cfg(not(feature = "parallel"))]
             self.fine
-                .par_chunks(band_rows * w)
-                .zip(out.par_chunks_mut(band_rows * w))
+                .chunks(band_rows * w)
+                .zip(out.chunks_mut(band_rows * w))
                 .zip(
                     self.tile_thr
-                        .par_chunks(band_tiles * tx)
-                        .zip(self.bands.par_iter_mut()),
+                        .chunks(band_tiles * tx)
+                        .zip(self.bands.iter_mut()),
                 )
                 .for_each(cut_band);
         }
