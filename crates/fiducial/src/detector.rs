@@ -17,7 +17,7 @@
 
 use nalgebra::Point2;
 
-use crate::contour::{Labeller, trace_outer};
+use crate::contour::{Component, Labeller, trace_outer};
 use crate::decode::{
     CellReading, DecodeParams, Decoded, WhiteReference, match_reading, read_oriented,
 };
@@ -168,6 +168,8 @@ pub struct Detector {
     /// Bands of binarization run on rayon threads (1: single-threaded; see
     /// [`Detector::detect_parallel`]).
     bands: usize,
+    /// Per-thread scratch of [`Detector::detect_parallel`].
+    workers: Vec<crate::parallel::Worker>,
 }
 
 impl Default for Detector {
@@ -227,6 +229,7 @@ impl Detector {
             regions: Vec::new(),
             region_out: Vec::new(),
             bands: 1,
+            workers: Vec::new(),
         }
     }
 
@@ -251,7 +254,8 @@ impl Detector {
     }
 
     /// [`Detector::detect`] with binarization (the stage that reads every pixel) cut into
-    /// horizontal bands run on the threads of the current rayon pool (crate feature
+    /// horizontal bands, and the components' tracing, quad fit and refinement cut into runs
+    /// ([`crate::parallel`]), run on the threads of the current rayon pool (crate feature
     /// `parallel`; without it, this is [`Detector::detect`]). The output is identical
     /// to [`Detector::detect`]'s (a test checks it). Frames under a megapixel are detected on
     /// the calling thread alone, where the threads' start-up costs more than they save;
@@ -448,60 +452,37 @@ impl Detector {
             line_tolerance: cfg.line_tolerance,
             line_tolerance_rel: cfg.line_tolerance_rel,
         };
-        let m = cfg.border_margin.max(1);
-        let min_side = (cfg.min_side / scale).max(3.0) as u32;
+        let ctx = Scan {
+            img,
+            bin: &self.bin,
+            w,
+            h,
+            limits: &limits,
+            margin: cfg.border_margin.max(1),
+            min_side: (cfg.min_side / scale).max(3.0) as u32,
+            factor: f,
+            config: &cfg,
+            cells_across,
+        };
         self.retry.clear();
         let components = self.labeller.label(&self.bin, w);
-        for c in components {
-            let bw = c.x_max - c.x_min + 1;
-            let bh = c.y_max - c.y_min + 1;
-            // Cheap rejections first: size, frame border, sparsity.
-            if bw.max(bh) < min_side || bw.min(bh) < min_side / 2 {
-                continue;
-            }
-            let rect = Rect {
-                x0: c.x_min,
-                y0: c.y_min,
-                x1: c.x_max,
-                y1: c.y_max,
-            };
-            if c.pixels < bw.max(bh) + bw.min(bh)
-                || c.x_min < m
-                || c.y_min < m
-                || c.x_max as usize + m as usize >= w
-                || c.y_max as usize + m as usize >= h
-            {
-                self.retry.push(rect);
-                continue;
-            }
-            let max_len = 2 * (bw + bh) as usize + 16;
-            if !trace_outer(&self.bin, w, c.start_x, c.y_min, max_len, &mut self.contour) {
-                self.retry.push(rect);
-                continue;
-            }
-            let Some(mut coarse) = fit_quad(&self.contour, &limits) else {
-                self.retry.push(rect);
-                continue;
-            };
-            if f > 1 {
-                // Small pixel i covers full pixels f i .. f i + f - 1: its centre is at
-                // f i + (f - 1) / 2 in full-resolution pixel-centre coordinates.
-                let off = 0.5 * (scale - 1.0);
-                for c in &mut coarse {
-                    c[0] = c[0] * scale + off;
-                    c[1] = c[1] * scale + off;
+        if self.bands > 1 {
+            crate::parallel::examine_all(
+                &ctx,
+                components,
+                self.bands,
+                &mut self.workers,
+                &mut self.quads,
+                &mut self.retry,
+            );
+        } else {
+            for c in components {
+                match ctx.examine(c, &mut self.contour, &mut self.refiner) {
+                    Examined::Quad(q) => self.quads.push(q),
+                    Examined::Retry(r) => self.retry.push(r),
+                    Examined::Dropped => {}
                 }
             }
-            let Some((corners, contrast)) =
-                self.refiner
-                    .refine(img, &coarse, &cfg.refine, cfg.min_angle_deg, cells_across)
-            else {
-                continue;
-            };
-            self.quads.push(Quad {
-                corners: corners.map(|[x, y]| Point2::new(x, y)),
-                contrast,
-            });
         }
         // Re-cuts run at full resolution only (their boxes are in this scan's pixels).
         if f == 1 {
@@ -556,6 +537,93 @@ impl Detector {
                     }
                 });
         }
+    }
+}
+
+/// What one scan of [`Detector::find_quads_scaled`] needs to examine a component.
+pub(crate) struct Scan<'a, 'i> {
+    pub(crate) img: &'a GrayView<'i>,
+    pub(crate) bin: &'a [u8],
+    pub(crate) w: usize,
+    pub(crate) h: usize,
+    pub(crate) limits: &'a QuadLimits,
+    pub(crate) margin: u32,
+    pub(crate) min_side: u32,
+    pub(crate) factor: usize,
+    pub(crate) config: &'a DetectorConfig,
+    pub(crate) cells_across: f64,
+}
+
+/// The fate of one component.
+pub(crate) enum Examined {
+    /// A refined quad.
+    Quad(Quad),
+    /// No quad: its box goes to the re-cut ([`Splitter`]).
+    Retry(Rect),
+    /// Rejected outright.
+    Dropped,
+}
+
+impl Scan<'_, '_> {
+    /// Cheap rejections, tracing, quad fit and refinement of one component.
+    pub(crate) fn examine(
+        &self,
+        c: &Component,
+        contour: &mut Vec<[i32; 2]>,
+        refiner: &mut Refiner,
+    ) -> Examined {
+        let (w, h, m, min_side) = (self.w, self.h, self.margin, self.min_side);
+        let cfg = self.config;
+        let bw = c.x_max - c.x_min + 1;
+        let bh = c.y_max - c.y_min + 1;
+        // Cheap rejections first: size, frame border, sparsity.
+        if bw.max(bh) < min_side || bw.min(bh) < min_side / 2 {
+            return Examined::Dropped;
+        }
+        let rect = Rect {
+            x0: c.x_min,
+            y0: c.y_min,
+            x1: c.x_max,
+            y1: c.y_max,
+        };
+        if c.pixels < bw.max(bh) + bw.min(bh)
+            || c.x_min < m
+            || c.y_min < m
+            || c.x_max as usize + m as usize >= w
+            || c.y_max as usize + m as usize >= h
+        {
+            return Examined::Retry(rect);
+        }
+        let max_len = 2 * (bw + bh) as usize + 16;
+        if !trace_outer(self.bin, w, c.start_x, c.y_min, max_len, contour) {
+            return Examined::Retry(rect);
+        }
+        let Some(mut coarse) = fit_quad(contour, self.limits) else {
+            return Examined::Retry(rect);
+        };
+        if self.factor > 1 {
+            // Small pixel i covers full pixels f i .. f i + f - 1: its centre is at
+            // f i + (f - 1) / 2 in full-resolution pixel-centre coordinates.
+            let scale = self.factor as f64;
+            let off = 0.5 * (scale - 1.0);
+            for c in &mut coarse {
+                c[0] = c[0] * scale + off;
+                c[1] = c[1] * scale + off;
+            }
+        }
+        let Some((corners, contrast)) = refiner.refine(
+            self.img,
+            &coarse,
+            &cfg.refine,
+            cfg.min_angle_deg,
+            self.cells_across,
+        ) else {
+            return Examined::Dropped;
+        };
+        Examined::Quad(Quad {
+            corners: corners.map(|[x, y]| Point2::new(x, y)),
+            contrast,
+        })
     }
 }
 

@@ -146,6 +146,7 @@ pub mod dictionary;
 pub mod error;
 pub mod family;
 pub mod image;
+pub(crate) mod parallel;
 pub mod quad;
 pub mod refine;
 pub mod render;

@@ -1,4 +1,5 @@
-//! `Detector::detect_parallel` (#12) gives exactly the markers of `Detector::detect`.
+//! `Detector::detect_parallel` (#12) gives exactly the binary image, quads (in order) and
+//! markers of `Detector::detect` (threaded with `--features parallel`, in turn without).
 
 use fiducial::{Detector, DetectorConfig, Dictionary, GrayView};
 use marker_testkit::{SceneConfig, marker_scene};
@@ -30,8 +31,10 @@ fn parallel_detection_equals_single_threaded() {
         det.detect(&img, &mut serial);
         assert!(!serial.is_empty(), "{w}x{h}: no marker read");
         let bin = det.binary().to_vec();
+        let quads = det.quads().to_vec();
         det.detect_parallel(&img, &mut parallel);
         assert_eq!(parallel, serial, "{w}x{h}");
+        assert_eq!(det.quads(), &quads[..], "{w}x{h}: quads differ");
         assert_eq!(det.binary(), &bin[..], "{w}x{h}: binary images differ");
         // A fresh detector, parallel first.
         let mut fresh = Detector::new(DetectorConfig::default());
