@@ -257,8 +257,10 @@ impl Clusterer {
                 let cut = u16::from(lo) + u16::from(hi - lo) / 2;
                 for y in ty * TILE..((ty + 1) * TILE).min(ch) {
                     let row = &img.row(y0 + y)[x0..x0 + cw];
-                    for x in tx * TILE..((tx + 1) * TILE).min(cw) {
-                        self.class[y * cw + x] = if u16::from(row[x]) > cut { LIGHT } else { DARK };
+                    let (xa, xb) = (tx * TILE, ((tx + 1) * TILE).min(cw));
+                    let class = &mut self.class[y * cw + xa..y * cw + xb];
+                    for (c, &v) in class.iter_mut().zip(&row[xa..xb]) {
+                        *c = if u16::from(v) > cut { LIGHT } else { DARK };
                     }
                 }
             }
@@ -295,6 +297,80 @@ impl Clusterer {
                             union(parent, size, i as u32, (i + cw - 1) as u32);
                         }
                     }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    const LIMITS: QuadLimits = QuadLimits {
+        min_side: 10.0,
+        min_angle_deg: 30.0,
+        line_tolerance: 1.5,
+        line_tolerance_rel: 0.05,
+    };
+
+    fn quads_in(px: &[u8], w: usize, rect: Rect) -> Vec<[[f64; 2]; 4]> {
+        let img = GrayView::new(px, w, px.len() / w).unwrap();
+        let params = SplitParams {
+            limits: &LIMITS,
+            border_margin: 2,
+            min_side: 10,
+        };
+        let mut found = Vec::new();
+        Clusterer::default().clusters(&img, rect, &params, |q| found.push(q));
+        found
+    }
+
+    /// A dark square whose lower side is one light pixel row away from a dark block: the
+    /// 8-connected, smoothed first pass sees one component; the clusters see the square.
+    #[test]
+    fn square_next_to_a_dark_block_is_its_own_cluster() {
+        let w = 60;
+        let mut px = vec![200u8; w * 60];
+        for y in 0..60 {
+            for x in 0..w {
+                let square = (20..40).contains(&x) && (20..40).contains(&y);
+                let block = (10..50).contains(&x) && (41..55).contains(&y);
+                if square || block {
+                    px[y * w + x] = 30;
+                }
+            }
+        }
+        let rect = Rect {
+            x0: 10,
+            y0: 20,
+            x1: 49,
+            y1: 54,
+        };
+        let found = quads_in(&px, w, rect);
+        let want = [[20.0, 20.0], [39.0, 20.0], [39.0, 39.0], [20.0, 39.0]];
+        assert!(
+            found.iter().any(|q| want
+                .iter()
+                .all(|c| q.iter().any(|p| (p[0] - c[0]).hypot(p[1] - c[1]) < 1.0))),
+            "{found:?}"
+        );
+    }
+
+    proptest! {
+        /// Any frame and any box: no panic, and every corner handed back is finite and
+        /// inside the frame.
+        #[test]
+        fn any_frame_any_box(
+            px in proptest::collection::vec(any::<u8>(), 24 * 20),
+            x0 in 0u32..40, y0 in 0u32..40, dx in 0u32..40, dy in 0u32..40,
+        ) {
+            let rect = Rect { x0, y0, x1: x0 + dx, y1: y0 + dy };
+            for q in quads_in(&px, 24, rect) {
+                for [x, y] in q {
+                    prop_assert!(x.is_finite() && y.is_finite());
+                    prop_assert!((-1.0..25.0).contains(&x) && (-1.0..21.0).contains(&y));
                 }
             }
         }

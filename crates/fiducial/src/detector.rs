@@ -9,7 +9,9 @@
 //! union-find), cheap rejection of components by size, shape and frame-border contact,
 //! [`trace_outer`] (Moore border following) and [`fit_quad`] (four-vertex polygon), then
 //! [`Refiner`] (sub-pixel corners from grey-level edge lines), and finally [`decode()`](crate::decode())
-//! (cross-ratio cell sampling and dictionary lookup) on each quad.
+//! (cross-ratio cell sampling and dictionary lookup) on each quad. Large dark components
+//! that gave no quad get two more looks inside their boxes: a re-cut at a darker threshold
+//! ([`Splitter`]) and boundary clustering ([`Clusterer`], AprilTag 3's quad search).
 //!
 //! The two phases are exposed separately ([`Detector::find_quads`] and
 //! [`Detector::decode_quads`]) so callers can time or visualise them apart;
