@@ -9,7 +9,9 @@
 //! union-find), cheap rejection of components by size, shape and frame-border contact,
 //! [`trace_outer`] (Moore border following) and [`fit_quad`] (four-vertex polygon), then
 //! [`Refiner`] (sub-pixel corners from grey-level edge lines), and finally [`decode()`](crate::decode())
-//! (cross-ratio cell sampling and dictionary lookup) on each quad.
+//! (cross-ratio cell sampling and dictionary lookup) on each quad. Large dark components
+//! that gave no quad get two more looks inside their boxes: a re-cut at a darker threshold
+//! ([`Splitter`]) and boundary clustering ([`Clusterer`], AprilTag 3's quad search).
 //!
 //! The two phases are exposed separately ([`Detector::find_quads`] and
 //! [`Detector::decode_quads`]) so callers can time or visualise them apart;
@@ -17,6 +19,7 @@
 
 use nalgebra::Point2;
 
+use crate::cluster::Clusterer;
 use crate::contour::{Component, Labeller, trace_outer};
 use crate::decode::{
     CellReading, DecodeParams, Decoded, WhiteReference, match_reading, read_oriented,
@@ -159,6 +162,8 @@ pub struct Detector {
     /// Boxes of large components that gave no quad, re-cut by [`Splitter`].
     retry: Vec<Rect>,
     splitter: Splitter,
+    /// Boundary clustering of the same boxes, after the re-cut.
+    clusterer: Clusterer,
     /// The decimated frame of a coarse scan ([`Detector::detect_coarse`]).
     small: Vec<u8>,
     /// The merged regions of [`Detector::detect_in_regions`].
@@ -225,6 +230,7 @@ impl Detector {
             quads: Vec::new(),
             retry: Vec::new(),
             splitter: Splitter::default(),
+            clusterer: Clusterer::default(),
             small: Vec::new(),
             regions: Vec::new(),
             region_out: Vec::new(),
@@ -517,25 +523,30 @@ impl Detector {
             min_side: cfg.min_side.max(3.0) as u32,
         };
         let (quads, refiner) = (&mut self.quads, &mut self.refiner);
+        let mut add = |coarse: [[f64; 2]; 4], min_angle_deg: f64| {
+            // Most re-cut components are ones already found (or their parts): skip those
+            // before the refinement, by the coarse corners.
+            let rough = coarse.map(|[x, y]| Point2::new(x, y));
+            if quads.iter().any(|q| same_place(&q.corners, &rough)) {
+                return;
+            }
+            let Some((c, contrast)) =
+                refiner.refine(img, &coarse, &cfg.refine, min_angle_deg, cells_across)
+            else {
+                return;
+            };
+            let corners = c.map(|[x, y]| Point2::new(x, y));
+            if !quads.iter().any(|q| same_place(&q.corners, &corners)) {
+                quads.push(Quad { corners, contrast });
+            }
+        };
         for &rect in &self.retry {
             self.splitter
-                .split(img, &self.bin, rect, &params, |coarse| {
-                    // Most re-cut components are ones already found (or their parts): skip
-                    // those before the refinement, by the coarse corners.
-                    let rough = coarse.map(|[x, y]| Point2::new(x, y));
-                    if quads.iter().any(|q| same_place(&q.corners, &rough)) {
-                        return;
-                    }
-                    let Some((c, contrast)) =
-                        refiner.refine(img, &coarse, &cfg.refine, cfg.min_angle_deg, cells_across)
-                    else {
-                        return;
-                    };
-                    let corners = c.map(|[x, y]| Point2::new(x, y));
-                    if !quads.iter().any(|q| same_place(&q.corners, &corners)) {
-                        quads.push(Quad { corners, contrast });
-                    }
-                });
+                .split(img, &self.bin, rect, &params, |c| add(c, cfg.min_angle_deg));
+            // What the re-cut could not separate: clusters of the light/dark boundary.
+            let angle = cfg.min_angle_deg.min(crate::cluster::MIN_ANGLE_DEG);
+            self.clusterer
+                .clusters(img, rect, &params, |c| add(c, angle));
         }
     }
 }

@@ -138,6 +138,7 @@
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 mod blur;
+pub mod cluster;
 pub mod contour;
 pub mod cross_ratio;
 pub mod decode;
