@@ -66,7 +66,7 @@ fn main() {
         .collect();
     // Per bin: count, mu[3], e_alpha^2, e_l^2, w1 true, alpha true min/max, nees_v, nees_f.
     let bins = runs[0].0.config.duration.ceil() as usize + 1;
-    let mut acc = vec![[0.0f64; 13]; bins];
+    let mut acc = vec![[0.0f64; 14]; bins];
     let mut amin = vec![f64::INFINITY; bins];
     let mut amax = vec![f64::NEG_INFINITY; bins];
     for (s, cfg) in &runs {
@@ -104,6 +104,10 @@ fn main() {
             let u2: Vector2<f64> = prev.follower_inputs.into();
             a[12] +=
                 formation_holding_velocity(&prev.truth, &u2, s.config.d)[1] - prev.leader_inputs.w;
+            // Model B's own velocity NEES.
+            let (wb, pb) = f.model_velocities().unwrap()[1];
+            let eb = wb - Vector2::new(prev.leader_inputs.v, prev.leader_inputs.w);
+            a[13] += eb.dot(&(pb.try_inverse().unwrap() * eb));
             amin[b] = amin[b].min(truth[1]);
             amax[b] = amax[b].max(truth[1]);
         }
@@ -111,17 +115,17 @@ fn main() {
     println!(
         " t   muA   muB   muC  mse_a12   mse_l12   w1true  a12range  NEESv NEESf rms_w1  a12true  a12bias  holdw1err"
     );
-    let mut tot = [0.0f64; 13];
+    let mut tot = [0.0f64; 14];
     for (k, a) in acc.iter().enumerate() {
         if a[0] == 0.0 {
             continue;
         }
-        for i in 0..13 {
+        for i in 0..14 {
             tot[i] += a[i];
         }
         let n = a[0];
         println!(
-            "{k:2} {:.3} {:.3} {:.3} {:.2e} {:.2e} {:+.3} {:.2e} {:5.2} {:5.2} {:.4} {:.5} {:+.2e} {:+.2e}",
+            "{k:2} {:.3} {:.3} {:.3} {:.2e} {:.2e} {:+.3} {:.2e} {:5.2} {:5.2} {:.4} {:.5} {:+.2e} {:+.2e} {:5.2}",
             a[1] / n,
             a[2] / n,
             a[3] / n,
@@ -134,15 +138,17 @@ fn main() {
             (a[9] / n).sqrt(),
             a[10] / n,
             a[11] / n,
-            a[12] / n
+            a[12] / n,
+            a[13] / n
         );
     }
     let n = tot[0];
     println!(
-        "all mean mse_a12 {:.3e} mse_l12 {:.3e} NEESv {:.2} NEESf {:.2}",
+        "all mean mse_a12 {:.3e} mse_l12 {:.3e} NEESv {:.2} NEESf {:.2} NEESv(B) {:.2}",
         tot[4] / n,
         tot[5] / n,
         tot[7] / n,
-        tot[8] / n
+        tot[8] / n,
+        tot[13] / n
     );
 }

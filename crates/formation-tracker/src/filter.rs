@@ -658,6 +658,22 @@ impl FormationFilter {
         self.model_probabilities
     }
 
+    /// The IMM's per-model estimates of the leader velocities `[v1, w1]` and their
+    /// covariances, in the order of [`model_probabilities`](Self::model_probabilities)
+    /// (`None` for the dual UKF). The combined estimate
+    /// ([`leader_velocity`](Self::leader_velocity)) is their probability-weighted mixture.
+    pub fn model_velocities(&self) -> Option<[(Vector2<f64>, Matrix2<f64>); 3]> {
+        match &self.engine {
+            Engine::Dual(_) => None,
+            Engine::Imm(engine) => Some(engine.imm.filters().each_ref().map(|f| {
+                (
+                    f.state().fixed_rows::<2>(6).into_owned(),
+                    f.covariance().fixed_view::<2, 2>(6, 6).into_owned(),
+                )
+            })),
+        }
+    }
+
     /// Which design this filter runs.
     pub fn design(&self) -> FilterDesign {
         match self.engine {
@@ -846,6 +862,12 @@ mod tests {
             dual.step(&y, &r(), Inputs::new(0.8, 0.0)).unwrap();
         }
         let mu = imm.model_probabilities().unwrap();
+        // The combined velocity is the probability-weighted mean of the models' velocities.
+        let per_model = imm.model_velocities().unwrap();
+        let mixed: Vector2<f64> = (0..3).map(|j| per_model[j].0 * mu[j]).sum();
+        let w = imm.leader_velocity();
+        assert!((mixed - Vector2::new(w.v, w.w)).amax() < 1e-9, "{mixed:?}");
+        assert!(dual.model_velocities().is_none());
         assert!((mu.iter().sum::<f64>() - 1.0).abs() < 1e-12, "{mu:?}");
         // The IMM estimates formation and velocity jointly: cross terms; the dual UKF none.
         let c = imm.estimate_covariance();
