@@ -257,6 +257,8 @@ pub fn run_filter(
     history.push(filter.record(unicycle::Inputs::new(0.0, 0.0), None));
     for pair in scenario.samples.windows(2) {
         let (prev, now) = (&pair[0], &pair[1]);
+        // The follower knows its own controller: the IMM's models B and C use it.
+        filter.set_follower_controller(Some(prev.controller));
         filter.step(&now.measurement, &r, prev.follower_inputs)?;
         history.push(filter.record(prev.follower_inputs, Some((now.measurement, r))));
         let w = filter.leader_velocity();
