@@ -85,6 +85,7 @@ fn closed_loop(seed: u64) -> Scenario {
             leader_inputs: u1,
             follower_inputs: u2,
             measurement: y,
+            controller: ControllerConfig::hold(&start),
         });
         leader = leader.integrate_exact(u1, config.dt).unwrap();
         follower = follower.integrate_exact(u2, config.dt).unwrap();

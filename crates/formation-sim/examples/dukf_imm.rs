@@ -6,10 +6,11 @@
 //! ```
 //! Environment overrides of the IMM tuning (for the measurements of
 //! `docs/dukf-reproduction.md`): `JERK`, `SOJOURN`, `HELD` (held-rate std), `MU0`, `FQ`
-//! (formation q), `DESIGN=dual`.
+//! (formation q), `DESIGN=dual`, `FOLLOWER=1` (tell the IMM the follower's controller,
+//! measurement 11).
 #![allow(clippy::unwrap_used)]
 
-use formation_sim::reproduce::{Baseline, Reproduction, baseline, run_filter};
+use formation_sim::reproduce::{Baseline, Reproduction, baseline, run_filter_with};
 use formation_sim::scenario::{Scenario, ScenarioConfig, simulate};
 use formation_sim::scenario_file::ScenarioSpec;
 use formation_tracker::filter::{FilterConfig, FilterDesign};
@@ -65,7 +66,7 @@ fn report(label: &str, runs: &[(Scenario, FilterConfig)]) {
     let mut rows = vec![];
     let (mut rw, mut cv) = (vec![], vec![]);
     for (s, cfg) in runs {
-        let run = run_filter(s, cfg).unwrap();
+        let run = run_filter_with(s, cfg, std::env::var("FOLLOWER").is_ok()).unwrap();
         let x0 = [cfg.x0[3], cfg.x0[4], cfg.x0[5]];
         rw.push(baseline(s, &x0, Baseline::RANDOM_WALK));
         cv.push(baseline(s, &x0, Baseline::CONSTANT_VELOCITY));

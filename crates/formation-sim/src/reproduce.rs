@@ -249,6 +249,21 @@ pub fn run_filter(
     scenario: &Scenario,
     config: &FilterConfig,
 ) -> Result<Reproduction, ReproduceError> {
+    run_filter_with(scenario, config, false)
+}
+
+/// As [`run_filter`]; with `follower_controller`, the filter is also told the follower's
+/// controller in force at every frame ([`FormationFilter::set_follower_controller`],
+/// [`Sample::controller`](crate::scenario::Sample::controller)), which the IMM's models B and
+/// C then use (`docs/dukf-reproduction.md`, measurement 11).
+///
+/// # Errors
+/// Any [`ReproduceError`].
+pub fn run_filter_with(
+    scenario: &Scenario,
+    config: &FilterConfig,
+    follower_controller: bool,
+) -> Result<Reproduction, ReproduceError> {
     let mut filter = FormationFilter::new(config)?;
     let r = scenario.config.noise_covariance();
     let mut records = Vec::with_capacity(scenario.samples.len());
@@ -257,6 +272,10 @@ pub fn run_filter(
     history.push(filter.record(unicycle::Inputs::new(0.0, 0.0), None));
     for pair in scenario.samples.windows(2) {
         let (prev, now) = (&pair[0], &pair[1]);
+        if follower_controller {
+            // The follower knows its own controller: the IMM's models B and C use it.
+            filter.set_follower_controller(Some(prev.controller));
+        }
         filter.step(&now.measurement, &r, prev.follower_inputs)?;
         history.push(filter.record(prev.follower_inputs, Some((now.measurement, r))));
         let w = filter.leader_velocity();

@@ -127,6 +127,9 @@ pub struct Sample {
     pub follower_inputs: Inputs,
     /// Measurement `h(x_k) + n_k` (+ bias), angles wrapped.
     pub measurement: FormationMeasurement,
+    /// The follower's controller (gains and set-points) that computed
+    /// [`follower_inputs`](Self::follower_inputs).
+    pub controller: ControllerConfig,
 }
 
 /// A simulated run: `steps() + 1` samples from `t = 0` to `t = duration`.
@@ -240,6 +243,7 @@ pub fn simulate_scheduled(
             leader_inputs: u1,
             follower_inputs: u2,
             measurement: y,
+            controller: goal,
         });
         if k < n {
             leader = leader.integrate_exact(u1, config.dt)?;

@@ -59,8 +59,8 @@ use std::cell::Cell;
 use dukf::{AngleMask, DualUkf, Euclidean, Imm, Ukf, UkfError, UtParams, sojourn_transition};
 use nalgebra::{Matrix2, Matrix3, Matrix5, SMatrix, SVector, Vector2, Vector3};
 use unicycle::{
-    Formation, Inputs, MEASUREMENT_ANGLES, PolarModel, PolarState, STATE_ANGLES, UnicycleError,
-    wrap_angle,
+    ControllerConfig, Formation, Inputs, MEASUREMENT_ANGLES, PolarModel, PolarState, STATE_ANGLES,
+    UnicycleError, wrap_angle,
 };
 
 type Matrix6 = SMatrix<f64, 6, 6>;
@@ -266,6 +266,7 @@ pub struct FormationFilter {
     snapshot: Snapshot,
     last_nis: Option<f64>,
     model_probabilities: Option<[f64; 3]>,
+    follower: Option<ControllerConfig>,
 }
 
 fn state_space() -> Result<AngleMask<6>, UkfError> {
@@ -317,6 +318,29 @@ pub fn bearing_holding_turn_rate(x: &PolarState, u: &Vector2<f64>, v1: f64, d: f
     (-v1 * a.sin() + u[0] * b.sin() - d * u[1] * b.cos()) / l
 }
 
+/// The leader velocity `[v1, w1]` under which the follower's separation-bearing controller
+/// achieves what it commands, given its inputs `u`: with `controller` (gains and set-points),
+/// `l12' = k_l (l12_d - l12)` and `alpha12' = k_alpha (alpha12_d - alpha12)` (spec 2.4):
+/// `v1 = (k_l (l12_d - l12) + v2 cos(beta12) + d w2 sin(beta12)) / cos(alpha12)`,
+/// `w1 = (-v1 sin(alpha12) + v2 sin(beta12) - d w2 cos(beta12)) / l12 - k_alpha (alpha12_d -
+/// alpha12)`; without it, [`formation_holding_velocity`] (`l12' = alpha12' = 0`).
+pub fn controlled_formation_velocity(
+    x: &PolarState,
+    u: &Vector2<f64>,
+    d: f64,
+    controller: Option<ControllerConfig>,
+) -> Vector2<f64> {
+    let Some(c) = controller else {
+        return formation_holding_velocity(x, u, d);
+    };
+    let (l, a, b) = (x[3], x[4], x[5]);
+    let (v2, w2) = (u[0], u[1]);
+    let v1 = (c.k_l * (c.l12_desired - l) + v2 * b.cos() + d * w2 * b.sin()) / a.cos();
+    let w1 = (-v1 * a.sin() + v2 * b.sin() - d * w2 * b.cos()) / l
+        - c.k_alpha * wrap_angle(c.alpha12_desired - a);
+    Vector2::new(v1, w1)
+}
+
 /// The separation (m) below which an IMM sigma point is clamped before it is propagated (see
 /// [`imm_process`]); far below any real separation between two robots.
 const SIGMA_POINT_MIN_SEPARATION: f64 = 0.01;
@@ -335,6 +359,7 @@ fn imm_process<'a>(
     model: &'a PolarModel,
     u: &'a Vector2<f64>,
     dt: f64,
+    controller: Option<ControllerConfig>,
     failure: &'a Cell<Option<UnicycleError>>,
 ) -> impl FnMut(usize, &Joint) -> Joint + 'a {
     move |j, z| {
@@ -346,8 +371,12 @@ fn imm_process<'a>(
         }
         let w = match j {
             0 => Vector2::new(z[6], z[7]),
-            1 => formation_holding_velocity(&x, u, model.d()),
-            _ => Vector2::new(z[6], bearing_holding_turn_rate(&x, u, z[6], model.d())),
+            1 => controlled_formation_velocity(&x, u, model.d(), controller),
+            _ => Vector2::new(
+                z[6],
+                bearing_holding_turn_rate(&x, u, z[6], model.d())
+                    - controller.map_or(0.0, |c| c.k_alpha * wrap_angle(c.alpha12_desired - x[4])),
+            ),
         };
         // The documented recovery: a sigma point whose separation the step would drive
         // through zero (a leader speed many standard deviations out, e.g. while coasting with
@@ -529,6 +558,7 @@ impl FormationFilter {
                 }
                 FilterDesign::Dual => None,
             },
+            follower: None,
         })
     }
 
@@ -559,6 +589,17 @@ impl FormationFilter {
         let q = q + fw * pw * fw.transpose();
         dual.set_process_noise((q + q.transpose()) * 0.5)?;
         Ok(())
+    }
+
+    /// Tells the IMM the follower's own separation-bearing controller (gains and current
+    /// set-points) that computes the inputs passed to the next steps: models B and C then take
+    /// the leader velocity under which the formation moves as that controller commands
+    /// ([`controlled_formation_velocity`]) instead of one that holds it exactly. `None` (the
+    /// default) assumes an exactly held formation. Call it again when a set-point changes.
+    /// The dual UKF ignores it. Gains and set-points are used as given (no validation beyond
+    /// what the model's own checks catch).
+    pub fn set_follower_controller(&mut self, controller: Option<ControllerConfig>) {
+        self.follower = controller;
     }
 
     /// One frame with a measurement `y = [l12, alpha12, beta12]` of noise covariance `r`;
@@ -595,7 +636,7 @@ impl FormationFilter {
             Engine::Imm(engine) => {
                 check_inputs(&u)?;
                 let result = engine.imm.step(
-                    imm_process(&self.model, &u, self.dt, &failure),
+                    imm_process(&self.model, &u, self.dt, self.follower, &failure),
                     &engine.q,
                     y,
                     |z| Vector3::new(z[3], z[4], z[5]),
@@ -632,9 +673,10 @@ impl FormationFilter {
             }
             Engine::Imm(engine) => {
                 check_inputs(&u)?;
-                let result = engine
-                    .imm
-                    .predict_only(imm_process(&self.model, &u, self.dt, &failure), &engine.q);
+                let result = engine.imm.predict_only(
+                    imm_process(&self.model, &u, self.dt, self.follower, &failure),
+                    &engine.q,
+                );
                 let report = outcome(result, &failure)?;
                 self.snapshot = engine.snapshot();
                 self.model_probabilities = Some(report.probabilities);
@@ -656,6 +698,22 @@ impl FormationFilter {
     /// held]` after the last step (`None` for the dual UKF).
     pub fn model_probabilities(&self) -> Option<[f64; 3]> {
         self.model_probabilities
+    }
+
+    /// The IMM's per-model estimates of the leader velocities `[v1, w1]` and their
+    /// covariances, in the order of [`model_probabilities`](Self::model_probabilities)
+    /// (`None` for the dual UKF). The combined estimate
+    /// ([`leader_velocity`](Self::leader_velocity)) is their probability-weighted mixture.
+    pub fn model_velocities(&self) -> Option<[(Vector2<f64>, Matrix2<f64>); 3]> {
+        match &self.engine {
+            Engine::Dual(_) => None,
+            Engine::Imm(engine) => Some(engine.imm.filters().each_ref().map(|f| {
+                (
+                    f.state().fixed_rows::<2>(6).into_owned(),
+                    f.covariance().fixed_view::<2, 2>(6, 6).into_owned(),
+                )
+            })),
+        }
     }
 
     /// Which design this filter runs.
@@ -846,6 +904,12 @@ mod tests {
             dual.step(&y, &r(), Inputs::new(0.8, 0.0)).unwrap();
         }
         let mu = imm.model_probabilities().unwrap();
+        // The combined velocity is the probability-weighted mean of the models' velocities.
+        let per_model = imm.model_velocities().unwrap();
+        let mixed: Vector2<f64> = (0..3).map(|j| per_model[j].0 * mu[j]).sum();
+        let w = imm.leader_velocity();
+        assert!((mixed - Vector2::new(w.v, w.w)).amax() < 1e-9, "{mixed:?}");
+        assert!(dual.model_velocities().is_none());
         assert!((mu.iter().sum::<f64>() - 1.0).abs() < 1e-12, "{mu:?}");
         // The IMM estimates formation and velocity jointly: cross terms; the dual UKF none.
         let c = imm.estimate_covariance();
@@ -870,6 +934,31 @@ mod tests {
         let w1 = bearing_holding_turn_rate(&x, &u, 0.9, 0.5);
         let dx = model.derivative(&x, &u, &Vector2::new(0.9, w1)).unwrap();
         assert!(dx[4].abs() < 1e-12 && dx[3].abs() > 0.1, "{dx:?}");
+    }
+
+    #[test]
+    fn controlled_velocity_moves_the_formation_as_the_controller_commands() {
+        // Regression for measurement 10 (`docs/dukf-reproduction.md`): model B's velocity
+        // must make l12' = k_l (l12_d - l12), alpha12' = k_alpha (alpha12_d - alpha12), not 0.
+        let model = PolarModel::new(0.5).unwrap();
+        let x = PolarState::from_row_slice(&[1.5, 0.25, 0.3, 1.2, 0.3, -0.2]);
+        let u = Vector2::new(0.7, 0.15);
+        let goal = ControllerConfig {
+            l12_desired: 1.0,
+            alpha12_desired: 0.25,
+            k_l: 0.8,
+            k_alpha: 1.5,
+            max_v: None,
+            max_w: None,
+        };
+        let w = controlled_formation_velocity(&x, &u, 0.5, Some(goal));
+        let dx = model.derivative(&x, &u, &w).unwrap();
+        assert!((dx[3] - 0.8 * (1.0 - 1.2)).abs() < 1e-12, "{dx:?}");
+        assert!((dx[4] - 1.5 * (0.25 - 0.3)).abs() < 1e-12, "{dx:?}");
+        assert_eq!(
+            controlled_formation_velocity(&x, &u, 0.5, None),
+            formation_holding_velocity(&x, &u, 0.5)
+        );
     }
 
     #[test]
