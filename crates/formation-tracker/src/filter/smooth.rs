@@ -49,7 +49,9 @@ use unicycle::{
     Formation, Inputs, MEASUREMENT_ANGLES, PolarModel, PolarState, STATE_ANGLES, UnicycleError,
 };
 
-use super::{FilterError, FormationFilter, Matrix6};
+use super::{
+    Engine, FilterDesign, FilterError, FormationFilter, ImmEngine, Joint, Matrix6, imm_process,
+};
 
 type Augmented = SVector<f64, 8>;
 type Matrix8 = SMatrix<f64, 8, 8>;
@@ -73,6 +75,12 @@ pub struct FilterStep {
     pub velocity: Vector2<f64>,
     /// Its covariance.
     pub velocity_covariance: Matrix2<f64>,
+    /// The IMM's whole mixed estimate over `[x, v1, w1, a_v, a_w]` after the step (`None`
+    /// for the dual UKF); the IMM smoother starts from the first step's.
+    pub joint: Option<Gaussian<10>>,
+    /// The IMM's model probabilities after the step (`None` for the dual UKF); the IMM
+    /// smoother's forward pass takes the most probable model of each step.
+    pub model_probabilities: Option<[f64; 3]>,
 }
 
 /// One smoothed step: the estimate of the state and the leader velocities given the whole
@@ -126,6 +134,8 @@ impl FormationFilter {
             state_covariance: self.snapshot.state_covariance,
             velocity: self.snapshot.velocity,
             velocity_covariance: self.snapshot.velocity_covariance,
+            joint: self.snapshot.joint,
+            model_probabilities: self.model_probabilities,
         }
     }
 
@@ -142,6 +152,14 @@ impl FormationFilter {
     /// model refusing a sigma point (e.g. `l12 <= 0`): [`FilterError::Ukf`] or
     /// [`FilterError::Model`]. Nothing is returned on error.
     pub fn smooth(&self, history: &[FilterStep]) -> Result<Vec<SmoothedStep>, FilterError> {
+        match &self.engine {
+            Engine::Dual(_) => self.smooth_dual(history),
+            Engine::Imm(engine) => self.smooth_imm(engine, history),
+        }
+    }
+
+    /// The dual design's smoother: the joint `[x; w]` random-walk pass and its RTS smoother.
+    fn smooth_dual(&self, history: &[FilterStep]) -> Result<Vec<SmoothedStep>, FilterError> {
         let space = AngleMask::<8>::from_indices(&STATE_ANGLES)?;
         let smoother = RtsSmoother::new(space, self.ut)?;
         let Some(first) = history.first() else {
@@ -216,6 +234,84 @@ impl FormationFilter {
                     velocity: Vector2::new(v.mean[6], v.mean[7]).into(),
                     velocity_covariance: v.covariance.fixed_view::<2, 2>(6, 6).into_owned(),
                 }
+            })
+            .collect())
+    }
+    /// The IMM design's smoother: a joint unscented Kalman filter over the IMM's state
+    /// `[x, v1, w1, a_v, a_w]` from the first recorded mixed estimate, whose transition from
+    /// step `k` to `k + 1` is the IMM model most probable after step `k + 1` (with that
+    /// model's process noise), then the unscented RTS smoother backwards over it.
+    fn smooth_imm(
+        &self,
+        engine: &ImmEngine,
+        history: &[FilterStep],
+    ) -> Result<Vec<SmoothedStep>, FilterError> {
+        let space = AngleMask::<10>::from_indices(&STATE_ANGLES)?;
+        let smoother = RtsSmoother::new(space, self.ut)?;
+        let Some(first) = history.first() else {
+            return Err(UkfError::EmptyHistory.into());
+        };
+        let Some(start) = first.joint else {
+            return Err(FilterError::HistoryDesign {
+                recorded: FilterDesign::Dual,
+                smoother: FilterDesign::Imm,
+            });
+        };
+        let model_of = |k: usize| -> usize {
+            history
+                .get(k + 1)
+                .and_then(|s| s.model_probabilities)
+                .map_or(0, |p| {
+                    (0..p.len()).fold(0, |best, j| if p[j] > p[best] { j } else { best })
+                })
+        };
+        let failure: Cell<Option<UnicycleError>> = Cell::new(None);
+        let (model, dt) = (&self.model, self.dt);
+        let mut process = |k: usize, z: &Joint| -> Joint {
+            let u: Vector2<f64> = history
+                .get(k + 1)
+                .map_or(Inputs::new(0.0, 0.0), |s| s.inputs)
+                .into();
+            imm_process(model, &u, dt, &failure)(model_of(k), z)
+        };
+        let noise = |k: usize| engine.q[model_of(k)];
+        let measurement_space = AngleMask::<3>::from_indices(&MEASUREMENT_ANGLES)?;
+        let forward = || {
+            let mut joint = Ukf::new(start.mean, start.covariance, space, self.ut)?;
+            let mut filtered = Vec::with_capacity(history.len());
+            filtered.push(Gaussian::new(*joint.state(), *joint.covariance()));
+            for (k, step) in history.iter().enumerate().skip(1) {
+                joint.predict(|z| process(k - 1, z), &noise(k - 1))?;
+                if let Some((y, r)) = step.measurement {
+                    joint.update(
+                        &y,
+                        |z| Vector3::new(z[3], z[4], z[5]),
+                        &r,
+                        &measurement_space,
+                    )?;
+                }
+                filtered.push(Gaussian::new(*joint.state(), *joint.covariance()));
+            }
+            Ok::<_, UkfError>(filtered)
+        };
+        let result = forward().and_then(|filtered| smoother.smooth(&filtered, &mut process, noise));
+        let smoothed = match result {
+            Ok(s) => s,
+            Err(e) => {
+                return Err(match failure.get() {
+                    Some(model_error) => model_error.into(),
+                    None => e.into(),
+                });
+            }
+        };
+        Ok(smoothed
+            .estimates
+            .iter()
+            .map(|s| SmoothedStep {
+                state: s.mean.fixed_rows::<6>(0).into_owned(),
+                state_covariance: s.covariance.fixed_view::<6, 6>(0, 0).into_owned(),
+                velocity: Vector2::new(s.mean[6], s.mean[7]).into(),
+                velocity_covariance: s.covariance.fixed_view::<2, 2>(6, 6).into_owned(),
             })
             .collect())
     }

@@ -2,7 +2,7 @@
 
 use unicycle::PolarState;
 
-use crate::filter::{FilterConfig, FilterError, FormationFilter};
+use crate::filter::{FilterConfig, FilterDesign, FilterError, FormationFilter};
 
 /// The 99.9 % point of a chi-square distribution with 3 degrees of freedom.
 pub const CHI2_3_999: f64 = 16.266;
@@ -87,12 +87,16 @@ pub struct TrackerConfig {
 
 impl TrackerConfig {
     /// The defaults: the [reference tuning](crate::filter::FilterTuning::reference) (its
-    /// `Q`, `Rr`, velocity prior `w0 = [0, 0]`, `Pw0 = I`), `lost_after = 2 s`, gate
+    /// `Q`, `Rr`, velocity prior `w0 = [0, 0]`, `Pw0 = I`) with the IMM design
+    /// ([`FilterDesign::Imm`], the rule `reproduce dukf` uses; set `filter.tuning.design` to
+    /// [`FilterDesign::Dual`] for the paper's dual UKF), `lost_after = 2 s`, gate
     /// 16.27, measurement floor 5 mm / 5 mrad, world-pose prior 0.1, confirmation 1 s,
     /// corner noise 0.5 px.
     pub fn reference(d: f64, dt: f64) -> Self {
+        let mut filter = FilterConfig::new(d, dt, PolarState::new(0.0, 0.0, 0.0, 1.0, 0.0, 0.0));
+        filter.tuning.design = FilterDesign::Imm;
         Self {
-            filter: FilterConfig::new(d, dt, PolarState::new(0.0, 0.0, 0.0, 1.0, 0.0, 0.0)),
+            filter,
             lost_after: 2.0,
             gate: CHI2_3_999,
             measurement_floor_std: [0.005, 0.005, 0.005],
