@@ -4,9 +4,8 @@
 //! filters (crate `dukf`).
 //!
 //! The IMM is better on every reference figure (`docs/dukf-reproduction.md`) and is what
-//! `reproduce dukf` runs; the tracker's default stays the dual UKF for now because the
-//! offline smoother (`track --smooth`, [`FormationFilter::record`]) is built on the dual
-//! UKF's random-walk model and does not yet improve on the IMM's causal estimates.
+//! `reproduce dukf` and the tracker (`TrackerConfig::reference`) run; the offline smoother
+//! ([`FormationFilter::smooth`]) follows the design that recorded the history.
 //!
 //! [`FormationFilter`] is the piece the tracker reuses per leader. It is fed the measurement
 //! `y = [l12, alpha12, beta12]` and the follower's own inputs `u = [v2, w2]`, and estimates
@@ -47,8 +46,9 @@
 //! [`FormationFilter::smooth`] runs the unscented RTS smoother of `dukf` backwards over such a
 //! history, over the state and the leader velocities together (see `smooth.rs` and
 //! `docs/smoothing.md`), giving one [`SmoothedStep`] per recorded step. The smoother reruns its
-//! own joint forward pass (leader velocity a random walk with `Q` and `Rr`) from the first
-//! recorded estimate, so it works the same behind either causal design.
+//! own joint forward pass from the first recorded estimate: for the dual UKF over `[x; w]`
+//! (leader velocity a random walk with `Q` and `Rr`), for the IMM over its joint state with
+//! each step's most probable model.
 
 mod smooth;
 

@@ -1,5 +1,7 @@
 //! Offline smoothing of a recorded [`FormationFilter`] pass: the unscented RTS smoother of
-//! `dukf` over the state and the leader velocities together.
+//! `dukf` over the state and the leader velocities together, behind either design. The
+//! sections below describe the dual UKF's smoother; the IMM's is the same idea over the
+//! IMM's own state (last section).
 //!
 //! # What is smoothed, and why jointly
 //!
@@ -40,6 +42,22 @@
 //! filter reports at step `k` the velocity over the step that *ended* at `k`, so a smoothed
 //! step reports `w_{k-1}` (the first step, which no transition ends at, reports its own
 //! `w_0`).
+//!
+//! # The IMM design
+//!
+//! The IMM already estimates `z = [x, v1, w1, a_v, a_w]` jointly (a mixture of three models,
+//! `filter.rs`). A mixture has no single transition for the RTS recursion, so the smoother's
+//! forward pass is one unscented Kalman filter over `z` from the first recorded mixed estimate
+//! ([`FilterStep::joint`]) through the recorded inputs and measurements, whose transition
+//! from step `k` to `k + 1` is the IMM model that was most probable after step `k + 1`
+//! ([`FilterStep::model_probabilities`]: the measurement of step `k + 1` has decided between
+//! the models), with that model's process function and noise (the causal IMM's own). The
+//! backward pass is `dukf`'s unscented RTS smoother with the same per-step transitions. Each
+//! step reports its own smoothed `[v1, w1]`, as the causal IMM does. On the reference
+//! scenario this halves the causal IMM's errors several times over (`docs/smoothing.md`).
+//! A history recorded by the dual UKF has no joint estimate and is refused
+//! ([`FilterError::HistoryDesign`]); the dual smoother accepts an IMM history (it uses the
+//! marginals).
 
 use std::cell::Cell;
 
@@ -340,6 +358,13 @@ mod tests {
         FormationFilter::new(&FilterConfig::new(0.5, 1.0 / 30.0, x0)).unwrap()
     }
 
+    fn imm_filter() -> FormationFilter {
+        let x0 = PolarState::from_row_slice(&[1.5, 0.25, 0.0, 1.047, 0.233, 0.232]);
+        let mut config = FilterConfig::new(0.5, 1.0 / 30.0, x0);
+        config.tuning.design = FilterDesign::Imm;
+        FormationFilter::new(&config).unwrap()
+    }
+
     fn r() -> Matrix3<f64> {
         Matrix3::from_diagonal(&Vector3::new(
             0.07f64.powi(2),
@@ -388,6 +413,72 @@ mod tests {
                     .all(|v| v.is_finite())
             );
         }
+    }
+
+    #[test]
+    fn the_imm_smoother_bridges_a_gap_and_beats_its_causal_pass() {
+        // A leader standing still in front, measured with noise, then a gap: the IMM's
+        // smoother is more certain than the causal pass in the gap and closer to the truth
+        // over the whole recording (0.51 x the causal squared error for this draw; the
+        // reference scenario's figures are in docs/smoothing.md).
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let noise = Normal::new(0.0, 1.0).unwrap();
+        let truth = Vector3::new(1.047, 0.233, 0.233);
+        let r = Matrix3::from_diagonal(&Vector3::new(1e-4, 1e-4, 1e-4));
+        let mut f = imm_filter();
+        let u = Inputs::new(0.0, 0.0);
+        let mut history = vec![f.record(u, None)];
+        for k in 0..120 {
+            if (50..70).contains(&k) {
+                f.predict_only(u).unwrap();
+                history.push(f.record(u, None));
+            } else {
+                let y = truth + Vector3::from_fn(|_, _| 0.01 * noise.sample(&mut rng));
+                f.step(&y, &r, u).unwrap();
+                history.push(f.record(u, Some((y, r))));
+            }
+        }
+        assert!(history.iter().all(|s| s.joint.is_some()));
+        let smoothed = f.smooth(&history).unwrap();
+        assert_eq!(smoothed.len(), history.len());
+        let mid = 61;
+        let causal = history[mid].state_covariance[(3, 3)];
+        let smooth = smoothed[mid].state_covariance[(3, 3)];
+        assert!(smooth < causal, "{smooth} >= {causal}");
+        let sse = |e: &mut dyn Iterator<Item = PolarState>| -> f64 {
+            e.skip(10).map(|x| (x[3] - truth[0]).powi(2)).sum()
+        };
+        let causal_sse = sse(&mut history.iter().map(|s| s.state));
+        let smooth_sse = sse(&mut smoothed.iter().map(|s| s.state));
+        assert!(
+            smooth_sse < 0.75 * causal_sse,
+            "{smooth_sse} vs causal {causal_sse}"
+        );
+    }
+
+    #[test]
+    fn a_dual_history_is_not_smoothed_by_the_imm() {
+        let mut f = filter();
+        let u = Inputs::new(0.0, 0.0);
+        let y = Vector3::new(1.047, 0.233, 0.233);
+        let mut history = vec![f.record(u, None)];
+        f.step(&y, &r(), u).unwrap();
+        history.push(f.record(u, Some((y, r()))));
+        assert!(matches!(
+            imm_filter().smooth(&history),
+            Err(FilterError::HistoryDesign {
+                recorded: FilterDesign::Dual,
+                smoother: FilterDesign::Imm,
+            })
+        ));
+        // The dual smoother takes an IMM history (it uses the marginals).
+        let mut g = imm_filter();
+        let mut imm_history = vec![g.record(u, None)];
+        g.step(&y, &r(), u).unwrap();
+        imm_history.push(g.record(u, Some((y, r()))));
+        assert_eq!(filter().smooth(&imm_history).unwrap().len(), 2);
     }
 
     #[test]

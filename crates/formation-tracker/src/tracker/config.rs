@@ -65,21 +65,39 @@ pub struct TrackerConfig {
     /// `f64::INFINITY` disables gating.
     pub gate: f64,
     /// Standard deviations `[m, rad, rad]` whose squares are added to the propagated
-    /// measurement covariance. Default `[0.005, 0.005, 0.005]`.
+    /// measurement covariance: a floor that keeps `R` positive definite and a frame from
+    /// being trusted to the micrometre. Default `[1e-4, 1e-4, 1e-4]` (0.1 mm, 0.1 mrad).
     pub measurement_floor_std: [f64; 3],
+    /// Relative standard deviation of the measured distance `l12` from errors the pose fit's
+    /// residuals cannot see (corner errors shared by a face's corners: blur, lighting
+    /// gradient, quiet zones, which move the fit rather than the residual); `(s l12)^2` is
+    /// added to the variance of `l12`. Default 0.002, the mean distance error the detector
+    /// and pose measure on the paper's scenes (`docs/paper-scenes.md`: 0.209 %).
+    pub relative_distance_std: f64,
     /// Standard deviation of the leader's world pose `(x1, y1, theta1)` at initialisation
     /// (unobservable, carried along). Default 0.1.
     pub world_pose_prior_std: f64,
     /// Seconds during which a track started from a single face keeps a rival hypothesis
     /// from the other planar candidate. Default 1 s; 0 disables the rival.
     pub confirm_time: f64,
-    /// Corner noise, pixels, to which each pose covariance is rescaled; `None` uses the
-    /// covariance as given. Default 0.5 px. `pose` scales its covariance `(J^T J)^-1` by a
-    /// noise estimated from the residual, `sigma^2 = max(SSE / (2N - 6), min_pixel_sigma^2)`;
-    /// for one face (N = 4) that estimate has 2 degrees of freedom and is often far too small,
-    /// which makes the filter trust single frames and diverge. The tracker undoes it
-    /// (`SSE = N rms^2`) and uses `corner_sigma_px^2` instead.
+    /// A fixed corner noise, pixels, to which each pose covariance is rescaled; `None` (the
+    /// default) rescales to the corner noise measured from the detector's own residuals,
+    /// pooled per robot over its recent solves ([`corner_noise_memory_dof`](Self::corner_noise_memory_dof)).
+    /// `pose` scales its covariance `(J^T J)^-1` by a noise estimated from one solve's
+    /// residual, `sigma^2 = max(SSE / (2N - 6), min_pixel_sigma^2)`; for one face (N = 4)
+    /// that estimate has 2 degrees of freedom, and the floor is the top of the detector's
+    /// measured range. The tracker undoes it (`SSE = N rms^2`) and uses the pooled
+    /// `sum SSE / sum (2N - 6)` (or `corner_sigma_px^2`) instead. Default `None`.
     pub corner_sigma_px: Option<f64>,
+    /// Memory of the pooled corner noise, in residual degrees of freedom: each solve with
+    /// `n` degrees of freedom discounts the pool by `1 - n / memory`. Default 400 (about 200
+    /// single-face frames, 40 two-face frames).
+    pub corner_noise_memory_dof: f64,
+    /// Prior of the pooled corner noise, pixels: the detector's documented figure
+    /// (`docs/detector-accuracy.md`: 0.04-0.1 px; default 0.1 px, the top of that range).
+    pub corner_noise_prior_px: f64,
+    /// Weight of that prior in residual degrees of freedom. Default 10.
+    pub corner_noise_prior_dof: f64,
     /// The pose solver's `min_pixel_sigma` (to undo its scaling). Default that of
     /// `pose::SolverOptions::default()`.
     pub solver_min_pixel_sigma: f64,
@@ -90,8 +108,8 @@ impl TrackerConfig {
     /// `Q`, `Rr`, velocity prior `w0 = [0, 0]`, `Pw0 = I`) with the IMM design
     /// ([`FilterDesign::Imm`], the rule `reproduce dukf` uses; set `filter.tuning.design` to
     /// [`FilterDesign::Dual`] for the paper's dual UKF), `lost_after = 2 s`, gate
-    /// 16.27, measurement floor 5 mm / 5 mrad, world-pose prior 0.1, confirmation 1 s,
-    /// corner noise 0.5 px.
+    /// 16.27, measurement floor 0.1 mm / 0.1 mrad plus 0.2 % of the distance, world-pose prior 0.1, confirmation 1 s,
+    /// corner noise pooled from the residuals (memory 400 dof, prior 0.1 px over 10 dof).
     pub fn reference(d: f64, dt: f64) -> Self {
         let mut filter = FilterConfig::new(d, dt, PolarState::new(0.0, 0.0, 0.0, 1.0, 0.0, 0.0));
         filter.tuning.design = FilterDesign::Imm;
@@ -99,10 +117,14 @@ impl TrackerConfig {
             filter,
             lost_after: 2.0,
             gate: CHI2_3_999,
-            measurement_floor_std: [0.005, 0.005, 0.005],
+            measurement_floor_std: [1e-4, 1e-4, 1e-4],
+            relative_distance_std: 0.002,
             world_pose_prior_std: 0.1,
             confirm_time: 1.0,
-            corner_sigma_px: Some(0.5),
+            corner_sigma_px: None,
+            corner_noise_memory_dof: 400.0,
+            corner_noise_prior_px: 0.1,
+            corner_noise_prior_dof: 10.0,
             solver_min_pixel_sigma: pose::SolverOptions::default().min_pixel_sigma,
         }
     }
@@ -122,8 +144,18 @@ impl TrackerConfig {
         positive("lost_after", self.lost_after)?;
         positive("world_pose_prior_std", self.world_pose_prior_std)?;
         positive("solver_min_pixel_sigma", self.solver_min_pixel_sigma)?;
+        positive("corner_noise_memory_dof", self.corner_noise_memory_dof)?;
+        positive("corner_noise_prior_px", self.corner_noise_prior_px)?;
+        positive("corner_noise_prior_dof", self.corner_noise_prior_dof)?;
         if let Some(s) = self.corner_sigma_px {
             positive("corner_sigma_px", s)?;
+        }
+        if !(self.relative_distance_std.is_finite() && self.relative_distance_std >= 0.0) {
+            return Err(TrackerError::InvalidConfig {
+                what: "relative_distance_std",
+                value: self.relative_distance_std,
+                expected: "finite and non-negative",
+            });
         }
         for s in self.measurement_floor_std {
             positive("measurement_floor_std", s)?;
