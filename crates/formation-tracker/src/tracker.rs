@@ -16,16 +16,18 @@
 //!    [`crate::mount::propagate_covariance`] (a formation measurement from a joint or
 //!    ground-plane fit comes with that covariance already). `pose` scales a fit's covariance
 //!    by the corner noise of that one fit's residual (2 degrees of freedom for one face, at
-//!    least 0.1 px); the tracker replaces that scale by the corner noise **pooled** over the
-//!    robot's recent fits, `sum SSE / sum (2N - p)` ([`TrackerConfig::corner_sigma_px`]
-//!    `None`, the default; [`TrackerConfig::corner_noise_memory_dof`]), i.e. `R` is the
-//!    detector's measured corner noise through the pose Jacobian. Two terms are **added**
-//!    to it: the variance of errors the residuals cannot see, `(0.2 % l12)^2` on `l12`
-//!    ([`TrackerConfig::relative_distance_std`]: corner errors shared by a face's corners
-//!    move the fit, not the residual), and a small floor
-//!    ([`TrackerConfig::measurement_floor_std`], 0.1 mm / 0.1 mrad) so that no frame is
-//!    trusted to the micrometre and `R` stays positive definite even when the Jacobian is
-//!    rank-deficient. `docs/tracking.md` has the figures.
+//!    least 0.1 px). By default a single face's candidates are rescaled to a fixed
+//!    [`TrackerConfig::corner_sigma_px`] (0.5 px) and a floor of 5 mm / 5 mrad
+//!    ([`TrackerConfig::measurement_floor_std`]) is **added** for the errors the pose
+//!    covariance does not know (corner bias, calibration, mount). With `corner_sigma_px =
+//!    None` every fit (single faces, and joint or ground-plane fits that carry their
+//!    [`FitResidual`]) is rescaled to the corner noise **pooled** over the robot's recent
+//!    fits, `sum SSE / sum (2N - p)` ([`TrackerConfig::corner_noise_memory_dof`]): `R` is then
+//!    the detector's measured corner noise through the pose Jacobian, and
+//!    [`TrackerConfig::relative_distance_std`] adds `(s l12)^2` for the distance errors the
+//!    residuals cannot see. Not yet the default: `docs/tracking.md` has the measurements.
+//!    Adding (rather than clamping) keeps `R` positive definite even when the Jacobian is
+//!    rank-deficient.
 //! 2. **Prediction.** The track's filter is predicted over the frame gap (see *Time*) on a
 //!    copy, giving the predicted measurement `y-` and its variances `diag(P-)`.
 //! 3. **Candidate choice.** With two planar candidates, the one with the smaller
@@ -430,9 +432,12 @@ impl Tracker {
             let mut y = f.y;
             y[1] = wrap_angle(y[1]);
             y[2] = wrap_angle(y[2]);
-            let scale = f
-                .fit
-                .map_or(1.0, |fit| self.noise_scale(&fit, points, obs.robot));
+            // A joint or ground-plane fit is rescaled only to the pooled corner noise (a fixed
+            // `corner_sigma_px` stands for single faces' 2-dof estimates).
+            let scale = match (self.config.corner_sigma_px, f.fit) {
+                (None, Some(fit)) => self.noise_scale(&fit, points, obs.robot),
+                _ => 1.0,
+            };
             let r = (f.r + f.r.transpose()) * (0.5 * scale) + floor + self.distance_floor(y[0]);
             Ok(Formed { y, r, candidate })
         };

@@ -18,8 +18,8 @@ pub enum PoseMeasurement {
     /// A measurement already in formation variables: `y = [l12, alpha12, beta12]` and its
     /// covariance (e.g. a joint pose over several faces, or one refined on the ground
     /// plane). Used as given, unless it carries its fit's residual
-    /// ([`FormationMeasurement::fit`]): then rescaled to the tracker's corner
-    /// noise; the floor is added.
+    /// ([`FormationMeasurement::fit`]) and the tracker pools the corner noise: then
+    /// rescaled to it; the floor is added.
     Formation(FormationMeasurement),
     /// Two candidates already in formation variables (a single face), best first.
     FormationCandidates([FormationMeasurement; 2]),
@@ -34,8 +34,8 @@ pub struct FormationMeasurement {
     pub r: Matrix3<f64>,
     /// When `r` is a pose fit's covariance scaled by the pose solver's one-solve noise
     /// estimate, that fit's residual, so that the tracker can rescale `r` to the corner noise
-    /// it pools from the residuals ([`TrackerConfig::corner_sigma_px`](crate::tracker::TrackerConfig::corner_sigma_px)).
-    /// `None`: `r` is used as given.
+    /// it pools from the residuals (when [`TrackerConfig::corner_sigma_px`](crate::tracker::TrackerConfig::corner_sigma_px)
+    /// is `None`). `None`: `r` is used as given.
     pub fit: Option<FitResidual>,
 }
 
