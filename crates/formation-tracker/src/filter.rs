@@ -48,7 +48,7 @@
 //! `docs/smoothing.md`), giving one [`SmoothedStep`] per recorded step. The smoother reruns its
 //! own joint forward pass from the first recorded estimate: for the dual UKF over `[x; w]`
 //! (leader velocity a random walk with `Q` and `Rr`), for the IMM over its joint state with
-//! each step's most probable model.
+//! its models mixed with each step's probabilities.
 
 mod smooth;
 

@@ -49,10 +49,12 @@
 //! `filter.rs`). A mixture has no single transition for the RTS recursion, so the smoother's
 //! forward pass is one unscented Kalman filter over `z` from the first recorded mixed estimate
 //! ([`FilterStep::joint`]) through the recorded inputs and measurements, whose transition
-//! from step `k` to `k + 1` is the IMM model that was most probable after step `k + 1`
-//! ([`FilterStep::model_probabilities`]: the measurement of step `k + 1` has decided between
-//! the models), with that model's process function and noise (the causal IMM's own). The
-//! backward pass is `dukf`'s unscented RTS smoother with the same per-step transitions. Each
+//! from step `k` to `k + 1` is the models' mixture with the probabilities after step `k + 1`
+//! ([`FilterStep::model_probabilities`]: the measurement of step `k + 1` has weighed the
+//! models): its mean is the probability-weighted mean of the three models' predictions, its
+//! noise their weighted process noises plus the weighted spread of their predictions at the
+//! filtered mean of step `k` (kept, so that the backward pass uses the same noise). The
+//! backward pass is `dukf`'s unscented RTS smoother with the same transitions. Each
 //! step reports its own smoothed `[v1, w1]`, as the causal IMM does. On the reference
 //! scenario this halves the causal IMM's errors several times over (`docs/smoothing.md`).
 //! A history recorded by the dual UKF has no joint estimate and is refused
@@ -65,10 +67,12 @@ use dukf::{AngleMask, Gaussian, RtsSmoother, Ukf, UkfError};
 use nalgebra::{Matrix2, Matrix3, SMatrix, SVector, Vector2, Vector3};
 use unicycle::{
     Formation, Inputs, MEASUREMENT_ANGLES, PolarModel, PolarState, STATE_ANGLES, UnicycleError,
+    wrap_angle,
 };
 
 use super::{
-    Engine, FilterDesign, FilterError, FormationFilter, ImmEngine, Joint, Matrix6, imm_process,
+    Engine, FilterDesign, FilterError, FormationFilter, ImmEngine, Joint, Matrix6, Matrix10,
+    imm_process,
 };
 
 type Augmented = SVector<f64, 8>;
@@ -97,7 +101,7 @@ pub struct FilterStep {
     /// for the dual UKF); the IMM smoother starts from the first step's.
     pub joint: Option<Gaussian<10>>,
     /// The IMM's model probabilities after the step (`None` for the dual UKF); the IMM
-    /// smoother's forward pass takes the most probable model of each step.
+    /// smoother's forward pass mixes the models' transitions with them.
     pub model_probabilities: Option<[f64; 3]>,
 }
 
@@ -257,8 +261,8 @@ impl FormationFilter {
     }
     /// The IMM design's smoother: a joint unscented Kalman filter over the IMM's state
     /// `[x, v1, w1, a_v, a_w]` from the first recorded mixed estimate, whose transition from
-    /// step `k` to `k + 1` is the IMM model most probable after step `k + 1` (with that
-    /// model's process noise), then the unscented RTS smoother backwards over it.
+    /// step `k` to `k + 1` mixes the models with the probabilities after step `k + 1` (see
+    /// the module documentation), then the unscented RTS smoother backwards over it.
     fn smooth_imm(
         &self,
         engine: &ImmEngine,
@@ -275,31 +279,63 @@ impl FormationFilter {
                 smoother: FilterDesign::Imm,
             });
         };
-        let model_of = |k: usize| -> usize {
+        // The transition from step k to k + 1 mixes the models with the probabilities after
+        // step k + 1: its mean is the weighted mean of the models' predictions, its noise
+        // their weighted noise plus their spread at the filtered mean of step k.
+        let weights = |k: usize| -> [f64; 3] {
             history
                 .get(k + 1)
                 .and_then(|s| s.model_probabilities)
-                .map_or(0, |p| {
-                    (0..p.len()).fold(0, |best, j| if p[j] > p[best] { j } else { best })
-                })
+                .unwrap_or([1.0, 0.0, 0.0])
         };
         let failure: Cell<Option<UnicycleError>> = Cell::new(None);
         let (model, dt) = (&self.model, self.dt);
-        let mut process = |k: usize, z: &Joint| -> Joint {
+        let predictions = |k: usize, z: &Joint| -> [Joint; 3] {
             let u: Vector2<f64> = history
                 .get(k + 1)
                 .map_or(Inputs::new(0.0, 0.0), |s| s.inputs)
                 .into();
-            imm_process(model, &u, dt, &failure)(model_of(k), z)
+            let mut f = imm_process(model, &u, dt, &failure);
+            [f(0, z), f(1, z), f(2, z)]
         };
-        let noise = |k: usize| engine.q[model_of(k)];
+        let wrapped = |mut d: Joint| -> Joint {
+            for i in STATE_ANGLES {
+                d[i] = wrap_angle(d[i]);
+            }
+            d
+        };
+        let mixed = |k: usize, z: &Joint| -> (Joint, [Joint; 3]) {
+            let outs = predictions(k, z);
+            let p = weights(k);
+            let base = outs[0];
+            let mut acc = Joint::zeros();
+            for (pj, o) in p.iter().zip(&outs) {
+                acc += wrapped(o - base) * *pj;
+            }
+            let mean = wrapped(base + acc);
+            (mean, outs)
+        };
+        let mut process = |k: usize, z: &Joint| -> Joint { mixed(k, z).0 };
+        let noise_at = |k: usize, m: &Joint| -> Matrix10 {
+            let (mean, outs) = mixed(k, m);
+            let p = weights(k);
+            let mut q = Matrix10::zeros();
+            for j in 0..3 {
+                let d = wrapped(outs[j] - mean);
+                q += (engine.q[j] + d * d.transpose()) * p[j];
+            }
+            (q + q.transpose()) * 0.5
+        };
         let measurement_space = AngleMask::<3>::from_indices(&MEASUREMENT_ANGLES)?;
-        let forward = || {
+        let mut noises: Vec<Matrix10> = Vec::with_capacity(history.len());
+        let mut forward = || {
             let mut joint = Ukf::new(start.mean, start.covariance, space, self.ut)?;
             let mut filtered = Vec::with_capacity(history.len());
             filtered.push(Gaussian::new(*joint.state(), *joint.covariance()));
             for (k, step) in history.iter().enumerate().skip(1) {
-                joint.predict(|z| process(k - 1, z), &noise(k - 1))?;
+                let q = noise_at(k - 1, joint.state());
+                noises.push(q);
+                joint.predict(|z| mixed(k - 1, z).0, &q)?;
                 if let Some((y, r)) = step.measurement {
                     joint.update(
                         &y,
@@ -312,7 +348,8 @@ impl FormationFilter {
             }
             Ok::<_, UkfError>(filtered)
         };
-        let result = forward().and_then(|filtered| smoother.smooth(&filtered, &mut process, noise));
+        let result =
+            forward().and_then(|filtered| smoother.smooth(&filtered, &mut process, |k| noises[k]));
         let smoothed = match result {
             Ok(s) => s,
             Err(e) => {
