@@ -44,11 +44,15 @@ fn assert_equivalent(full: &DemoRun, guided: &DemoRun) {
             a.scan
         );
     }
+    // The tracked MSEs agree within 5 %, or within a fifth of the raw vision MSE: the two
+    // runs read the corners from different crops, so their measurements differ at the level
+    // of the vision noise, and the IMM's tracked MSE is of that order.
     for k in 0..3 {
         let (a, b) = (f.pairs[0].mse[k], g.pairs[0].mse[k]);
+        let raw = f.pairs[0].mse_meas[k].max(g.pairs[0].mse_meas[k]);
         assert!(
-            (b - a).abs() <= 0.05 * a,
-            "MSE {k}: guided {b:.4e} against full-frame {a:.4e}"
+            (b - a).abs() <= 0.05 * a + 0.2 * raw,
+            "MSE {k}: guided {b:.4e} against full-frame {a:.4e} (raw vision {raw:.4e})"
         );
     }
     let records = &guided.traces[0].records;

@@ -563,6 +563,7 @@ fn formation_measurements_are_filtered_and_checked() {
         let good = FormationMeasurement {
             y: s.measurement,
             r,
+            fit: None,
         };
         let mut mirrored = good;
         mirrored.y[1] = -good.y[1] - 0.3;
@@ -597,6 +598,7 @@ fn formation_measurements_are_filtered_and_checked() {
         PoseMeasurement::Formation(FormationMeasurement {
             y,
             r: Matrix3::identity() * 1e-3,
+            fit: None,
         })
     };
     let last = scenario.samples.last().unwrap();
@@ -606,6 +608,7 @@ fn formation_measurements_are_filtered_and_checked() {
         PoseMeasurement::Formation(FormationMeasurement {
             y: Vector3::new(1.0, 0.1, 0.1),
             r: Matrix3::identity() * f64::INFINITY,
+            fit: None,
         }),
     ]
     .into_iter()

@@ -4,9 +4,8 @@
 //! filters (crate `dukf`).
 //!
 //! The IMM is better on every reference figure (`docs/dukf-reproduction.md`) and is what
-//! `reproduce dukf` runs; the tracker's default stays the dual UKF for now because the
-//! offline smoother (`track --smooth`, [`FormationFilter::record`]) is built on the dual
-//! UKF's random-walk model and does not yet improve on the IMM's causal estimates.
+//! `reproduce dukf` and the tracker (`TrackerConfig::reference`) run; the offline smoother
+//! ([`FormationFilter::smooth`]) follows the design that recorded the history.
 //!
 //! [`FormationFilter`] is the piece the tracker reuses per leader. It is fed the measurement
 //! `y = [l12, alpha12, beta12]` and the follower's own inputs `u = [v2, w2]`, and estimates
@@ -47,8 +46,9 @@
 //! [`FormationFilter::smooth`] runs the unscented RTS smoother of `dukf` backwards over such a
 //! history, over the state and the leader velocities together (see `smooth.rs` and
 //! `docs/smoothing.md`), giving one [`SmoothedStep`] per recorded step. The smoother reruns its
-//! own joint forward pass (leader velocity a random walk with `Q` and `Rr`) from the first
-//! recorded estimate, so it works the same behind either causal design.
+//! own joint forward pass from the first recorded estimate: for the dual UKF over `[x; w]`
+//! (leader velocity a random walk with `Q` and `Rr`), for the IMM over its joint state with
+//! its models mixed with each step's probabilities.
 
 mod smooth;
 
@@ -80,6 +80,18 @@ pub enum FilterError {
     /// The robot model refused a state or an input (e.g. `l12 <= 0` at a sigma point).
     #[error(transparent)]
     Model(#[from] UnicycleError),
+    /// A recorded history was made by a filter of another design than the one asked to
+    /// smooth it.
+    #[error(
+        "the recorded history was made by the {recorded:?} filter but the {smoother:?} filter \
+         was asked to smooth it; smooth it with a filter of the design that recorded it"
+    )]
+    HistoryDesign {
+        /// The design that recorded the history.
+        recorded: FilterDesign,
+        /// The design asked to smooth it.
+        smoother: FilterDesign,
+    },
     /// The time step is not finite and positive.
     #[error("filter time step dt = {dt} s must be finite and positive")]
     InvalidTimeStep {
@@ -250,6 +262,8 @@ struct Snapshot {
     velocity_covariance: Matrix2<f64>,
     /// Covariance of `[l12, alpha12, beta12]` with `[v1, w1]` (zero for the dual UKF).
     cross: SMatrix<f64, 3, 2>,
+    /// The IMM's whole mixed estimate over `[x, v1, w1, a_v, a_w]` (for the smoother).
+    joint: Option<dukf::Gaussian<10>>,
 }
 
 /// A filter tracking one leader's formation variables and velocities: by default the IMM,
@@ -501,6 +515,7 @@ impl ImmEngine {
             velocity: Vector2::new(z[6], z[7]),
             velocity_covariance: p.fixed_view::<2, 2>(6, 6).into_owned(),
             cross: p.fixed_view::<3, 2>(3, 6).into_owned(),
+            joint: Some(dukf::Gaussian::new(z, p)),
         }
     }
 }
@@ -512,6 +527,7 @@ fn dual_snapshot(dual: &Dual) -> Snapshot {
         velocity: *dual.parameters(),
         velocity_covariance: *dual.parameter_covariance(),
         cross: SMatrix::zeros(),
+        joint: None,
     }
 }
 

@@ -34,8 +34,8 @@ use crate::mount::CameraMount;
 use crate::rig::{Face, RigModel};
 use crate::robots::{MarkerObservation, RobotConfig, RobotMeasurement, measure_robots};
 use crate::tracker::{
-    FormationMeasurement, FrameInput, FrameReport, Observation, PoseMeasurement, Tracker,
-    TrackerError,
+    FitResidual, FormationMeasurement, FrameInput, FrameReport, Observation, PoseMeasurement,
+    Tracker, TrackerError,
 };
 
 /// Errors of one frame of the pipeline.
@@ -345,6 +345,10 @@ fn observation(m: &RobotMeasurement) -> Observation {
             pose: PoseMeasurement::Formation(FormationMeasurement {
                 y: Vector3::new(m.l12, m.alpha12, m.beta12),
                 r: Matrix3::from_fn(|i, j| m.covariance[i][j]),
+                fit: Some(FitResidual {
+                    rms_px: m.reprojection_rms_px,
+                    parameters: if m.ground_plane { 3 } else { 6 },
+                }),
             }),
         },
     }

@@ -1,5 +1,5 @@
-//! Tracking leaders over time: one dual UKF per leader robot, fed per-frame pose
-//! measurements, with coasting, loss, re-acquisition, planar-ambiguity resolution and gating.
+//! Tracking leaders over time: one formation filter (the IMM by default) per leader robot,
+//! fed per-frame pose measurements, with coasting, loss, re-acquisition, planar-ambiguity resolution and gating.
 //!
 //! The tracker does not look at images. Its input per frame ([`FrameInput`]) is what the
 //! vision pipeline makes of one camera frame: for every robot seen, either one chosen pose
@@ -12,16 +12,22 @@
 //! # One frame, per leader
 //! 1. **Measurement.** Each pose candidate (rig frame to camera frame) goes through the
 //!    measurement transform of spec 2.5 ([`crate::mount::formation_from_camera_pose`]); its
-//!    6x6 pose covariance, rescaled to the configured corner noise
-//!    ([`TrackerConfig::corner_sigma_px`], 0.5 px: `pose` scales by a residual-based noise
-//!    estimate that has only 2 degrees of freedom for one face and is often far too small),
-//!    is propagated to `(l12, alpha12, beta12)` by
-//!    [`crate::mount::propagate_covariance`], and a floor variance
-//!    ([`TrackerConfig::measurement_floor_std`]) is **added** to the diagonal. The pose
-//!    covariance only knows pixel noise (at least `pose`'s 0.1 px floor); corner bias,
-//!    calibration and mount errors are not in it, and a near-zero `R` would make the filter
-//!    trust one frame completely. Adding (rather than clamping) keeps `R` positive definite
-//!    even when the Jacobian is rank-deficient.
+//!    6x6 pose covariance is propagated to `(l12, alpha12, beta12)` by
+//!    [`crate::mount::propagate_covariance`] (a formation measurement from a joint or
+//!    ground-plane fit comes with that covariance already). `pose` scales a fit's covariance
+//!    by the corner noise of that one fit's residual (2 degrees of freedom for one face, at
+//!    least 0.1 px). By default a single face's candidates are rescaled to a fixed
+//!    [`TrackerConfig::corner_sigma_px`] (0.5 px) and a floor of 5 mm / 5 mrad
+//!    ([`TrackerConfig::measurement_floor_std`]) is **added** for the errors the pose
+//!    covariance does not know (corner bias, calibration, mount). With `corner_sigma_px =
+//!    None` every fit (single faces, and joint or ground-plane fits that carry their
+//!    [`FitResidual`]) is rescaled to the corner noise **pooled** over the robot's recent
+//!    fits, `sum SSE / sum (2N - p)` ([`TrackerConfig::corner_noise_memory_dof`]): `R` is then
+//!    the detector's measured corner noise through the pose Jacobian, and
+//!    [`TrackerConfig::relative_distance_std`] adds `(s l12)^2` for the distance errors the
+//!    residuals cannot see. Not yet the default: `docs/tracking.md` has the measurements.
+//!    Adding (rather than clamping) keeps `R` positive definite even when the Jacobian is
+//!    rank-deficient.
 //! 2. **Prediction.** The track's filter is predicted over the frame gap (see *Time*) on a
 //!    copy, giving the predicted measurement `y-` and its variances `diag(P-)`.
 //! 3. **Candidate choice.** With two planar candidates, the one with the smaller
@@ -35,7 +41,7 @@
 //!    degrees of freedom). A gated measurement leaves the track coasting for this frame.
 //!    Consistent rejection therefore ends in loss and re-initialisation after
 //!    [`TrackerConfig::lost_after`], which is how a diverged track recovers.
-//! 5. **Update or coast.** Accepted: a dual-UKF step with `R`; status `tracking`. Not seen,
+//! 5. **Update or coast.** Accepted: a filter step with `R`; status `tracking`. Not seen,
 //!    gated or invalid: a predict-only step (the covariance grows); status `coasting`.
 //!    When the time since the last accepted measurement exceeds `lost_after` (default 2 s)
 //!    the leader is reported once as `lost` (its last estimate) and its track is dropped.
@@ -84,8 +90,8 @@ mod smooth;
 
 pub use config::{CHI2_3_999, TrackerConfig, TrackerError};
 pub use io::{
-    FormationMeasurement, FrameInput, FrameReport, LeaderReport, LostReason, MeasurementUse,
-    Observation, PoseMeasurement, Status,
+    FitResidual, FormationMeasurement, FrameInput, FrameReport, LeaderReport, LostReason,
+    MeasurementUse, Observation, PoseMeasurement, Status,
 };
 pub use predict::PredictedLeader;
 pub use smooth::SmoothedLeader;
@@ -169,6 +175,47 @@ pub struct Tracker {
     recording: bool,
     /// The recorded steps of the tracks already dropped, in the order they ended.
     finished: Vec<Segment>,
+    /// Per robot, the pooled corner noise of its recent pose solves (see
+    /// [`TrackerConfig::corner_noise_memory_dof`]).
+    corner_noise: BTreeMap<u32, CornerNoise>,
+}
+
+/// A pooled estimate of the detector's corner noise: the sums of the squared reprojection
+/// residuals and of their degrees of freedom over recent pose solves, with exponential
+/// forgetting, started from a prior.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct CornerNoise {
+    sse: f64,
+    dof: f64,
+}
+
+impl CornerNoise {
+    fn prior(config: &TrackerConfig) -> Self {
+        let dof = config.corner_noise_prior_dof;
+        Self {
+            sse: config.corner_noise_prior_px.powi(2) * dof,
+            dof,
+        }
+    }
+
+    /// Adds one solve's residual (`fit.rms_px` over `points` correspondences, `2 points -
+    /// fit.parameters` degrees of freedom); solves without a residual degree of freedom are
+    /// skipped.
+    fn add(&mut self, fit: &FitResidual, points: usize, memory_dof: f64) {
+        let dof = 2.0 * points as f64 - fit.parameters as f64;
+        let rms = fit.rms_px;
+        if dof <= 0.0 || !rms.is_finite() {
+            return;
+        }
+        let keep = (1.0 - dof / memory_dof).max(0.0);
+        self.sse = self.sse * keep + rms * rms * points as f64;
+        self.dof = self.dof * keep + dof;
+    }
+
+    /// The pooled corner variance, px^2.
+    fn variance(&self) -> f64 {
+        self.sse / self.dof
+    }
 }
 
 impl Tracker {
@@ -184,6 +231,7 @@ impl Tracker {
             last_t: None,
             recording: false,
             finished: Vec::new(),
+            corner_noise: BTreeMap::new(),
         })
     }
 
@@ -266,6 +314,29 @@ impl Tracker {
         );
         robots.sort_unstable();
 
+        if self.config.corner_sigma_px.is_none() {
+            for (&robot, obs) in &seen {
+                let fit = match &obs.pose {
+                    PoseMeasurement::Chosen(e) | PoseMeasurement::Candidates([e, _]) => {
+                        FitResidual {
+                            rms_px: e.rms,
+                            parameters: 6,
+                        }
+                    }
+                    PoseMeasurement::Formation(f)
+                    | PoseMeasurement::FormationCandidates([f, _]) => match f.fit {
+                        Some(fit) => fit,
+                        None => continue,
+                    },
+                };
+                let prior = CornerNoise::prior(&self.config);
+                self.corner_noise.entry(robot).or_insert(prior).add(
+                    &fit,
+                    obs.points,
+                    self.config.corner_noise_memory_dof,
+                );
+            }
+        }
         let mut leaders = Vec::with_capacity(robots.len());
         for robot in robots {
             let formed = seen.get(&robot).map(|m| self.measurements(m, &frame.mount));
@@ -328,13 +399,20 @@ impl Tracker {
         ));
         let form = |e: &pose::Estimate, candidate| -> Result<Formed, MeasurementError> {
             let params = e.pose.to_params();
-            let covariance = self.rescaled(e, points);
+            let fit = FitResidual {
+                rms_px: e.rms,
+                parameters: 6,
+            };
+            let covariance = e.covariance * self.noise_scale(&fit, points, obs.robot);
             let to_formation = |p: &SVector<f64, 6>| {
                 let rot = Rotation3::new(Vector3::new(p[0], p[1], p[2]));
                 formation_from_camera_pose(&rot, &Vector3::new(p[3], p[4], p[5]), mount)
             };
             let y = to_formation(&params)?;
-            let r = propagate_covariance(&params, &covariance, to_formation)? + floor;
+            let r = propagate_covariance(&params, &covariance, to_formation)?
+                + floor
+                + self.distance_floor(y[0]);
+
             if !r.iter().all(|v| v.is_finite()) {
                 return Err(MeasurementError::NonFinite {
                     what: "measurement covariance",
@@ -354,7 +432,13 @@ impl Tracker {
             let mut y = f.y;
             y[1] = wrap_angle(y[1]);
             y[2] = wrap_angle(y[2]);
-            let r = (f.r + f.r.transpose()) * 0.5 + floor;
+            // A joint or ground-plane fit is rescaled only to the pooled corner noise (a fixed
+            // `corner_sigma_px` stands for single faces' 2-dof estimates).
+            let scale = match (self.config.corner_sigma_px, f.fit) {
+                (None, Some(fit)) => self.noise_scale(&fit, points, obs.robot),
+                _ => 1.0,
+            };
+            let r = (f.r + f.r.transpose()) * (0.5 * scale) + floor + self.distance_floor(y[0]);
             Ok(Formed { y, r, candidate })
         };
         let pair = |first: Result<Formed, MeasurementError>,
@@ -377,23 +461,38 @@ impl Tracker {
         }
     }
 
-    /// The pose covariance at the configured corner noise (see
-    /// [`TrackerConfig::corner_sigma_px`]); unchanged when that is `None` or when `points`
-    /// leaves no residual degree of freedom.
-    fn rescaled(&self, e: &pose::Estimate, points: usize) -> SMatrix<f64, 6, 6> {
-        let Some(sigma) = self.config.corner_sigma_px else {
-            return e.covariance;
+    /// The variance added to `l12`'s for errors the residuals cannot see
+    /// ([`TrackerConfig::relative_distance_std`]).
+    fn distance_floor(&self, l12: f64) -> Matrix3<f64> {
+        let mut m = Matrix3::zeros();
+        m[(0, 0)] = (self.config.relative_distance_std * l12).powi(2);
+        m
+    }
+
+    /// The factor that takes a covariance scaled by `pose`'s one-solve noise estimate (from
+    /// `fit` over `points` correspondences) to the corner noise of
+    /// [`TrackerConfig::corner_sigma_px`], or when that is `None` to the pooled corner noise
+    /// of `robot`'s recent solves; 1 when `points` leaves no residual degree of freedom (the
+    /// solver's scaling cannot be undone) or nothing is known.
+    fn noise_scale(&self, fit: &FitResidual, points: usize, robot: u32) -> f64 {
+        let rms = fit.rms_px;
+        let variance = match self.config.corner_sigma_px {
+            Some(sigma) => sigma * sigma,
+            None => match self.corner_noise.get(&robot) {
+                Some(pool) => pool.variance(),
+                None => return 1.0,
+            },
         };
-        let dof = 2 * points as i64 - 6;
-        if dof <= 0 || !e.rms.is_finite() {
-            return e.covariance;
+        let dof = 2 * points as i64 - fit.parameters as i64;
+        if dof <= 0 || !rms.is_finite() {
+            return 1.0;
         }
         let floor = self.config.solver_min_pixel_sigma;
-        let used = (e.rms * e.rms * points as f64 / dof as f64).max(floor * floor);
-        if used > 0.0 {
-            e.covariance * (sigma * sigma / used)
+        let used = (rms * rms * points as f64 / dof as f64).max(floor * floor);
+        if used > 0.0 && variance.is_finite() && variance > 0.0 {
+            variance / used
         } else {
-            e.covariance
+            1.0
         }
     }
 

@@ -2,7 +2,7 @@
 
 use unicycle::PolarState;
 
-use crate::filter::{FilterConfig, FilterError, FormationFilter};
+use crate::filter::{FilterConfig, FilterDesign, FilterError, FormationFilter};
 
 /// The 99.9 % point of a chi-square distribution with 3 degrees of freedom.
 pub const CHI2_3_999: f64 = 16.266;
@@ -65,21 +65,43 @@ pub struct TrackerConfig {
     /// `f64::INFINITY` disables gating.
     pub gate: f64,
     /// Standard deviations `[m, rad, rad]` whose squares are added to the propagated
-    /// measurement covariance. Default `[0.005, 0.005, 0.005]`.
+    /// measurement covariance: a floor that keeps `R` positive definite and stands for the
+    /// errors the pose covariance does not know (corner bias, calibration, mount). Default
+    /// `[0.005, 0.005, 0.005]`; with the pooled corner noise (`corner_sigma_px = None`),
+    /// `docs/tracking.md` measured `[1e-4, 1e-4, 1e-4]` with `relative_distance_std = 0.002`.
     pub measurement_floor_std: [f64; 3],
+    /// Relative standard deviation of the measured distance `l12` from errors the pose fit's
+    /// residuals cannot see (corner errors shared by a face's corners: blur, lighting
+    /// gradient, quiet zones, which move the fit rather than the residual); `(s l12)^2` is
+    /// added to the variance of `l12`. Default 0 (off); 0.002 is the mean distance error the
+    /// detector and pose measure on the paper's scenes (`docs/paper-scenes.md`: 0.209 %).
+    pub relative_distance_std: f64,
     /// Standard deviation of the leader's world pose `(x1, y1, theta1)` at initialisation
     /// (unobservable, carried along). Default 0.1.
     pub world_pose_prior_std: f64,
     /// Seconds during which a track started from a single face keeps a rival hypothesis
     /// from the other planar candidate. Default 1 s; 0 disables the rival.
     pub confirm_time: f64,
-    /// Corner noise, pixels, to which each pose covariance is rescaled; `None` uses the
-    /// covariance as given. Default 0.5 px. `pose` scales its covariance `(J^T J)^-1` by a
-    /// noise estimated from the residual, `sigma^2 = max(SSE / (2N - 6), min_pixel_sigma^2)`;
-    /// for one face (N = 4) that estimate has 2 degrees of freedom and is often far too small,
-    /// which makes the filter trust single frames and diverge. The tracker undoes it
-    /// (`SSE = N rms^2`) and uses `corner_sigma_px^2` instead.
+    /// A fixed corner noise, pixels, to which each pose covariance is rescaled (default
+    /// `Some(0.5)`); `None` rescales to the corner noise measured from the detector's own residuals,
+    /// pooled per robot over its recent solves ([`corner_noise_memory_dof`](Self::corner_noise_memory_dof)).
+    /// `pose` scales its covariance `(J^T J)^-1` by a noise estimated from one solve's
+    /// residual, `sigma^2 = max(SSE / (2N - 6), min_pixel_sigma^2)`; for one face (N = 4)
+    /// that estimate has 2 degrees of freedom, and the floor is the top of the detector's
+    /// measured range. The tracker undoes it (`SSE = N rms^2`) and uses the pooled
+    /// `sum SSE / sum (2N - p)` (or `corner_sigma_px^2`) instead. `None` is not yet the
+    /// default: with the small floor it needs, robot 3's track in the closed-loop chain demo
+    /// diverges (`docs/tracking.md`).
     pub corner_sigma_px: Option<f64>,
+    /// Memory of the pooled corner noise, in residual degrees of freedom: each solve with
+    /// `n` degrees of freedom discounts the pool by `1 - n / memory`. Default 400 (about 200
+    /// single-face frames, 40 two-face frames).
+    pub corner_noise_memory_dof: f64,
+    /// Prior of the pooled corner noise, pixels: the detector's documented figure
+    /// (`docs/detector-accuracy.md`: 0.04-0.1 px; default 0.1 px, the top of that range).
+    pub corner_noise_prior_px: f64,
+    /// Weight of that prior in residual degrees of freedom. Default 10.
+    pub corner_noise_prior_dof: f64,
     /// The pose solver's `min_pixel_sigma` (to undo its scaling). Default that of
     /// `pose::SolverOptions::default()`.
     pub solver_min_pixel_sigma: f64,
@@ -87,18 +109,26 @@ pub struct TrackerConfig {
 
 impl TrackerConfig {
     /// The defaults: the [reference tuning](crate::filter::FilterTuning::reference) (its
-    /// `Q`, `Rr`, velocity prior `w0 = [0, 0]`, `Pw0 = I`), `lost_after = 2 s`, gate
-    /// 16.27, measurement floor 5 mm / 5 mrad, world-pose prior 0.1, confirmation 1 s,
-    /// corner noise 0.5 px.
+    /// `Q`, `Rr`, velocity prior `w0 = [0, 0]`, `Pw0 = I`) with the IMM design
+    /// ([`FilterDesign::Imm`], the rule `reproduce dukf` uses; set `filter.tuning.design` to
+    /// [`FilterDesign::Dual`] for the paper's dual UKF), `lost_after = 2 s`, gate
+    /// 16.27, measurement floor 5 mm / 5 mrad, no distance term, world-pose prior 0.1, confirmation 1 s,
+    /// corner noise 0.5 px (the pooled corner noise: memory 400 dof, prior 0.1 px over 10 dof).
     pub fn reference(d: f64, dt: f64) -> Self {
+        let mut filter = FilterConfig::new(d, dt, PolarState::new(0.0, 0.0, 0.0, 1.0, 0.0, 0.0));
+        filter.tuning.design = FilterDesign::Imm;
         Self {
-            filter: FilterConfig::new(d, dt, PolarState::new(0.0, 0.0, 0.0, 1.0, 0.0, 0.0)),
+            filter,
             lost_after: 2.0,
             gate: CHI2_3_999,
             measurement_floor_std: [0.005, 0.005, 0.005],
+            relative_distance_std: 0.0,
             world_pose_prior_std: 0.1,
             confirm_time: 1.0,
             corner_sigma_px: Some(0.5),
+            corner_noise_memory_dof: 400.0,
+            corner_noise_prior_px: 0.1,
+            corner_noise_prior_dof: 10.0,
             solver_min_pixel_sigma: pose::SolverOptions::default().min_pixel_sigma,
         }
     }
@@ -118,8 +148,18 @@ impl TrackerConfig {
         positive("lost_after", self.lost_after)?;
         positive("world_pose_prior_std", self.world_pose_prior_std)?;
         positive("solver_min_pixel_sigma", self.solver_min_pixel_sigma)?;
+        positive("corner_noise_memory_dof", self.corner_noise_memory_dof)?;
+        positive("corner_noise_prior_px", self.corner_noise_prior_px)?;
+        positive("corner_noise_prior_dof", self.corner_noise_prior_dof)?;
         if let Some(s) = self.corner_sigma_px {
             positive("corner_sigma_px", s)?;
+        }
+        if !(self.relative_distance_std.is_finite() && self.relative_distance_std >= 0.0) {
+            return Err(TrackerError::InvalidConfig {
+                what: "relative_distance_std",
+                value: self.relative_distance_std,
+                expected: "finite and non-negative",
+            });
         }
         for s in self.measurement_floor_std {
             positive("measurement_floor_std", s)?;

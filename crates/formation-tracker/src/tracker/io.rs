@@ -16,8 +16,10 @@ pub enum PoseMeasurement {
     /// A single face: both planar candidates, lowest reprojection RMS first.
     Candidates([pose::Estimate; 2]),
     /// A measurement already in formation variables: `y = [l12, alpha12, beta12]` and its
-    /// covariance (e.g. from a pipeline that refines poses on the ground plane). Used as
-    /// given: the floor is added, no rescaling.
+    /// covariance (e.g. a joint pose over several faces, or one refined on the ground
+    /// plane). Used as given, unless it carries its fit's residual
+    /// ([`FormationMeasurement::fit`]) and the tracker pools the corner noise: then
+    /// rescaled to it; the floor is added.
     Formation(FormationMeasurement),
     /// Two candidates already in formation variables (a single face), best first.
     FormationCandidates([FormationMeasurement; 2]),
@@ -30,6 +32,22 @@ pub struct FormationMeasurement {
     pub y: Vector3<f64>,
     /// Their covariance.
     pub r: Matrix3<f64>,
+    /// When `r` is a pose fit's covariance scaled by the pose solver's one-solve noise
+    /// estimate, that fit's residual, so that the tracker can rescale `r` to the corner noise
+    /// it pools from the residuals (when [`TrackerConfig::corner_sigma_px`](crate::tracker::TrackerConfig::corner_sigma_px)
+    /// is `None`). `None`: `r` is used as given.
+    pub fit: Option<FitResidual>,
+}
+
+/// The residual of the pose fit behind a [`FormationMeasurement`]'s covariance: `pose`
+/// scales the fit's `(J^T J)^-1` by `max(N rms^2 / (2N - parameters), min_pixel_sigma^2)`
+/// over `N` = [`Observation::points`] correspondences.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FitResidual {
+    /// Reprojection RMS of the fit, pixels.
+    pub rms_px: f64,
+    /// Parameters fitted: 6 for a free pose, 3 for a pose on the ground plane.
+    pub parameters: usize,
 }
 
 /// One robot seen in one frame.
@@ -136,9 +154,9 @@ pub struct LeaderReport {
     /// Standard deviation of `w1`, rad/s.
     pub w1_std: f64,
     /// Covariance of `[l12, alpha12, beta12, v1, w1]` (units: products of m, rad, m/s,
-    /// rad/s), row by row; its diagonal is the squares of the `*_std` fields. The
-    /// formation-velocity terms are zero: the dual filter keeps no cross-covariance between
-    /// its state and parameter filters.
+    /// rad/s), row by row; its diagonal is the squares of the `*_std` fields. With the IMM
+    /// (the default) the formation-velocity terms are its own; with the dual UKF they are
+    /// zero (it keeps no cross-covariance between its state and parameter filters).
     pub covariance: [[f64; 5]; 5],
     /// Seconds since the last accepted measurement.
     pub since_seen: f64,
