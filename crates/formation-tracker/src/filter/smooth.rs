@@ -289,13 +289,15 @@ impl FormationFilter {
                 .unwrap_or([1.0, 0.0, 0.0])
         };
         let failure: Cell<Option<UnicycleError>> = Cell::new(None);
-        let (model, dt) = (&self.model, self.dt);
+        // The follower's controller as last set (`set_follower_controller`, opt-in, `None` by
+        // default): the history does not record its set-point changes.
+        let (model, dt, follower) = (&self.model, self.dt, self.follower);
         let predictions = |k: usize, z: &Joint| -> [Joint; 3] {
             let u: Vector2<f64> = history
                 .get(k + 1)
                 .map_or(Inputs::new(0.0, 0.0), |s| s.inputs)
                 .into();
-            let mut f = imm_process(model, &u, dt, &failure);
+            let mut f = imm_process(model, &u, dt, follower, &failure);
             [f(0, z), f(1, z), f(2, z)]
         };
         let wrapped = |mut d: Joint| -> Joint {
