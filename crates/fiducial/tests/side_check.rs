@@ -121,7 +121,7 @@ fn board(quad: &[[f64; 2]; 4], side: usize, depth: f64, tilt: f64) -> [[f64; 2];
     let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
     let len = dx.hypot(dy);
     // The marker is this many cells deep across the side.
-    let other = if side % 2 == 0 {
+    let other = if side.is_multiple_of(2) {
         f.height_cells()
     } else {
         f.width_cells()
