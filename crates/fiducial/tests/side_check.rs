@@ -154,7 +154,9 @@ proptest! {
     /// A random occluder (a board of random grey level, dark or light, whose edge crosses a
     /// random side of the marker up to 1.2 cells inside it, tilted up to 25 deg) over a
     /// rendered marker under random perspective: the detector either does not report the
-    /// marker or reports it with the right code and every corner within 0.5 px of the truth.
+    /// marker or reports it with the right code and every corner within 0.5 px plus 0.08
+    /// cell of the truth (the side check's tolerance grows with the cell, for lens
+    /// distortion on real frames: `SideCheck::tolerance_cells`).
     #[test]
     fn an_occluded_marker_is_rejected_or_right(
         index in 0usize..100,
@@ -176,7 +178,13 @@ proptest! {
         for d in detect(&pixels, DetectorConfig::default()) {
             prop_assert_eq!(d.index, index, "wrong code");
             let e = worst(&d.corners, &quad);
-            prop_assert!(e <= 0.5, "corner {e:.2} px off: {:?} vs {:?}", d.corners, quad);
+            let cell = width / f64::from(Dictionary::paper().family().width_cells());
+            prop_assert!(
+                e <= 0.5 + 0.08 * cell,
+                "corner {e:.2} px off (cell {cell:.1} px): {:?} vs {:?}",
+                d.corners,
+                quad
+            );
         }
     }
 }
