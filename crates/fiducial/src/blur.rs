@@ -16,7 +16,7 @@
 //! [`crate::decode::read_cells`] reads sampled levels. Hard bit correction is off (as in
 //! the default detector); the soft decision of [`DecodeParams`] applies.
 
-use nalgebra::{DMatrix, DVector, Point2, Vector2};
+use nalgebra::{Point2, Vector2};
 
 use crate::cross_ratio::CrossRatioFrame;
 use crate::decode::{
@@ -87,17 +87,24 @@ fn step_width(image: &GrayView<'_>, corners: &Corners, i: usize) -> Option<f64> 
     Some((12.0 * (var - OPTICAL_VARIANCE).max(0.0)).sqrt())
 }
 
-/// Candidate motions of `corners`: from the step widths across two adjacent sides (two
-/// sign choices), each also 25 % shorter and longer.
-fn motions(image: &GrayView<'_>, corners: &Corners) -> Vec<Vector2<f64>> {
-    let w: Vec<Option<f64>> = (0..4).map(|i| step_width(image, corners, i)).collect();
+/// Most candidate motions: two sign choices at three scales, and eight directions at two.
+const MAX_MOTIONS: usize = 2 * 3 + 8 * 2;
+
+/// Candidate motions of `corners` into `out` (the count is returned): from the step widths
+/// across two adjacent sides (two sign choices), each also 25 % shorter and longer.
+fn motions(
+    image: &GrayView<'_>,
+    corners: &Corners,
+    out: &mut [Vector2<f64>; MAX_MOTIONS],
+) -> usize {
+    let w: [Option<f64>; 4] = core::array::from_fn(|i| step_width(image, corners, i));
     let pair = |a: usize, b: usize| match (w[a], w[b]) {
         (Some(x), Some(y)) => Some(0.5 * (x + y)),
         (Some(x), None) | (None, Some(x)) => Some(x),
         _ => None,
     };
     let (Some(b0), Some(b1)) = (pair(0, 2), pair(1, 3)) else {
-        return Vec::new();
+        return 0;
     };
     let normal = |i: usize| {
         let d = corners[(i + 1) % 4] - corners[i];
@@ -105,9 +112,9 @@ fn motions(image: &GrayView<'_>, corners: &Corners) -> Vec<Vector2<f64>> {
     };
     let m = nalgebra::Matrix2::from_rows(&[normal(0).transpose(), normal(1).transpose()]);
     let Some(inv) = m.try_inverse() else {
-        return Vec::new();
+        return 0;
     };
-    let mut out = Vec::new();
+    let mut n = 0;
     let mut length = 0.0f64;
     for sign in [1.0, -1.0] {
         let u = inv * Vector2::new(b0, sign * b1);
@@ -116,7 +123,8 @@ fn motions(image: &GrayView<'_>, corners: &Corners) -> Vec<Vector2<f64>> {
         }
         length = length.max(u.norm());
         for scale in [0.75, 1.0, 1.25] {
-            out.push(u * scale);
+            out[n] = u * scale;
+            n += 1;
         }
     }
     // The step widths are rough (noise, neighbouring cells within reach): a coarse search
@@ -126,35 +134,88 @@ fn motions(image: &GrayView<'_>, corners: &Corners) -> Vec<Vector2<f64>> {
             let angle = f64::from(i) * std::f64::consts::PI / 8.0;
             let dir = Vector2::new(angle.cos(), angle.sin());
             for scale in [0.8, 1.1] {
-                out.push(dir * length * scale);
+                out[n] = dir * length * scale;
+                n += 1;
             }
         }
     }
-    out
+    n
 }
 
-/// Cell levels of the grid of `family` under `corners` (taken as NW, NE, SE, SW) solved for
-/// the motion `u`, with the mean squared misfit of the samples; `None` when the frame or the
-/// system cannot be built. Levels cover cells `-k..w + k` by `-k..h + k`.
-struct Solved {
-    levels: Vec<f64>,
-    k: i32,
-    misfit: f64,
+/// Scratch space of the blurred reading, owned by the detector so that a steady stream of
+/// frames reads blurred markers without touching the heap: buffers grow to the largest
+/// system solved and are reused.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct BlurScratch {
+    /// Normal matrix (row major, `n x n`), factored in place.
+    ata: Vec<f64>,
+    /// Right-hand side, then the solution.
+    atb: Vec<f64>,
+    /// Per sample row: its first weight in `weights`, its weight count and its grey level.
+    rows: Vec<(u32, u32, f64)>,
+    /// Cell index and weight of every row's blur segment.
+    weights: Vec<(u32, f64)>,
+    /// Levels of the best candidate so far (and their `k`, misfit).
+    best: Vec<f64>,
 }
 
+/// Solves `a x = b` in place for a symmetric positive definite `a` (`n x n`, row major):
+/// Cholesky factor into the lower triangle of `a`, then `b` becomes `x`. `false` if `a` is
+/// not positive definite.
+fn cholesky_solve(a: &mut [f64], b: &mut [f64], n: usize) -> bool {
+    for j in 0..n {
+        let mut d = a[j * n + j];
+        for k in 0..j {
+            d -= a[j * n + k] * a[j * n + k];
+        }
+        if d.is_nan() || d <= 0.0 {
+            return false;
+        }
+        let d = d.sqrt();
+        a[j * n + j] = d;
+        for i in j + 1..n {
+            let mut v = a[i * n + j];
+            for k in 0..j {
+                v -= a[i * n + k] * a[j * n + k];
+            }
+            a[i * n + j] = v / d;
+        }
+    }
+    // L y = b, then L^T x = y.
+    for i in 0..n {
+        let mut v = b[i];
+        for k in 0..i {
+            v -= a[i * n + k] * b[k];
+        }
+        b[i] = v / a[i * n + i];
+    }
+    for i in (0..n).rev() {
+        let mut v = b[i];
+        for k in i + 1..n {
+            v -= a[k * n + i] * b[k];
+        }
+        b[i] = v / a[i * n + i];
+    }
+    b.iter().all(|v| v.is_finite())
+}
+
+/// Solves the cell levels of the grid of `family` under `corners` (taken as NW, NE, SE,
+/// SW) for the motion `u` into `scratch.atb` (levels of cells `-k..w + k` by `-k..h + k`),
+/// and returns the mean squared misfit of the samples; `None` when the frame or the system
+/// cannot be built.
 fn solve_levels(
     image: &GrayView<'_>,
     frame: &CrossRatioFrame,
     family: MarkerFamily,
     u: Vector2<f64>,
     k: i32,
-) -> Option<Solved> {
+    scratch: &mut BlurScratch,
+) -> Option<f64> {
     let (wc, hc) = (family.width_cells() as i32, family.height_cells() as i32);
     let (gw, gh) = (wc + 2 * k, hc + 2 * k);
     let n = (gw * gh) as usize;
-    let mut ata = DMatrix::<f64>::zeros(n, n);
-    let mut atb = DVector::<f64>::zeros(n);
-    let mut rows: Vec<(Vec<(usize, f64)>, f64)> = Vec::new();
+    scratch.rows.clear();
+    scratch.weights.clear();
     const SEG: usize = 16;
     let offs = [-1.0 / 3.0, 0.0, 1.0 / 3.0];
     let (pa, pb) = (2.0 / f64::from(wc), 2.0 / f64::from(hc));
@@ -173,7 +234,7 @@ fn solve_levels(
                     let jb = (frame.map(a, b + e)? - p) / e;
                     let j = nalgebra::Matrix2::from_columns(&[ja, jb]);
                     let d = j.try_inverse()? * u;
-                    let mut w: Vec<(usize, f64)> = Vec::with_capacity(4);
+                    let start = scratch.weights.len();
                     let mut inside = true;
                     for s in 0..SEG {
                         let t = -0.5 + (s as f64 + 0.5) / SEG as f64;
@@ -184,70 +245,89 @@ fn solve_levels(
                             inside = false;
                             break;
                         }
-                        let idx = (iy * gw + ix) as usize;
-                        match w.iter_mut().find(|(c, _)| *c == idx) {
+                        let idx = (iy * gw + ix) as u32;
+                        match scratch.weights[start..].iter_mut().find(|(c, _)| *c == idx) {
                             Some(e) => e.1 += 1.0 / SEG as f64,
-                            None => w.push((idx, 1.0 / SEG as f64)),
+                            None => scratch.weights.push((idx, 1.0 / SEG as f64)),
                         }
                     }
                     if inside {
-                        rows.push((w, obs));
+                        let count = (scratch.weights.len() - start) as u32;
+                        scratch.rows.push((start as u32, count, obs));
+                    } else {
+                        scratch.weights.truncate(start);
                     }
                 }
             }
         }
     }
+    let rows = &scratch.rows;
     if rows.len() < n / 2 {
         return None;
     }
-    let mean = rows.iter().map(|r| r.1).sum::<f64>() / rows.len() as f64;
-    for (w, obs) in &rows {
-        for &(i, wi) in w {
-            atb[i] += wi * (obs - mean);
-            for &(j, wj) in w {
-                ata[(i, j)] += wi * wj;
+    let weights = &scratch.weights;
+    let row_w = |r: &(u32, u32, f64)| &weights[r.0 as usize..(r.0 + r.1) as usize];
+    let mean = rows.iter().map(|r| r.2).sum::<f64>() / rows.len() as f64;
+    scratch.ata.clear();
+    scratch.ata.resize(n * n, 0.0);
+    scratch.atb.clear();
+    scratch.atb.resize(n, 0.0);
+    let (ata, atb) = (&mut scratch.ata, &mut scratch.atb);
+    for r in rows {
+        for &(i, wi) in row_w(r) {
+            atb[i as usize] += wi * (r.2 - mean);
+            for &(j, wj) in row_w(r) {
+                ata[i as usize * n + j as usize] += wi * wj;
             }
         }
     }
     // A light ridge towards the mean keeps cells few samples see (the outer ring) defined.
     let ridge = 0.02 * 9.0;
     for i in 0..n {
-        ata[(i, i)] += ridge;
+        ata[i * n + i] += ridge;
     }
-    let x = ata.cholesky()?.solve(&atb);
+    if !cholesky_solve(ata, atb, n) {
+        return None;
+    }
     let mut misfit = 0.0;
-    for (w, obs) in &rows {
-        let m: f64 = w.iter().map(|&(i, wi)| wi * x[i]).sum();
-        misfit += (m - (obs - mean)).powi(2);
+    for r in rows {
+        let m: f64 = row_w(r).iter().map(|&(i, wi)| wi * atb[i as usize]).sum();
+        misfit += (m - (r.2 - mean)).powi(2);
     }
-    let levels = x.iter().map(|v| v + mean).collect();
-    Some(Solved {
-        levels,
-        k,
-        misfit: misfit / rows.len() as f64,
-    })
+    for v in atb.iter_mut() {
+        *v += mean;
+    }
+    Some(misfit / rows.len() as f64)
 }
 
-/// The reading of solved levels, as [`crate::decode::read_cells_with`] reads sampled ones.
+/// Most border and quiet-zone cells (a 10 x 10 marker).
+const MAX_RING: usize = 4 * 12;
+
+/// The reading of solved `levels` (cells `-k..w + k` by `-k..h + k`), as
+/// [`crate::decode::read_cells_with`] reads sampled ones.
 fn reading(
-    solved: &Solved,
+    levels: &[f64],
+    k: i32,
     family: MarkerFamily,
     white: WhiteReference,
     params: &DecodeParams,
 ) -> Option<CellReading> {
     let (wc, hc) = (family.width_cells() as i32, family.height_cells() as i32);
-    let gw = wc + 2 * solved.k;
-    let at = |x: i32, y: i32| solved.levels[((y + solved.k) * gw + x + solved.k) as usize];
-    let mut border = Vec::new();
-    let mut quiet = Vec::new();
+    let gw = wc + 2 * k;
+    let at = |x: i32, y: i32| levels.get(((y + k) * gw + x + k) as usize).copied();
+    let mut border = [0.0f64; MAX_RING];
+    let mut quiet = [0.0f64; MAX_RING];
+    let (mut nb, mut nq) = (0, 0);
     for y in -1..=hc {
         for x in -1..=wc {
             let ring = x == -1 || y == -1 || x == wc || y == hc;
             let edge = x == 0 || y == 0 || x == wc - 1 || y == hc - 1;
             if ring {
-                quiet.push(at(x, y));
+                *quiet.get_mut(nq)? = at(x, y)?;
+                nq += 1;
             } else if edge {
-                border.push(at(x, y));
+                *border.get_mut(nb)? = at(x, y)?;
+                nb += 1;
             }
         }
     }
@@ -255,12 +335,12 @@ fn reading(
     let mut data = [0.0f64; 64];
     for r in 0..m {
         for c in 0..n {
-            data[(r * n + c) as usize] = at(c + 1, r + 1);
+            data[(r * n + c) as usize] = at(c + 1, r + 1)?;
         }
     }
     reading_from_levels(
-        &mut border,
-        &mut quiet,
+        &mut border[..nb],
+        &mut quiet[..nq],
         &data,
         (m * n) as usize,
         white,
@@ -276,11 +356,14 @@ pub(crate) fn decode_blurred(
     corners: &Corners,
     dictionaries: &[Dictionary],
     params: &DecodeParams,
+    scratch: &mut BlurScratch,
 ) -> Option<Decoded> {
-    let us = motions(image, corners);
-    if us.is_empty() {
+    let mut us = [Vector2::zeros(); MAX_MOTIONS];
+    let count = motions(image, corners, &mut us);
+    if count == 0 {
         return None;
     }
+    let us = &us[..count];
     let exact = DecodeParams {
         max_errors: 0,
         ..*params
@@ -299,17 +382,24 @@ pub(crate) fn decode_blurred(
             let Ok(frame) = CrossRatioFrame::new(&frame_corners) else {
                 continue;
             };
-            let solved = us
-                .iter()
-                .filter_map(|u| {
-                    let k = (1.0 + (0.5 * u.norm() / pitch.max(1.0)).ceil()).min(4.0) as i32;
-                    solve_levels(image, &frame, family, *u, k)
-                })
-                .min_by(|a, b| a.misfit.total_cmp(&b.misfit));
-            let Some(solved) = solved else {
+            // The candidate motion that explains the samples best: its levels are kept in
+            // `scratch.best`.
+            let mut best_fit: Option<(f64, i32)> = None;
+            for u in us {
+                let k = (1.0 + (0.5 * u.norm() / pitch.max(1.0)).ceil()).min(4.0) as i32;
+                let Some(misfit) = solve_levels(image, &frame, family, *u, k, scratch) else {
+                    continue;
+                };
+                if best_fit.is_none_or(|(m, _)| misfit < m) {
+                    best_fit = Some((misfit, k));
+                    scratch.best.clear();
+                    scratch.best.extend_from_slice(&scratch.atb);
+                }
+            }
+            let Some((_, k)) = best_fit else {
                 continue;
             };
-            let Some(r) = reading(&solved, family, white, &exact) else {
+            let Some(r) = reading(&scratch.best, k, family, white, &exact) else {
                 continue;
             };
             if let Some(mut d) = match_reading(corners, s, &r, dict, &exact)

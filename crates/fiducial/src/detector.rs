@@ -30,6 +30,7 @@ use crate::image::{Corners, GrayView};
 use crate::quad::{QuadLimits, fit_quad};
 use crate::refine::{RefineConfig, Refiner};
 use crate::roi::{Region, merge_overlapping};
+use crate::sides::{SideCheck, side_offsets};
 use crate::split::{Rect, SplitParams, Splitter};
 use crate::threshold::{Binarizer, Threshold};
 
@@ -55,9 +56,13 @@ pub struct DetectorConfig {
     pub decode: DecodeParams,
     /// Read a quad whose sampled cells are not an entry once more as a motion-blurred
     /// marker (blur estimated from its edges, cell levels solved by least squares; issue
-    /// #16). Default off: it allocates, and on the motion-blur rows of
-    /// `docs/detector-accuracy.md` it reads 55 of 80 markers at 9 px instead of 43.
+    /// #16). Default on: its systems are solved in scratch the detector owns (no allocation
+    /// in steady state), and a marker it reads passes the side check like any other.
     pub motion_blur: bool,
+    /// Drop a decoded marker one of whose sides is not its border's outer edge, as when the
+    /// side runs along an occluder ([`crate::sides`], issue #16). Default on, with
+    /// [`SideCheck::default`]; `None` turns it off.
+    pub side_check: Option<SideCheck>,
 }
 
 impl Default for DetectorConfig {
@@ -98,7 +103,8 @@ impl Default for DetectorConfig {
                 soft_margin: 0.3,
                 ..DecodeParams::default()
             },
-            motion_blur: false,
+            motion_blur: true,
+            side_check: Some(SideCheck::default()),
         }
     }
 }
@@ -175,6 +181,8 @@ pub struct Detector {
     bands: usize,
     /// Per-thread scratch of [`Detector::detect_parallel`].
     workers: Vec<crate::parallel::Worker>,
+    /// Scratch of the motion-blurred reading ([`DetectorConfig::motion_blur`]).
+    blur: crate::blur::BlurScratch,
 }
 
 impl Default for Detector {
@@ -236,6 +244,7 @@ impl Detector {
             region_out: Vec::new(),
             bands: 1,
             workers: Vec::new(),
+            blur: crate::blur::BlurScratch::default(),
         }
     }
 
@@ -313,13 +322,26 @@ impl Detector {
                 self.config
                     .motion_blur
                     .then(|| {
-                        crate::blur::decode_blurred(img, &q.corners, &self.dictionaries, params)
+                        crate::blur::decode_blurred(
+                            img,
+                            &q.corners,
+                            &self.dictionaries,
+                            params,
+                            &mut self.blur,
+                        )
                     })
                     .flatten()
             });
             let Some(d) = best else {
                 continue;
             };
+            // A side along an occluder, not the border (issue #16).
+            if let Some(check) = &self.config.side_check {
+                let family = self.dictionaries[d.dictionary].family();
+                if side_offsets(img, &d, family, check).is_some_and(|o| !o.consistent()) {
+                    continue;
+                }
+            }
             push_unique(out, d);
         }
         self.quads.len()

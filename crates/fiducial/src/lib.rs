@@ -152,6 +152,7 @@ pub mod quad;
 pub mod refine;
 pub mod render;
 pub mod roi;
+pub mod sides;
 pub mod split;
 pub mod standard;
 pub mod threshold;
@@ -168,6 +169,7 @@ pub use crate::family::MarkerFamily;
 pub use crate::image::{Corners, GrayView, ImageError};
 pub use crate::render::{RenderOptions, RenderedMarker, render_marker, render_svg};
 pub use crate::roi::Region;
+pub use crate::sides::{SideCheck, SideOffsets, side_offsets};
 pub use crate::standard::{
     StandardDictionary, canonical_name, dictionary_by_name, dictionary_names, standard_dictionaries,
 };

@@ -57,9 +57,12 @@ fn once_lost_small_markers_are_all_found() {
 #[test]
 fn without_soft_decisions_those_scenes_lose_a_marker() {
     // The scenes still exercise the weak-cell case: hard decisions alone miss one marker
-    // in each (if this fails, the scenes no longer test the soft decision).
+    // in each (if this fails, the scenes no longer test the soft decision). The
+    // motion-blurred reading, a second reader of quads whose cells are not an entry, is
+    // off here: it recovers those markers too.
     let mut cfg = DetectorConfig::default();
     cfg.decode.soft_errors = 0;
+    cfg.motion_blur = false;
     for seed in WEAK_CELL_SEEDS {
         let (right, wrong, total) = found(seed, cfg);
         assert_eq!((right, wrong), (total - 1, 0), "scene {seed}");

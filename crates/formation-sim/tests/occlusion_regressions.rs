@@ -4,7 +4,7 @@
 //! the occluder's edge) is never used in the pose.
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
-use fiducial::Dictionary;
+use fiducial::{Detector, DetectorConfig, Dictionary};
 use formation_sim::evaluate::{default_detector, evaluate_scene};
 use formation_sim::paper::random_scene;
 use formation_sim::scene::{SceneSpec, SceneTruth, build_scene, scene_truth};
@@ -13,12 +13,33 @@ use formation_tracker::robots::{MarkerObservation, RobotConfig, measure_robots};
 use nalgebra::{Matrix3, Point2};
 use proptest::prelude::*;
 
-/// Scores scene `index` of series `seed` (noise seed = scene number) and returns the report
-/// of robot `robot` with its measurement's rejections.
+/// Scores scene `index` of series `seed` (noise seed = scene number) with the default
+/// detector.
 fn scored(seed: u64, index: u64) -> formation_sim::evaluate::Evaluation {
+    scored_with(seed, index, default_detector(Dictionary::paper()))
+}
+
+/// As [`scored`], with the detector's side check off (`DetectorConfig::side_check`): the cut
+/// faces then reach the per-robot fusion, which has to drop them itself.
+fn scored_unchecked(seed: u64, index: u64) -> formation_sim::evaluate::Evaluation {
+    let config = DetectorConfig {
+        side_check: None,
+        ..DetectorConfig::default()
+    };
+    scored_with(
+        seed,
+        index,
+        Detector::with_dictionary(config, Dictionary::paper().clone()),
+    )
+}
+
+fn scored_with(
+    seed: u64,
+    index: u64,
+    mut detector: Detector,
+) -> formation_sim::evaluate::Evaluation {
     let dict = Dictionary::paper();
     let spec = random_scene(seed, index);
-    let mut detector = default_detector(dict);
     evaluate_scene(
         &spec,
         &RigModel::reference(),
@@ -34,8 +55,14 @@ fn scored(seed: u64, index: u64) -> formation_sim::evaluate::Evaluation {
 fn a_face_cut_by_the_other_robot_is_dropped_not_the_good_one() {
     // Seed 777, random-84: robot 1's face 2 is cut on its right by robot 2's rig (its quad
     // 3 px narrow), face 1 is whole. Dropping the smaller quad kept face 2 and put the
-    // heading 15 deg off.
+    // heading 15 deg off. The detector's side check now drops face 2 (its right side is
+    // the other rig's edge, the border there a third of a cell thin).
     let e = scored(777, 84);
+    let r = e.report.robots.iter().find(|r| r.robot == 1).unwrap();
+    assert!(!r.faces_read.contains(&2), "{r:?}");
+    assert!(e.report.pass, "{:#?}", e.report);
+    // Without the side check the fusion must drop it, for the rig's sake.
+    let e = scored_unchecked(777, 84);
     let m = e.robots.robots.iter().find(|m| m.robot == 1).unwrap();
     assert_eq!(m.faces, vec![1]);
     assert_eq!(m.rejected_faces, vec![2]);
@@ -50,8 +77,13 @@ fn a_face_cut_by_the_other_robot_is_dropped_not_the_good_one() {
 #[test]
 fn a_face_cut_on_one_side_is_left_out_of_three() {
     // Seed 777, random-89: robot 1's face 3 is cut on its left (2.4 px), and under the joint
-    // pose of faces 3, 4, 5 it was below the old 1 px outlier limit.
+    // pose of faces 3, 4, 5 it was below the old 1 px outlier limit. The side check now
+    // drops it in the detector; without the check the fusion leaves it out.
     let e = scored(777, 89);
+    let r = e.report.robots.iter().find(|r| r.robot == 1).unwrap();
+    assert!(!r.faces_read.contains(&3), "{r:?}");
+    assert!(e.report.pass, "{:#?}", e.report);
+    let e = scored_unchecked(777, 89);
     let m = e.robots.robots.iter().find(|m| m.robot == 1).unwrap();
     assert_eq!(m.rejected_faces, vec![3]);
     assert!(e.report.pass, "{:#?}", e.report);
@@ -109,7 +141,8 @@ proptest! {
     /// finds when the side runs along the occluder's edge), or one corner alone is cut. The
     /// cut face is never used for the pose, and the pose of the rest is right. With the
     /// ground-plane face check on (`RobotConfig::plane_face_check`, off by default because it
-    /// also drops good steep faces).
+    /// also drops good steep faces): these observations bypass the detector, whose side
+    /// check drops such quads by default (`a_face_cut_by_a_painted_board_is_never_used`).
     #[test]
     fn a_face_cut_by_an_occluder_is_never_used(
         spec in two_faced(),
@@ -164,5 +197,91 @@ proptest! {
             cut_face.face, m.faces, m.rejections
         );
         prop_assert!((m.l12 - t.l12).abs() / t.l12 < 0.01, "l12 {} vs {}", m.l12, t.l12);
+    }
+}
+
+/// Paints a light board over `pixels` (`width` wide): everything beyond the line through
+/// `p` with outward normal `n` (unit), at grey level `level`, its edge anti-aliased over one
+/// pixel.
+fn paint_board(pixels: &mut [u8], width: usize, p: [f64; 2], n: [f64; 2], level: f64) {
+    for (i, v) in pixels.iter_mut().enumerate() {
+        let (x, y) = ((i % width) as f64, (i / width) as f64);
+        let s = (x - p[0]) * n[0] + (y - p[1]) * n[1];
+        let c = (s + 0.5).clamp(0.0, 1.0);
+        *v = ((1.0 - c) * f64::from(*v) + c * level).round() as u8;
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(cases() / 4))]
+
+    /// The same property on rendered images, through the default detector and the default
+    /// fusion (ground-plane face check off): a light board whose edge runs across one
+    /// readable face, 0.03-0.45 of its width in from its left or right side and tilted up to
+    /// 10 deg, is painted over the rendered scene. A face the board cuts (some of its
+    /// corners beyond the edge, some not) is never used in the pose.
+    #[test]
+    fn a_face_cut_by_a_painted_board_is_never_used(
+        spec in two_faced(),
+        which in 0usize..3,
+        right in any::<bool>(),
+        cut in 0.03f64..0.45,
+        tilt in -0.17f64..0.17,
+        level in 170.0f64..250.0,
+    ) {
+        let dict = Dictionary::paper();
+        let rig = RigModel::reference();
+        let rendered = formation_sim::scene::render_scene(&spec, &rig, dict).unwrap();
+        let truth = &rendered.truth;
+        let t = &truth.robots[0];
+        let readable: Vec<_> = t.faces.iter().filter(|f| f.readable).collect();
+        prop_assume!(!readable.is_empty());
+        let face = readable[which % readable.len()];
+        let c = face.corners_px.unwrap();
+        // NW, NE, SE, SW: the board's edge crosses the top and bottom sides `cut` of the way
+        // in from the right (or left) side, and covers everything beyond.
+        let (from, to) = if right { ((1, 2), (0, 3)) } else { ((0, 3), (1, 2)) };
+        let lerp = |a: [f64; 2], b: [f64; 2], t: f64| [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t];
+        let top = lerp(c[from.0], c[to.0], cut);
+        let bottom = lerp(c[from.1], c[to.1], cut);
+        let (dx, dy) = (bottom[0] - top[0], bottom[1] - top[1]);
+        let len = dx.hypot(dy);
+        let (ct, st) = (tilt.cos(), tilt.sin());
+        let (ex, ey) = ((ct * dx - st * dy) / len, (st * dx + ct * dy) / len);
+        // Outward normal: pointing to the cut side.
+        let mut n = [ey, -ex];
+        let side_dir = [c[from.0][0] - top[0], c[from.0][1] - top[1]];
+        if n[0] * side_dir[0] + n[1] * side_dir[1] < 0.0 {
+            n = [-n[0], -n[1]];
+        }
+        let mid = [0.5 * (top[0] + bottom[0]), 0.5 * (top[1] + bottom[1])];
+        let mut pixels = rendered.image.into_raw();
+        paint_board(&mut pixels, truth.width, mid, n, level);
+        let beyond = |p: [f64; 2]| (p[0] - mid[0]) * n[0] + (p[1] - mid[1]) * n[1] > 0.0;
+        let view = fiducial::GrayView::new(&pixels, truth.width, truth.height).unwrap();
+        let mut detector = default_detector(dict);
+        let mut found = Vec::new();
+        detector.detect(&view, &mut found);
+        let obs: Vec<MarkerObservation> = found
+            .iter()
+            .map(|d| MarkerObservation { index: d.index, corners: d.corners })
+            .collect();
+        let k = Matrix3::from_row_slice(&truth.k.concat());
+        let solver = pose::PoseSolver::new(pose::Intrinsics::from_matrix(&k).unwrap());
+        let measured = measure_robots(&obs, &rig, &solver, &truth.mount, &RobotConfig::default());
+        let Some(m) = measured.robots.iter().find(|m| m.robot == 1) else {
+            return Ok(());
+        };
+        for f in &t.faces {
+            let Some(fc) = f.corners_px else { continue };
+            let hidden = fc.iter().filter(|&&p| beyond(p)).count();
+            if f.visible && hidden > 0 && hidden < 4 {
+                prop_assert!(
+                    !m.faces.contains(&f.face),
+                    "cut face {} used: faces {:?}, rejections {:?}",
+                    f.face, m.faces, m.rejections
+                );
+            }
+        }
     }
 }
