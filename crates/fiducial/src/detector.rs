@@ -512,15 +512,39 @@ impl Detector {
                 }
             }
         }
-        // Re-cuts run at full resolution only (their boxes are in this scan's pixels).
-        if f == 1 {
-            self.split_retries(img, &limits, cells_across);
+        // Boundary clustering (and, at full resolution, the re-cut) runs on full-resolution
+        // pixels: a coarser scan's boxes are scaled up first, so that a coarse or guided scan
+        // looks again at the same places as a full-resolution one (a marker merged with its
+        // surroundings is as likely at any scale).
+        if f > 1 {
+            let (fw, fh) = (img.width() as u32, img.height() as u32);
+            let s = f as u32;
+            for r in &mut self.retry {
+                r.x0 *= s;
+                r.y0 *= s;
+                r.x1 = ((r.x1 + 1) * s - 1).min(fw - 1);
+                r.y1 = ((r.y1 + 1) * s - 1).min(fh - 1);
+            }
         }
+        let full_limits = QuadLimits {
+            min_side: cfg.min_side,
+            ..limits
+        };
+        self.split_retries(img, &full_limits, cells_across, f);
     }
 
-    /// Re-cuts the components that gave no quad ([`Splitter`]) and adds the quads found
-    /// there that are not already in the list.
-    fn split_retries(&mut self, img: &GrayView<'_>, limits: &QuadLimits, cells_across: f64) {
+    /// Re-cuts the components that gave no quad ([`Splitter`]; only after a full-resolution
+    /// scan, `factor` 1, as it re-cuts that scan's binary image) and clusters their
+    /// boundaries ([`Clusterer`], any scan: it reads the grey image alone), and adds the
+    /// quads found there that are not already in the list. `self.retry` is in
+    /// full-resolution pixels.
+    fn split_retries(
+        &mut self,
+        img: &GrayView<'_>,
+        limits: &QuadLimits,
+        cells_across: f64,
+        factor: usize,
+    ) {
         let area = |r: &Rect| u64::from(r.x1 - r.x0 + 1) * u64::from(r.y1 - r.y0 + 1);
         if self.retry.is_empty() {
             return;
@@ -563,8 +587,10 @@ impl Detector {
             }
         };
         for &rect in &self.retry {
-            self.splitter
-                .split(img, &self.bin, rect, &params, |c| add(c, cfg.min_angle_deg));
+            if factor == 1 {
+                self.splitter
+                    .split(img, &self.bin, rect, &params, |c| add(c, cfg.min_angle_deg));
+            }
             // What the re-cut could not separate: clusters of the light/dark boundary.
             let angle = cfg.min_angle_deg.min(crate::cluster::MIN_ANGLE_DEG);
             self.clusterer
