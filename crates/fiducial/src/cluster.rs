@@ -44,7 +44,7 @@ const PAD: u32 = 4;
 /// (the longer extent of the cluster must still reach `min_side`): a marker seen at a
 /// grazing angle is foreshortened to half its width or less (Duckietown tag 198 of
 /// `test_image_multiple_01.png`: 20 x 10 px).
-const MIN_SIDE_REL: f64 = 0.5;
+pub const MIN_SIDE_REL: f64 = 0.5;
 
 /// Smallest interior angle of a cluster's quadrilateral, degrees (the detector's
 /// `min_angle_deg` when that is smaller): a marker almost flat on the table and seen along

@@ -270,7 +270,7 @@ impl Detector {
 
     /// [`Detector::detect`] with binarization (the stage that reads every pixel) cut into
     /// horizontal bands, and the components' tracing, quad fit and refinement cut into runs
-    /// ([`crate::parallel`]), run on the threads of the current rayon pool (crate feature
+    /// (the crate's `parallel` module), run on the threads of the current rayon pool (crate feature
     /// `parallel`; without it, this is [`Detector::detect`]). The output is identical
     /// to [`Detector::detect`]'s (a test checks it). Frames under a megapixel are detected on
     /// the calling thread alone, where the threads' start-up costs more than they save;
