@@ -138,7 +138,9 @@ pub fn run(args: &[String]) -> Result {
     if !no_run {
         let mut cmd = Command::new(env!("CARGO"));
         cmd.current_dir(&root)
-            .args(["bench", "--workspace", "--exclude", "xtask"])
+            // Only the criterion bench targets: the libtest harness of the library targets
+            // rejects criterion's options (`--quick` failed with "Unrecognized option").
+            .args(["bench", "--workspace", "--exclude", "xtask", "--bench", "*"])
             // `fiducial/detect_1920x1080_rayon` runs on rayon's threads only with this.
             .args(["--features", "formation-fiducial/parallel", "--"]);
         if quick {

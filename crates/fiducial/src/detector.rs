@@ -63,6 +63,13 @@ pub struct DetectorConfig {
     /// side runs along an occluder ([`crate::sides`], issue #16). Default on, with
     /// [`SideCheck::default`]; `None` turns it off.
     pub side_check: Option<SideCheck>,
+    /// Look for quads in the boundary clusters of large dark components that gave no quad
+    /// ([`Clusterer`], AprilTag 3's quad search; issue #13): finds markers whose border has
+    /// merged with something as dark as their ink, e.g. flat tags at grazing angles on real
+    /// frames (it reads the last 5 of the 56 Duckietown tags). Default off: it is costly on
+    /// cluttered frames, where many large components give no quad (measured with it on,
+    /// idle 2-core machine: the 640x480 clutter bench 623 ms a frame, 1920x1080 16 ms).
+    pub boundary_clusters: bool,
 }
 
 impl Default for DetectorConfig {
@@ -105,6 +112,7 @@ impl Default for DetectorConfig {
             },
             motion_blur: true,
             side_check: Some(SideCheck::default()),
+            boundary_clusters: false,
         }
     }
 }
@@ -592,9 +600,11 @@ impl Detector {
                     .split(img, &self.bin, rect, &params, |c| add(c, cfg.min_angle_deg));
             }
             // What the re-cut could not separate: clusters of the light/dark boundary.
-            let angle = cfg.min_angle_deg.min(crate::cluster::MIN_ANGLE_DEG);
-            self.clusterer
-                .clusters(img, rect, &params, |c| add(c, angle));
+            if cfg.boundary_clusters {
+                let angle = cfg.min_angle_deg.min(crate::cluster::MIN_ANGLE_DEG);
+                self.clusterer
+                    .clusters(img, rect, &params, |c| add(c, angle));
+            }
         }
     }
 }
