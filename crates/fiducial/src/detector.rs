@@ -22,7 +22,7 @@ use nalgebra::Point2;
 use crate::cluster::Clusterer;
 use crate::contour::{Component, Labeller, trace_outer};
 use crate::decode::{
-    CellReading, DecodeParams, Decoded, WhiteReference, match_reading, read_oriented,
+    CellReading, DecodeParams, Decoded, Rejection, WhiteReference, match_reading, read_oriented,
 };
 use crate::dictionary::Dictionary;
 use crate::error::FiducialError;
@@ -56,8 +56,11 @@ pub struct DetectorConfig {
     pub decode: DecodeParams,
     /// Read a quad whose sampled cells are not an entry once more as a motion-blurred
     /// marker (blur estimated from its edges, cell levels solved by least squares; issue
-    /// #16). Default on: its systems are solved in scratch the detector owns (no allocation
-    /// in steady state), and a marker it reads passes the side check like any other.
+    /// #16). Default on: only quads whose plain reading had a marker's contrast and dark
+    /// border, and whose edges show a motion of at least 1.5 cells, are re-read (counted by
+    /// [`Detector::blurred_reads`]); its systems are solved in scratch the detector owns (no
+    /// allocation in steady state), and a marker it reads passes the side check like any
+    /// other.
     pub motion_blur: bool,
     /// Drop a decoded marker one of whose sides is not its border's outer edge, as when the
     /// side runs along an occluder ([`crate::sides`], issue #16). Default on, with
@@ -300,20 +303,25 @@ impl Detector {
     /// one with fewer bit errors, then higher contrast). Returns the number of quads examined.
     pub fn decode_quads(&mut self, img: &GrayView<'_>, out: &mut Vec<Decoded>) -> usize {
         out.clear();
+        self.blur.solved_quads = 0;
         let params = &self.config.decode;
         for q in &self.quads {
             let mut best: Option<Decoded> = None;
+            // Whether some grid read as a marker's (contrast, and a dark border or nearly):
+            // only such a quad is worth the motion-blurred reading.
+            let mut marker_like = false;
             for (i, dict) in self.dictionaries.iter().enumerate() {
                 let g = self.grid_of[i];
                 if g == i {
-                    self.readings[i] = read_oriented(
+                    let r = read_oriented(
                         img,
                         &q.corners,
                         dict.family(),
                         WhiteReference::of(dict),
                         params,
-                    )
-                    .ok();
+                    );
+                    marker_like |= matches!(r, Ok(_) | Err(Rejection::BorderNotDark { .. }));
+                    self.readings[i] = r.ok();
                 }
                 let Some((s, reading)) = &self.readings[g] else {
                     continue;
@@ -327,8 +335,7 @@ impl Detector {
             }
             // Not an entry as sampled: read it as a motion-blurred marker (issue #16).
             let best = best.or_else(|| {
-                self.config
-                    .motion_blur
+                (self.config.motion_blur && marker_like)
                     .then(|| {
                         crate::blur::decode_blurred(
                             img,
@@ -353,6 +360,16 @@ impl Detector {
             push_unique(out, d);
         }
         self.quads.len()
+    }
+
+    /// How many quads the last decoding read once more as motion-blurred markers
+    /// ([`DetectorConfig::motion_blur`]): those whose plain reading had a marker's contrast
+    /// and dark border but no entry's code, and whose edges showed a motion of at least 1.5
+    /// cells. Each costs about as much as a whole 640x480 frame's detection, so a
+    /// scene that keeps this high (clutter with marker-like squares, heavy motion blur)
+    /// is where turning the option off saves time.
+    pub fn blurred_reads(&self) -> usize {
+        self.blur.solved_quads
     }
 
     /// The quads found by the last [`Detector::find_quads`] call.
