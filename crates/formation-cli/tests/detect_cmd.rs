@@ -145,3 +145,46 @@ fn human_listing_names_robots_and_faces() {
         );
     }
 }
+
+/// The ids `detect --json` reads in one image, sorted.
+fn ids_read(args: &[&str], image: &std::path::Path) -> Vec<u64> {
+    let out = bin()
+        .arg("detect")
+        .arg("--json")
+        .args(args)
+        .arg(image)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let line: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let mut ids: Vec<u64> = line["markers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m["id"].as_u64().unwrap())
+        .collect();
+    ids.sort_unstable();
+    ids
+}
+
+/// `--boundary-clusters` reads the Duckietown tags that touch something as dark as their
+/// ink (ids 22, 24, 58 and 85 in this frame; AprilTag 3 reads all five), which the default
+/// detector misses; `--no-motion-blur` changes nothing on this sharp frame.
+#[test]
+fn boundary_clusters_flag_reads_tags_touching_dark_regions() {
+    let frame = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures/realdata/duckietown/test_image_multiple_09.png");
+    let default = ids_read(&["--dictionary", "tag36h11"], &frame);
+    let clustered = ids_read(&["--dictionary", "tag36h11", "--boundary-clusters"], &frame);
+    assert_eq!(clustered, vec![22, 24, 58, 85, 144]);
+    assert!(default.len() < clustered.len(), "default read {default:?}");
+    assert!(default.iter().all(|id| clustered.contains(id)));
+    assert_eq!(
+        ids_read(&["--dictionary", "tag36h11", "--no-motion-blur"], &frame),
+        default
+    );
+}

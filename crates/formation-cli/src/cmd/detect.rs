@@ -38,6 +38,19 @@ pub struct Args {
     /// AprilTag name such as `tag36h11`. Repeat it to read several dictionaries in one pass.
     #[arg(long = "dictionary", value_name = "NAME")]
     pub dictionaries: Vec<String>,
+    /// Also search large dark regions that gave no quad by AprilTag 3's boundary
+    /// clustering: reads tags that touch something as dark as their ink (a tag lying on a
+    /// dark floor or against a shadow), as in 5 of the 56 Duckietown tags. Off by
+    /// default: on cluttered frames it multiplies the detection time (see
+    /// docs/performance.md).
+    #[arg(long)]
+    pub boundary_clusters: bool,
+    /// Do not read quads again as motion-blurred markers (on by default: a quad whose
+    /// cells are not a code, with a marker's border and edges smeared by at least 1.5
+    /// cells, is re-read with its cell levels solved for the motion). Turning it off saves
+    /// time on frames that are never blurred.
+    #[arg(long)]
+    pub no_motion_blur: bool,
     /// Largest image side accepted, pixels; larger images are refused from their header,
     /// before they are decoded.
     #[arg(long, value_name = "PX", default_value_t = formation_tracker_cli::frames::MAX_SIDE,
@@ -227,7 +240,11 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     // The robot stage reads the rig's dictionary only.
     let rig_dict = names.iter().position(|n| *n == rig.dictionary);
     let mut detector = Detector::with_dictionaries(
-        DetectorConfig::default(),
+        DetectorConfig {
+            boundary_clusters: args.boundary_clusters,
+            motion_blur: !args.no_motion_blur,
+            ..DetectorConfig::default()
+        },
         dicts.into_iter().cloned().collect(),
     )
     .map_err(|e| e.to_string())?;
