@@ -49,10 +49,13 @@ pub struct SideCheck {
     /// marker's contrast (default 0.4).
     pub min_step: f64,
     /// A profile counts only where a cell is at least this many pixels across the side
-    /// (default 3): on narrower cells (a face seen 65 deg or more off-axis) the blur of
+    /// (default 2): on narrower cells (a face seen 70 deg or more off-axis) the blur of
     /// the outer edge and of the next cell reach the inner edge, which then wanders by more
-    /// than the tolerance on whole markers (seed 2026 occlusion scene 0: a 15.7 px face of
-    /// 2.2 px cells).
+    /// than the tolerance on whole markers. From 2 px on it does not: on 200 rendered
+    /// scenes (blur 1 px, noise 3), whole markers' sides of 2-3 px cells were off by at most
+    /// 0.29 px against a tolerance of 0.47-0.53 px, while a gate at 3 px let faces of 2.3-2.9
+    /// px cells cut 1-1.5 px deep through unchecked (the CI failure of 2026-11-24: a 1.5 px
+    /// cut of a 21.5 px face, 2.9 px cells, used alone).
     pub min_cell_px: f64,
 }
 
@@ -63,7 +66,7 @@ impl Default for SideCheck {
             tolerance_px: 0.35,
             tolerance_cells: 0.06,
             tolerance_motion: 0.5,
-            min_cell_px: 3.0,
+            min_cell_px: 2.0,
             min_step: 0.4,
         }
     }
