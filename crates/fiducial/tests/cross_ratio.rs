@@ -88,15 +88,16 @@ fn parallelogram() -> impl Strategy<Value = Corners> {
 
 fn check(c: &Corners, a: f64, b: f64) -> Result<(), TestCaseError> {
     let frame = CrossRatioFrame::new(c).map_err(|e| TestCaseError::fail(e.to_string()))?;
-    let got = frame
-        .map(a, b)
-        .ok_or_else(|| TestCaseError::fail("no point"))?;
     let want = apply(&homography(c), a, b);
-    let err = (got - want).norm();
-    prop_assert!(
-        err <= 1e-9 * size(c),
-        "({a}, {b}) on {c:?}: cross ratio {got} vs homography {want}, error {err}"
-    );
+    // Both the closed form `map` evaluates and the construction itself.
+    for got in [frame.map(a, b), frame.map_by_construction(a, b)] {
+        let got = got.ok_or_else(|| TestCaseError::fail("no point"))?;
+        let err = (got - want).norm();
+        prop_assert!(
+            err <= 1e-9 * size(c),
+            "({a}, {b}) on {c:?}: cross ratio {got} vs homography {want}, error {err}"
+        );
+    }
     Ok(())
 }
 
