@@ -3,7 +3,8 @@
 //! `fiducial/detect_*`: full detection (quads + decoding) of 8-marker scenes (20-120 px,
 //! blur 1, noise 3) at three frame sizes; `_tag36h11` the 640x480 scene with tag36h11
 //! markers and a tag36h11 detector; `_clean` (noise 0) against `_noisy` (noise 10) at
-//! 640x480; clutter without markers; `detect_1920x1080_rayon` the 1920x1080 scene through
+//! 640x480; `_no_side_check` the 640x480 scene without the occlusion checks; clutter
+//! without markers; `detect_1920x1080_rayon` the 1920x1080 scene through
 //! `Detector::detect_parallel` (binarization on rayon's threads with `--features parallel`).
 //! `fiducial/find_quads_640x480` is the quad phase alone
 //! (`binarize_640x480` and `label_640x480` its first two stages apart) and
@@ -71,6 +72,18 @@ fn bench_with(
 fn benches(c: &mut Criterion) {
     let vga = scene(640, 480, 3.0);
     bench_detect(c, "fiducial/detect_640x480", &vga, 640, 480);
+    // The same without the occlusion checks (`DetectorConfig::side_check`): what they cost.
+    bench_with(
+        c,
+        "fiducial/detect_640x480_no_side_check",
+        Detector::new(DetectorConfig {
+            side_check: None,
+            ..DetectorConfig::default()
+        }),
+        &vga,
+        640,
+        480,
+    );
     // The same scene (seed, sizes, blur, noise) with eight tag36h11 markers, read by a
     // tag36h11 detector (587 codes, sorted-table lookup): compare with detect_640x480.
     let tag = fiducial::dictionary_by_name("tag36h11").expect("tag36h11 exists");

@@ -3,7 +3,7 @@
 //! occluder's edge never makes it out of the detector.
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
-use fiducial::{Detector, DetectorConfig, Dictionary, GrayView};
+use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, SideCheck, side_offsets};
 use marker_testkit::{Canvas, CellPattern, Effects};
 use proptest::prelude::*;
 
@@ -146,6 +146,182 @@ fn board(quad: &[[f64; 2]; 4], side: usize, depth: f64, tilt: f64) -> [[f64; 2];
         p(200.0, 400.0),
         p(-200.0, 400.0),
     ]
+}
+
+/// A board over corner `k` (0 NW, 1 NE, 2 SE, 3 SW) of `quad`, its edge crossing the two
+/// sides that meet there at fractions `a` (the side towards the next corner) and `b` (the
+/// side towards the previous one) of their lengths from the corner.
+fn corner_board(quad: &[[f64; 2]; 4], k: usize, a: f64, b: f64) -> [[f64; 2]; 4] {
+    let c = quad[k];
+    let (n, p) = (quad[(k + 1) % 4], quad[(k + 3) % 4]);
+    let e0 = [c[0] + (n[0] - c[0]) * a, c[1] + (n[1] - c[1]) * a];
+    let e1 = [c[0] + (p[0] - c[0]) * b, c[1] + (p[1] - c[1]) * b];
+    let (dx, dy) = (e1[0] - e0[0], e1[1] - e0[1]);
+    let len = dx.hypot(dy);
+    let (tx, ty) = (dx / len, dy / len);
+    // Unit normal pointing to the corner's side of the edge.
+    let (mut ox, mut oy) = (ty, -tx);
+    if (c[0] - e0[0]) * ox + (c[1] - e0[1]) * oy < 0.0 {
+        (ox, oy) = (-ox, -oy);
+    }
+    let m = [0.5 * (e0[0] + e1[0]), 0.5 * (e0[1] + e1[1])];
+    let q = |u: f64, v: f64| [m[0] + tx * u + ox * v, m[1] + ty * u + oy * v];
+    let quad = [
+        q(-200.0, 0.0),
+        q(200.0, 0.0),
+        q(200.0, 400.0),
+        q(-200.0, 400.0),
+    ];
+    // Clockwise in the image (y down): reverse when the cross product says otherwise.
+    let cross = (quad[1][0] - quad[0][0]) * (quad[2][1] - quad[1][1])
+        - (quad[1][1] - quad[0][1]) * (quad[2][0] - quad[1][0]);
+    if cross < 0.0 {
+        [quad[0], quad[3], quad[2], quad[1]]
+    } else {
+        quad
+    }
+}
+
+/// The marker read from `pixels` with the side check off, and its side check.
+fn unchecked(pixels: &[u8]) -> (fiducial::Decoded, fiducial::SideOffsets) {
+    let found = detect(
+        pixels,
+        DetectorConfig {
+            side_check: None,
+            ..DetectorConfig::default()
+        },
+    );
+    assert_eq!(found.len(), 1, "the cut marker reads without the check");
+    let view = GrayView::new(pixels, W, H).unwrap();
+    let family = Dictionary::paper().family();
+    let offsets = side_offsets(&view, &found[0], family, &SideCheck::default()).unwrap();
+    (found[0], offsets)
+}
+
+#[test]
+fn a_marker_with_a_corner_cut_off_along_a_side_is_rejected() {
+    // A light board slices the NE corner off a 60 px marker (cells of about 8.6 px), its
+    // edge crossing the right side 0.35 and the top side 0.08 of the way from the corner
+    // (4.6 px deep at the corner): the quad's right side follows the board part of the way,
+    // the NE corner slides 1.8 px off, and its border cell stays dark; but near that
+    // corner the outline (the board's edge) lies 2 px inside the quad's right side.
+    let quad = upright(60.0);
+    let pixels = scene(
+        17,
+        &quad,
+        Some((&corner_board(&quad, 1, 0.35, 0.08), 205.0)),
+        5,
+    );
+    let (d, o) = unchecked(&pixels);
+    assert!(worst(&d.corners, &quad) > 1.5, "{:?}", d.corners);
+    assert!(o.corner_level[1] <= o.corner_tolerance[1], "{o:?}");
+    assert!(o.outer_inset_px[1] > o.outer_tolerance_px[1], "{o:?}");
+    for side in [0, 2, 3] {
+        assert!(o.outer_inset_px[side] < 0.3, "side {side}: {o:?}");
+    }
+    assert!(!o.consistent());
+    assert!(detect(&pixels, DetectorConfig::default()).is_empty());
+}
+
+#[test]
+fn a_marker_whose_corner_is_hidden_is_rejected_even_where_its_sides_still_meet() {
+    // A board hides the NE corner 5.7 px deep (crossing the right side 0.12 and the top
+    // side 0.25 of the way from it): the fitted sides still meet near the true corner (0.3
+    // px off), but the corner itself is not seen, and the grid's corner cell lies on the
+    // board.
+    let quad = upright(60.0);
+    let pixels = scene(
+        17,
+        &quad,
+        Some((&corner_board(&quad, 1, 0.12, 0.25), 205.0)),
+        5,
+    );
+    let (_, o) = unchecked(&pixels);
+    assert!(o.corner_level[1] > o.corner_tolerance[1], "{o:?}");
+    for k in [0, 2, 3] {
+        assert!(
+            o.corner_level[k] < 0.2,
+            "corner {k} of the cut marker: {o:?}"
+        );
+    }
+    assert!(detect(&pixels, DetectorConfig::default()).is_empty());
+}
+
+/// How far corner `k` of `quad` lies beyond the edge of [`corner_board`]`(quad, k, a, b)`,
+/// pixels.
+fn cut_depth(quad: &[[f64; 2]; 4], k: usize, a: f64, b: f64) -> f64 {
+    let c = quad[k];
+    let (n, p) = (quad[(k + 1) % 4], quad[(k + 3) % 4]);
+    let e0 = [c[0] + (n[0] - c[0]) * a, c[1] + (n[1] - c[1]) * a];
+    let e1 = [c[0] + (p[0] - c[0]) * b, c[1] + (p[1] - c[1]) * b];
+    let (dx, dy) = (e1[0] - e0[0], e1[1] - e0[1]);
+    ((c[0] - e0[0]) * dy - (c[1] - e0[1]) * dx).abs() / dx.hypot(dy)
+}
+
+/// A corner cut off at least this deep (pixels, from the board's edge to the hidden corner)
+/// is rejected or right on markers with cells up to [`LENS_CELL_PX`]; a shallower cut may
+/// pass the check, with its corners off by no more than the depth. In 2,000 random cases the
+/// deepest cut that passed with corners beyond the tolerance was 3.8 px deep (without the
+/// check, 112 cuts 4 px deep or more came out beyond it), and no passing corner was off by
+/// more than 0.68 of the depth.
+const MIN_CORNER_CUT_PX: f64 = 5.0;
+/// Cells wider than this (markers over 70 px here) get the lens-distortion allowance of
+/// the outer-edge check (`SideCheck::outer_sag_per_px2`, 1.5 px on a 85 px side), so a
+/// deeper sliver can pass there, still no further off than the cut is deep.
+const LENS_CELL_PX: f64 = 10.0;
+
+/// Cases of the corner-cut property: 48, or `PROPTEST_CASES`.
+fn cases() -> u32 {
+    std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(48)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(cases()))]
+
+    /// A board of random grey level (light or dark) cuts a random corner off a rendered
+    /// marker under random perspective, its edge crossing the two sides at that corner 3 to
+    /// 45 % of the way along: the detector either does not report the marker, or reports it
+    /// with the right code and every corner within 0.5 px plus 0.08 cell of the truth (as
+    /// for a side cut, `an_occluded_marker_is_rejected_or_right`), or, for a cut shallower
+    /// than [`MIN_CORNER_CUT_PX`] or on cells wider than [`LENS_CELL_PX`], no further off
+    /// than the cut is deep.
+    #[test]
+    fn a_marker_with_a_corner_cut_off_is_rejected_or_right(
+        index in 0usize..100,
+        width in 36.0f64..90.0,
+        jitter in prop::array::uniform8(-0.08f64..0.08),
+        corner in 0usize..4,
+        a in 0.03f64..0.45,
+        b in 0.03f64..0.45,
+        level in prop_oneof![150.0f64..255.0, 0.0f64..70.0],
+        seed in 0u64..1000,
+    ) {
+        let mut quad = upright(width);
+        for (i, p) in quad.iter_mut().enumerate() {
+            p[0] += jitter[2 * i] * width;
+            p[1] += jitter[2 * i + 1] * width;
+        }
+        let occ = corner_board(&quad, corner, a, b);
+        let pixels = scene(index, &quad, Some((&occ, level)), seed);
+        let depth = cut_depth(&quad, corner, a, b);
+        for d in detect(&pixels, DetectorConfig::default()) {
+            prop_assert_eq!(d.index, index, "wrong code");
+            let e = worst(&d.corners, &quad);
+            let cell = width / f64::from(Dictionary::paper().family().width_cells());
+            // What the board hides bounds the error of any marker that passes; a deep cut
+            // of a marker whose cells are at most `LENS_CELL_PX` never passes.
+            let deep = depth >= MIN_CORNER_CUT_PX && cell <= LENS_CELL_PX;
+            prop_assert!(
+                e <= 0.5 + 0.08 * cell || (!deep && e <= depth),
+                "corner {e:.2} px off (cell {cell:.1} px, cut {depth:.2} px deep): {:?} vs {:?}",
+                d.corners,
+                quad
+            );
+        }
+    }
 }
 
 proptest! {
