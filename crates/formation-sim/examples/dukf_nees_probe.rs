@@ -4,7 +4,8 @@
 //! probabilities; per model (A, B, C) and for the combined estimate, the normalised squared
 //! error `e_i^2 / P_ii` of each of `[l12, alpha12, beta12, v1, w1]` (1 expected), the
 //! formation NEES (3) and the velocity NEES (2), then the mean squared errors and the mean
-//! variances of the five; and the combined NIS (3). No smoother runs, so it is fast.
+//! variances of the five; the combined NIS (3); and the combined estimate's correlations
+//! between the five, predicted and from the errors. No smoother runs, so it is fast.
 //!
 //! ```text
 //! cargo run --release -p formation-sim --example dukf_nees_probe [-- FILE|reference [FIRST LAST]]
@@ -72,6 +73,21 @@ fn stats(z: &SVector<f64, 10>, p: &SMatrix<f64, 10, 10>, truth: &SVector<f64, 5>
     out
 }
 
+/// The component pairs whose correlations are printed (indices into `[l12, alpha12, beta12,
+/// v1, w1]`).
+const PAIRS: [(usize, usize); 10] = [
+    (0, 1),
+    (0, 2),
+    (1, 2),
+    (3, 4),
+    (0, 3),
+    (0, 4),
+    (1, 3),
+    (1, 4),
+    (2, 3),
+    (2, 4),
+];
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let file = args.first().filter(|a| *a != "reference").cloned();
@@ -99,6 +115,7 @@ fn main() {
     let mut acc = [[0.0f64; 17]; 4];
     let mut mu_acc = [0.0f64; 3];
     let mut nis_acc = 0.0;
+    let mut corr = [[0.0f64; 2]; PAIRS.len()];
     let mut n = 0.0;
     for (s, cfg) in &runs {
         let mut cfg = cfg.clone();
@@ -148,6 +165,17 @@ fn main() {
             for i in 0..17 {
                 acc[3][i] += st[i];
             }
+            // Correlations of the combined estimate: predicted P_ij / sqrt(P_ii P_jj) against
+            // the normalised product of the errors e_i e_j / sqrt(P_ii P_jj).
+            let e = SVector::<f64, 5>::from_fn(|i, _| {
+                let d = z[3 + i] - truth[i];
+                if i == 1 || i == 2 { wrap_angle(d) } else { d }
+            });
+            for (k, &(i, j)) in PAIRS.iter().enumerate() {
+                let norm = (p[(3 + i, 3 + i)] * p[(3 + j, 3 + j)]).sqrt();
+                corr[k][0] += p[(3 + i, 3 + j)] / norm;
+                corr[k][1] += e[i] * e[j] / norm;
+            }
             let mu = f.model_probabilities().unwrap();
             for j in 0..3 {
                 mu_acc[j] += mu[j];
@@ -181,6 +209,17 @@ fn main() {
                 .map(|v| format!("{:.1e}", v / n))
                 .collect::<Vec<_>>()
                 .join(" ")
+        );
+    }
+    let names = ["l12", "alpha12", "beta12", "v1", "w1"];
+    println!("combined correlations (predicted, from the errors):");
+    for (k, &(i, j)) in PAIRS.iter().enumerate() {
+        println!(
+            "  {}-{}: {:+.3} {:+.3}",
+            names[i],
+            names[j],
+            corr[k][0] / n,
+            corr[k][1] / n
         );
     }
 }
