@@ -4,8 +4,8 @@
 //! filters (crate `dukf`).
 //!
 //! The IMM is better on every reference figure (`docs/dukf-reproduction.md`) and is what
-//! `reproduce dukf` (told the follower's controller) and the tracker (`TrackerConfig::reference`,
-//! not told it: its frames do not carry it) run; the offline smoother
+//! `reproduce dukf` (told the follower's controller) and the tracker (`TrackerConfig::reference`;
+//! told the controller only through `Tracker::set_follower_controller`) run; the offline smoother
 //! ([`FormationFilter::smooth`]) follows the design that recorded the history.
 //!
 //! [`FormationFilter`] is the piece the tracker reuses per leader. It is fed the measurement
