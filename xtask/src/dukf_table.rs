@@ -323,7 +323,7 @@ fn write_header(md: &mut String, runs: &ReferenceRuns) {
          m/s^3, rad/s^3, process noise on the pose [{}] and on the formation [{}] per step; B: \
          the formation moves as the follower's own controller commands (gains and set-points \
          from the scenario), the leader velocity following from the follower's inputs, process \
-         noise on the formation [{}] per step (the integrator's floor); B does not switch out, \
+         noise on the formation [{}] per step (the integrator's error); B does not switch out, \
          A hands over to B with mean sojourn time {} s; initial probabilities A {}, B the rest. \
          Model C (the follower holds the bearing) is dropped while the controller is known: B \
          covers the set-point changes it was for. The same w0, Pw0, P0 and UT parameters as the \

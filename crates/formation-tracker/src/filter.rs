@@ -33,7 +33,7 @@
 //! **With the follower's controller known** ([`FormationFilter::set_follower_controller`], as
 //! `reproduce dukf` runs it) the model set changes: B takes the leader velocity under which the
 //! formation moves as the controller commands ([`controlled_formation_velocity`]), with no held
-//! random walk (only the integrator's floor, [`ImmTuning::controlled_formation_q`]); C, which
+//! random walk (only the integrator's error, [`ImmTuning::controlled_formation_q`]); C, which
 //! covered set-point changes that B now models, is dropped; and B does not switch out, while A
 //! hands over to B at the sojourn rate. Each of these rules removes one cause of the
 //! under-confidence measured before (`docs/dukf-reproduction.md`, measurement 12): a held random
@@ -166,9 +166,8 @@ pub struct ImmTuning {
     /// Process noise per step on `[l12, alpha12, beta12]` in model B while the follower's
     /// controller is known ([`FormationFilter::set_follower_controller`]): B's prediction is
     /// then exact but for the integrator, whose error in one RK4 step is about
-    /// `l12 (k dt)^5 / 120` (4e-10 m with the controller gain `k = 1 /s` at 30 Hz), so this is
-    /// a floor that keeps the covariance positive definite, not a motion
-    /// (`docs/dukf-reproduction.md`, measurement 12).
+    /// `l12 (k dt)^5 / 120` (4e-10 m with the controller gain `k = 1 /s` at 30 Hz); this is
+    /// that error rounded up, not a motion (`docs/dukf-reproduction.md`, measurement 12).
     pub controlled_formation_q: Vector3<f64>,
     /// Mean time a model stays in force, seconds (the switching matrix is
     /// `Pi_jj = exp(-dt / sojourn)`).
@@ -181,8 +180,8 @@ pub struct ImmTuning {
 impl ImmTuning {
     /// The reference settings: `jerk = [0.5, 0.5]` (about twice the largest jerk of any
     /// fixture's leader), `acceleration_std = [0.2, 0.2]`, `formation_q = 1e-9` each,
-    /// `held_rate_std = [0.01, 0.01]` (1 cm/s, 0.01 rad/s), `controlled_formation_q = 1e-12`
-    /// each (1 um, 1 urad per step), `sojourn = 20 s`, `mu0_a = 0.5` (the other two models
+    /// `held_rate_std = [0.01, 0.01]` (1 cm/s, 0.01 rad/s), `controlled_formation_q = 1e-18`
+    /// each (1 nm, 1 nrad per step), `sojourn = 20 s`, `mu0_a = 0.5` (the other two models
     /// share the rest).
     pub fn reference() -> Self {
         Self {
@@ -190,7 +189,7 @@ impl ImmTuning {
             acceleration_std: Vector2::new(0.2, 0.2),
             formation_q: Vector3::new(1e-9, 1e-9, 1e-9),
             held_rate_std: Vector2::new(0.01, 0.01),
-            controlled_formation_q: Vector3::new(1e-12, 1e-12, 1e-12),
+            controlled_formation_q: Vector3::new(1e-18, 1e-18, 1e-18),
             sojourn: 20.0,
             mu0_a: 0.5,
         }
@@ -523,7 +522,7 @@ impl ImmEngine {
         let mut qc = qa;
         qc[(4, 4)] += (i.held_rate_std[1] * dt).powi(2);
         // With the follower's controller known, B's formation is predicted exactly but for the
-        // integrator: no held random walk, only the integrator's floor.
+        // integrator: no held random walk, only the integrator's error.
         let mut qb_controlled = qa;
         for k in 0..3 {
             qb_controlled[(3 + k, 3 + k)] = i.controlled_formation_q[k];
