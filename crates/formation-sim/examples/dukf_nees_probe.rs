@@ -12,7 +12,8 @@
 //! cargo run --release -p formation-sim --example dukf_nees_probe [-- FILE|reference [FIRST LAST]]
 //! ```
 //! The IMM is told the follower's controller as in `reproduce dukf` (`FOLLOWER=0`: not told);
-//! the tuning overrides of `dukf_imm` apply (`JERK`, `SOJOURN`, `HELD`, `MU0`, `FQ`, `CFQ`).
+//! the tuning overrides of `dukf_imm` apply (`JERK`, `SOJOURN`, `HELD`, `MU0`, `FQ`, `CFQ`),
+//! and `UT_ALPHA` (the unscented transform's spread).
 #![allow(clippy::unwrap_used)]
 
 use formation_sim::scenario::{Scenario, ScenarioConfig, simulate};
@@ -45,6 +46,9 @@ fn tune(cfg: &mut FilterConfig) {
     }
     if let Some(q) = env("CFQ") {
         t.imm.controlled_formation_q = Vector3::new(q, q, q);
+    }
+    if let Some(a) = env("UT_ALPHA") {
+        t.ut.alpha = a;
     }
 }
 
