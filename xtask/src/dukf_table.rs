@@ -11,7 +11,7 @@ use std::path::PathBuf;
 
 use formation_sim::reproduce::{
     Baseline, Reproduction, Summary, baseline, paper_filter_config, paper_filter_config_with,
-    reproduce, run_filter,
+    reproduce, run_filter, run_filter_with,
 };
 use formation_sim::scenario::{PAPER_X0, ScenarioConfig, simulate};
 use formation_sim::scenario_file::ScenarioSpec;
@@ -180,7 +180,7 @@ pub fn run(args: &[String]) -> Result {
     write_header(&mut md, &runs);
     write_targets(&mut md, &c);
     write_baselines(&mut md, &runs, &c);
-    write_consistency(&mut md, &runs.clean_runs);
+    write_consistency(&mut md, &runs);
     write_other_scenarios(&mut md)?;
     write_per_seed_and_bias(&mut md, &runs);
     let _ = writeln!(md, "\n{}", include_str!("dukf_table_notes.md").trim_end());
@@ -211,6 +211,10 @@ pub fn run(args: &[String]) -> Result {
 /// bias over [`SEEDS`], the check seeds, the dual UKF and the two baselines on each.
 struct ReferenceRuns {
     clean_runs: Vec<Reproduction>,
+    /// Seeds 21..40, never tuned on.
+    check_runs: Vec<Reproduction>,
+    /// Seeds 1..20 with the IMM not told the follower's controller (the model set before).
+    held_runs: Vec<Reproduction>,
     dual_runs: Vec<Reproduction>,
     check_dual_runs: Vec<Reproduction>,
     dual: Vec<Summary>,
@@ -229,6 +233,8 @@ impl ReferenceRuns {
     fn simulate() -> Result<Self> {
         let x0 = [PAPER_X0[3], PAPER_X0[4], PAPER_X0[5]];
         let mut clean_runs = Vec::new();
+        let mut held_runs = Vec::new();
+        let mut check_runs = Vec::new();
         let mut biased = Vec::new();
         let mut rw = Vec::new();
         let mut cv = Vec::new();
@@ -243,6 +249,11 @@ impl ReferenceRuns {
             rw.push(baseline(&scenario, &x0, Baseline::RANDOM_WALK));
             cv.push(baseline(&scenario, &x0, Baseline::CONSTANT_VELOCITY));
             clean_runs.push(reproduce(seed, false)?);
+            held_runs.push(run_filter_with(
+                &scenario,
+                &paper_filter_config(scenario.config.d, scenario.config.dt),
+                false,
+            )?);
             biased.push(reproduce(seed, true)?.summary);
         }
         let clean: Vec<Summary> = clean_runs.iter().map(|r| r.summary.clone()).collect();
@@ -257,13 +268,16 @@ impl ReferenceRuns {
             check_rw.push(baseline(&scenario, &x0, Baseline::RANDOM_WALK));
             check_cv.push(baseline(&scenario, &x0, Baseline::CONSTANT_VELOCITY));
             let run = reproduce(seed, false)?;
-            check.push(run.summary);
-            check_smoothed.push(run.smoothed_summary);
+            check.push(run.summary.clone());
+            check_smoothed.push(run.smoothed_summary.clone());
+            check_runs.push(run);
         }
         let dual = dual_runs.iter().map(|r| r.summary.clone()).collect();
         let check_dual = check_dual_runs.iter().map(|r| r.summary.clone()).collect();
         Ok(Self {
             clean_runs,
+            check_runs,
+            held_runs,
             dual_runs,
             check_dual_runs,
             dual,
@@ -303,19 +317,26 @@ fn write_header(md: &mut String, runs: &ReferenceRuns) {
     let imm = &filter.tuning.imm;
     let _ = writeln!(
         md,
-        "Filter (`reproduce dukf`'s, `FilterDesign::Imm`; the tracker's default is the dual UKF): the interacting multiple-model filter of \
-         three unscented filters over [x1, y1, theta1, l12, alpha12, beta12, v1, w1, a_v, a_w] \
-         (A: the leader accelerates, jerk [{}] m/s^3, rad/s^3; B: the follower holds the \
-         formation, its held variables drifting by a random walk of per-step std [{}] x dt; C: the follower holds the bearing), mean \
-         sojourn time {} s, initial probability of A {}, process noise on the pose \
-         [{}] and on the formation [{}] per step; the same w0, Pw0, P0 and UT parameters as \
-         the dual UKF. See \"The IMM design\" below.\n",
+        "Filter (`reproduce dukf`'s, `FilterDesign::Imm` told the follower's controller at every \
+         frame): the interacting multiple-model filter of unscented filters over [x1, y1, \
+         theta1, l12, alpha12, beta12, v1, w1, a_v, a_w]. A: the leader accelerates, jerk [{}] \
+         m/s^3, rad/s^3, process noise on the pose [{}] and on the formation [{}] per step; B: \
+         the formation moves as the follower's own controller commands (gains and set-points \
+         from the scenario), the leader velocity following from the follower's inputs, process \
+         noise on the formation [{}] per step (the integrator's error); B does not switch out, \
+         A hands over to B with mean sojourn time {} s; initial probabilities A {}, B the rest. \
+         Model C (the follower holds the bearing) is dropped while the controller is known: B \
+         covers the set-point changes it was for. The same w0, Pw0, P0 and UT parameters as the \
+         dual UKF. Without the controller (the vision tracker's default, `run_filter_with(.., \
+         false)`), B and C hold the formation up to a random walk of per-step std [{}] x dt and \
+         all three models switch with that sojourn time. See \"The IMM design\" below.\n",
         join(imm.jerk.as_slice()),
-        join(imm.held_rate_std.as_slice()),
-        imm.sojourn,
-        imm.mu0_a,
         join(&filter.tuning.q.diagonal().as_slice()[..3]),
         join(imm.formation_q.as_slice()),
+        join(imm.controlled_formation_q.as_slice()),
+        imm.sojourn,
+        imm.mu0_a,
+        join(imm.held_rate_std.as_slice()),
     );
     let _ = writeln!(
         md,
@@ -484,19 +505,11 @@ fn write_baselines(md: &mut String, runs: &ReferenceRuns, c: &Medians) {
 }
 
 /// NIS and NEES averaged over the runs, against their 95 % chi-square bounds.
-fn write_consistency(md: &mut String, clean_runs: &[Reproduction]) {
+fn write_consistency(md: &mut String, runs: &ReferenceRuns) {
     let from_t = 2.0;
-    let b3 = chi2_bounds(3.0, clean_runs.len());
-    let b2 = chi2_bounds(2.0, clean_runs.len());
-    let nis_all = consistency(clean_runs, |c| c.nis, b3, 0.0);
-    let nis = consistency(clean_runs, |c| c.nis, b3, from_t);
-    let nx_all = consistency(clean_runs, |c| c.nees_formation, b3, 0.0);
-    let nx = consistency(clean_runs, |c| c.nees_formation, b3, from_t);
-    let nw_all = consistency(clean_runs, |c| c.nees_velocity, b2, 0.0);
-    let nw = consistency(clean_runs, |c| c.nees_velocity, b2, from_t);
     let _ = writeln!(
         md,
-        "## Consistency (seeds 1..20, without bias)\n\n\
+        "## Consistency (without bias)\n\n\
          At every step the statistic is averaged over the {} runs; a consistent filter keeps \
          that average within the two-sided 95 % chi-square bounds (Bar-Shalom, Li and \
          Kirubarajan 2001, sec. 5.4). NIS: the IMM's probability-weighted innovation against \
@@ -504,28 +517,45 @@ fn write_consistency(md: &mut String, clean_runs: &[Reproduction]) {
          of the combined estimate of [l12, alpha12, beta12] against its covariance block \
          (mixture spread included), 3 degrees of freedom. NEES (velocity): the error of \
          [v1, w1] against their covariance block, 2 degrees of freedom. The leader's world pose \
-         [x1, y1, theta1] is not tested: it is unobservable from the measurements.\n",
-        clean_runs.len()
+         [x1, y1, theta1] is not tested: it is unobservable from the measurements. The last \
+         rows are the same IMM not told the follower's controller (`run_filter_with(.., \
+         false)`: B and C hold the formation up to a random walk, three models switching), the \
+         model set before the controller was wired, for comparison.\n",
+        runs.clean_runs.len()
     );
     let _ = writeln!(
         md,
-        "| statistic | 95 % bounds of the average | mean, all steps | steps inside, all | mean, t > 2 s | steps inside, t > 2 s |\n|---|---|---:|---:|---:|---:|"
+        "| filter | seeds | statistic | 95 % bounds of the average | mean, all steps | steps inside, all | mean, t > 2 s | steps inside, t > 2 s |\n|---|---|---|---|---:|---:|---:|---:|"
     );
-    for (name, bounds, all, late) in [
-        ("NIS (3 dof)", b3, nis_all, nis),
-        ("NEES formation (3 dof)", b3, nx_all, nx),
-        ("NEES velocity (2 dof)", b2, nw_all, nw),
+    for (filter, seeds, set) in [
+        ("IMM (wired)", "1..20", &runs.clean_runs),
+        ("IMM (wired)", "21..40", &runs.check_runs),
+        ("IMM, controller not told", "1..20", &runs.held_runs),
     ] {
-        let _ = writeln!(
-            md,
-            "| {name} | [{:.2}, {:.2}] | {:.2} | {:.0} % | {:.2} | {:.0} % |",
-            bounds.0,
-            bounds.1,
-            all.0,
-            100.0 * all.1,
-            late.0,
-            100.0 * late.1
-        );
+        let b3 = chi2_bounds(3.0, set.len());
+        let b2 = chi2_bounds(2.0, set.len());
+        for (name, bounds, stat) in [
+            (
+                "NIS (3 dof)",
+                b3,
+                (|c| c.nis) as fn(&formation_sim::reproduce::StepConsistency) -> f64,
+            ),
+            ("NEES formation (3 dof)", b3, |c| c.nees_formation),
+            ("NEES velocity (2 dof)", b2, |c| c.nees_velocity),
+        ] {
+            let all = consistency(set, stat, bounds, 0.0);
+            let late = consistency(set, stat, bounds, from_t);
+            let _ = writeln!(
+                md,
+                "| {filter} | {seeds} | {name} | [{:.2}, {:.2}] | {:.2} | {:.0} % | {:.2} | {:.0} % |",
+                bounds.0,
+                bounds.1,
+                all.0,
+                100.0 * all.1,
+                late.0,
+                100.0 * late.1
+            );
+        }
     }
     let _ = writeln!(md);
 }

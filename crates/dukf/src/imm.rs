@@ -130,6 +130,28 @@ impl<const N: usize, const K: usize, S: Space<N> + Copy> Imm<N, K, S> {
         &self.transition
     }
 
+    /// Replaces the switching matrix and the model probabilities (e.g. when the set of
+    /// models in force changes: a model given probability 0 and no transition into it drops
+    /// out of the mixture). The model-matched filters keep their estimates.
+    ///
+    /// # Errors
+    /// `mu` or a row of `transition` not a probability vector (finite, non-negative,
+    /// summing to 1); nothing is changed then.
+    pub fn set_structure(
+        &mut self,
+        transition: SMatrix<f64, K, K>,
+        mu: [f64; K],
+    ) -> Result<(), UkfError> {
+        check_probabilities(&mu)?;
+        for i in 0..K {
+            let row: [f64; K] = core::array::from_fn(|j| transition[(i, j)]);
+            check_probabilities(&row)?;
+        }
+        self.transition = transition;
+        self.mu = mu;
+        Ok(())
+    }
+
     /// The combined (probability-weighted) estimate: mean and covariance, see the module
     /// documentation.
     pub fn estimate(&self) -> (SVector<f64, N>, SMatrix<f64, N, N>) {

@@ -162,6 +162,28 @@ fn invalid_probabilities_are_rejected() {
     assert!(sojourn_transition::<2>(0.1, f64::NAN).is_err());
 }
 
+#[test]
+fn the_structure_can_be_replaced_and_a_dropped_model_stays_out() {
+    let mut imm = imm();
+    let before = imm;
+    // A bad row or bad probabilities change nothing.
+    let bad = Matrix2::new(0.9, 0.2, 0.1, 0.9);
+    assert!(imm.set_structure(bad, [0.5, 0.5]).is_err());
+    assert!(imm.set_structure(Matrix2::identity(), [0.7, 0.7]).is_err());
+    assert_eq!(imm, before);
+    // Model 1 dropped: probability 0 and no transition into it.
+    let pi = Matrix2::new(1.0, 0.0, 1.0, 0.0);
+    imm.set_structure(pi, [1.0, 0.0]).unwrap();
+    assert_eq!(imm.transition(), &pi);
+    for k in 1..=20 {
+        let y = Vector1::new(DT * f64::from(k));
+        let report = imm
+            .step(f, &q(), &y, h, &Matrix1::new(1e-3), &Euclidean)
+            .unwrap();
+        assert_eq!(report.probabilities, [1.0, 0.0]);
+    }
+}
+
 proptest! {
     /// With all the probability on model 0 and no switching, the IMM is exactly model 0's
     /// filter (model 1 never mixes in).

@@ -6,8 +6,9 @@
 //! ```
 //! Environment overrides of the IMM tuning (for the measurements of
 //! `docs/dukf-reproduction.md`): `JERK`, `SOJOURN`, `HELD` (held-rate std), `MU0`, `FQ`
-//! (formation q), `DESIGN=dual`, `FOLLOWER=1` (tell the IMM the follower's controller,
-//! measurement 11).
+//! (formation q), `CFQ` (formation q of model B with the controller known), `DESIGN=dual`,
+//! `FOLLOWER=0` (do not tell the IMM the follower's controller: the model set of
+//! measurements 9-10; it is told by default, as in `reproduce dukf`).
 #![allow(clippy::unwrap_used)]
 
 use formation_sim::reproduce::{Baseline, Reproduction, baseline, run_filter_with};
@@ -43,6 +44,9 @@ fn tune(cfg: &mut FilterConfig) {
     if let Some(q) = env("FQ") {
         t.imm.formation_q = Vector3::new(q, q, q);
     }
+    if let Some(q) = env("CFQ") {
+        t.imm.controlled_formation_q = Vector3::new(q, q, q);
+    }
     if std::env::var("DESIGN").is_ok_and(|d| d == "dual") {
         t.design = FilterDesign::Dual;
     }
@@ -66,7 +70,8 @@ fn report(label: &str, runs: &[(Scenario, FilterConfig)]) {
     let mut rows = vec![];
     let (mut rw, mut cv) = (vec![], vec![]);
     for (s, cfg) in runs {
-        let run = run_filter_with(s, cfg, std::env::var("FOLLOWER").is_ok()).unwrap();
+        let run =
+            run_filter_with(s, cfg, std::env::var("FOLLOWER").map_or(true, |v| v != "0")).unwrap();
         let x0 = [cfg.x0[3], cfg.x0[4], cfg.x0[5]];
         rw.push(baseline(s, &x0, Baseline::RANDOM_WALK));
         cv.push(baseline(s, &x0, Baseline::CONSTANT_VELOCITY));

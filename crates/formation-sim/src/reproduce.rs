@@ -240,8 +240,11 @@ pub struct Reproduction {
 
 /// Runs the formation filter over a simulated scenario: the filter starts at `t = 0` from
 /// its configured prior, and at every later frame `k` takes the follower's inputs applied
-/// over `(t_{k-1}, t_k]` and the measurement at `t_k`. Then the offline smoother runs over the
-/// recorded pass (see [`Reproduction::smoothed_records`]).
+/// over `(t_{k-1}, t_k]`, the follower's controller in force over that step (the follower
+/// knows its own controller: [`FormationFilter::set_follower_controller`],
+/// [`Sample::controller`](crate::scenario::Sample::controller); the IMM's model B uses it,
+/// the dual UKF ignores it) and the measurement at `t_k`. Then the offline smoother runs over
+/// the recorded pass (see [`Reproduction::smoothed_records`]).
 ///
 /// # Errors
 /// Any [`ReproduceError`].
@@ -249,13 +252,13 @@ pub fn run_filter(
     scenario: &Scenario,
     config: &FilterConfig,
 ) -> Result<Reproduction, ReproduceError> {
-    run_filter_with(scenario, config, false)
+    run_filter_with(scenario, config, true)
 }
 
-/// As [`run_filter`]; with `follower_controller`, the filter is also told the follower's
-/// controller in force at every frame ([`FormationFilter::set_follower_controller`],
-/// [`Sample::controller`](crate::scenario::Sample::controller)), which the IMM's models B and
-/// C then use (`docs/dukf-reproduction.md`, measurement 11).
+/// As [`run_filter`]; with `follower_controller = false` the filter is *not* told the
+/// follower's controller, so the IMM's models B and C assume an exactly held formation (the
+/// model set before the controller was wired; `docs/dukf-reproduction.md`, measurements
+/// 10-12).
 ///
 /// # Errors
 /// Any [`ReproduceError`].
@@ -274,7 +277,7 @@ pub fn run_filter_with(
         let (prev, now) = (&pair[0], &pair[1]);
         if follower_controller {
             // The follower knows its own controller: the IMM's models B and C use it.
-            filter.set_follower_controller(Some(prev.controller));
+            filter.set_follower_controller(Some(prev.controller))?;
         }
         filter.step(&now.measurement, &r, prev.follower_inputs)?;
         history.push(filter.record(prev.follower_inputs, Some((now.measurement, r))));

@@ -4,7 +4,8 @@
 //! filters (crate `dukf`).
 //!
 //! The IMM is better on every reference figure (`docs/dukf-reproduction.md`) and is what
-//! `reproduce dukf` and the tracker (`TrackerConfig::reference`) run; the offline smoother
+//! `reproduce dukf` (told the follower's controller) and the tracker (`TrackerConfig::reference`;
+//! told the controller only through `Tracker::set_follower_controller`) run; the offline smoother
 //! ([`FormationFilter::smooth`]) follows the design that recorded the history.
 //!
 //! [`FormationFilter`] is the piece the tracker reuses per leader. It is fed the measurement
@@ -27,10 +28,18 @@
 //!   (a set-point step) while holding the bearing.
 //!
 //! The switching matrix has one constant, the mean time a model stays in force
-//! ([`ImmTuning::sojourn`], `Pi_jj = exp(-dt / sojourn)`). The follower knows that its own
-//! controller is holding the formation: models B and C use that knowledge, model A does not
-//! need it. `docs/dukf-reproduction.md` has the measurements.
+//! ([`ImmTuning::sojourn`], `Pi_jj = exp(-dt / sojourn)`).
 //!
+//! **With the follower's controller known** ([`FormationFilter::set_follower_controller`], as
+//! `reproduce dukf` runs it) the model set changes: B takes the leader velocity under which the
+//! formation moves as the controller commands ([`controlled_formation_velocity`]), with no held
+//! random walk (only the integrator's error, [`ImmTuning::controlled_formation_q`]); C, which
+//! covered set-point changes that B now models, is dropped; and B does not switch out, while A
+//! hands over to B at the sojourn rate. Each of these rules removes one cause of the
+//! under-confidence measured before (`docs/dukf-reproduction.md`, measurement 12): a held random
+//! walk sized for the mismatch the controller now models, a formation noise far above the
+//! integrator's error, and wide improbable models dominating the mixture's covariance.
+
 //! # The dual UKF and the parameter uncertainty in its state prediction
 //! A state filter over `x` and a parameter filter over `w = [v1, w1]` (a random walk with
 //! [`FilterTuning::rr`]). In the plain dual filter the state filter treats `w^` as exact, so
@@ -154,6 +163,12 @@ pub struct ImmTuning {
     /// deviation `held_rate_std * dt` (m, rad), i.e. a drift of the held formation at up to
     /// about `held_rate_std` (`[m/s, rad/s]`).
     pub held_rate_std: Vector2<f64>,
+    /// Process noise per step on `[l12, alpha12, beta12]` in model B while the follower's
+    /// controller is known ([`FormationFilter::set_follower_controller`]): B's prediction is
+    /// then exact but for the integrator, whose error in one RK4 step is about
+    /// `l12 (k dt)^5 / 120` (4e-10 m with the controller gain `k = 1 /s` at 30 Hz); this is
+    /// that error rounded up, not a motion (`docs/dukf-reproduction.md`, measurement 12).
+    pub controlled_formation_q: Vector3<f64>,
     /// Mean time a model stays in force, seconds (the switching matrix is
     /// `Pi_jj = exp(-dt / sojourn)`).
     pub sojourn: f64,
@@ -165,14 +180,16 @@ pub struct ImmTuning {
 impl ImmTuning {
     /// The reference settings: `jerk = [0.5, 0.5]` (about twice the largest jerk of any
     /// fixture's leader), `acceleration_std = [0.2, 0.2]`, `formation_q = 1e-9` each,
-    /// `held_rate_std = [0.01, 0.01]` (1 cm/s, 0.01 rad/s), `sojourn = 20 s`, `mu0_a = 0.5`
-    /// (the other two models share the rest).
+    /// `held_rate_std = [0.01, 0.01]` (1 cm/s, 0.01 rad/s), `controlled_formation_q = 1e-18`
+    /// each (1 nm, 1 nrad per step), `sojourn = 20 s`, `mu0_a = 0.5` (the other two models
+    /// share the rest).
     pub fn reference() -> Self {
         Self {
             jerk: Vector2::new(0.5, 0.5),
             acceleration_std: Vector2::new(0.2, 0.2),
             formation_q: Vector3::new(1e-9, 1e-9, 1e-9),
             held_rate_std: Vector2::new(0.01, 0.01),
+            controlled_formation_q: Vector3::new(1e-18, 1e-18, 1e-18),
             sojourn: 20.0,
             mu0_a: 0.5,
         }
@@ -246,11 +263,16 @@ enum Engine {
     Imm(Box<ImmEngine>),
 }
 
-/// The IMM, its two models' process noises and the measurement space.
+/// The IMM and its models' process noises and switching matrices, for the two model sets:
+/// the follower's controller unknown (B and C hold the formation up to a random walk) or
+/// known (B follows the controller; C, which B then covers, is dropped; B does not switch).
 #[derive(Debug, Clone)]
 struct ImmEngine {
     imm: ImmFilter,
     q: [Matrix10; 3],
+    q_controlled: [Matrix10; 3],
+    transition: Matrix3<f64>,
+    transition_controlled: Matrix3<f64>,
 }
 
 /// The estimates the accessors return, refreshed after every successful step.
@@ -460,6 +482,7 @@ impl ImmEngine {
             && i.formation_q
                 .iter()
                 .chain(i.held_rate_std.iter())
+                .chain(i.controlled_formation_q.iter())
                 .all(|v| v.is_finite())
             && (0.0..=1.0).contains(&i.mu0_a);
         if !finite {
@@ -498,13 +521,51 @@ impl ImmEngine {
         qb[(4, 4)] += (i.held_rate_std[1] * dt).powi(2);
         let mut qc = qa;
         qc[(4, 4)] += (i.held_rate_std[1] * dt).powi(2);
+        // With the follower's controller known, B's formation is predicted exactly but for the
+        // integrator: no held random walk, only the integrator's error.
+        let mut qb_controlled = qa;
+        for k in 0..3 {
+            qb_controlled[(3 + k, 3 + k)] = i.controlled_formation_q[k];
+        }
         let transition = sojourn_transition::<3>(dt, i.sojourn)?;
+        let stay = transition[(0, 0)];
+        #[rustfmt::skip]
+        let transition_controlled = Matrix3::new(
+            stay, 1.0 - stay, 0.0,
+            0.0, 1.0, 0.0,
+            0.0, 1.0, 0.0,
+        );
         let rest = 0.5 * (1.0 - i.mu0_a);
         let imm = Imm::new([ukf, ukf, ukf], [i.mu0_a, rest, rest], transition)?;
         Ok(Self {
             imm,
             q: [qa, qb, qc],
+            q_controlled: [qa, qb_controlled, qa],
+            transition,
+            transition_controlled,
         })
+    }
+
+    /// The models' process noises with the follower's controller known or not.
+    fn noise(&self, controlled: bool) -> &[Matrix10; 3] {
+        if controlled {
+            &self.q_controlled
+        } else {
+            &self.q
+        }
+    }
+
+    /// Switches between the two model sets. To the controlled set: C's probability goes to B
+    /// (B covers what C was for) and B no longer switches; back: the switching matrix of the
+    /// sojourn time, with C re-entering through it.
+    fn set_controlled(&mut self, controlled: bool) -> Result<(), UkfError> {
+        let mu = *self.imm.probabilities();
+        if controlled {
+            self.imm
+                .set_structure(self.transition_controlled, [mu[0], mu[1] + mu[2], 0.0])
+        } else {
+            self.imm.set_structure(self.transition, mu)
+        }
     }
 
     fn snapshot(&self) -> Snapshot {
@@ -608,14 +669,34 @@ impl FormationFilter {
     }
 
     /// Tells the IMM the follower's own separation-bearing controller (gains and current
-    /// set-points) that computes the inputs passed to the next steps: models B and C then take
-    /// the leader velocity under which the formation moves as that controller commands
-    /// ([`controlled_formation_velocity`]) instead of one that holds it exactly. `None` (the
-    /// default) assumes an exactly held formation. Call it again when a set-point changes.
-    /// The dual UKF ignores it. Gains and set-points are used as given (no validation beyond
-    /// what the model's own checks catch).
-    pub fn set_follower_controller(&mut self, controller: Option<ControllerConfig>) {
+    /// set-points) that computes the inputs passed to the next steps; `reproduce dukf` does,
+    /// from the scenario. Model B then takes the leader velocity under which the formation
+    /// moves as that controller commands ([`controlled_formation_velocity`]) instead of one
+    /// that holds it exactly, with no held random walk (only
+    /// [`ImmTuning::controlled_formation_q`]); model C, which covered set-point changes that
+    /// B now models, is dropped (its probability goes to B); and B does not switch out (the
+    /// follower's controller is its own knowledge, not a behaviour that ends): model A
+    /// competes from its initial probability and hands over to B at the sojourn rate.
+    /// `None` (the default) assumes an exactly held formation and restores the three-model
+    /// switching. Call it again when a set-point changes. The dual UKF ignores it. Gains and
+    /// set-points are used as given (no validation beyond what the model's own checks catch).
+    ///
+    /// # Errors
+    /// Only if the model probabilities were not a probability vector (they always are); the
+    /// filter is then unchanged.
+    pub fn set_follower_controller(
+        &mut self,
+        controller: Option<ControllerConfig>,
+    ) -> Result<(), FilterError> {
+        if let Engine::Imm(engine) = &mut self.engine
+            && controller.is_some() != self.follower.is_some()
+        {
+            engine.set_controlled(controller.is_some())?;
+            self.model_probabilities = Some(*engine.imm.probabilities());
+            self.snapshot = engine.snapshot();
+        }
         self.follower = controller;
+        Ok(())
     }
 
     /// One frame with a measurement `y = [l12, alpha12, beta12]` of noise covariance `r`;
@@ -651,9 +732,10 @@ impl FormationFilter {
             }
             Engine::Imm(engine) => {
                 check_inputs(&u)?;
+                let q = *engine.noise(self.follower.is_some());
                 let result = engine.imm.step(
                     imm_process(&self.model, &u, self.dt, self.follower, &failure),
-                    &engine.q,
+                    &q,
                     y,
                     |z| Vector3::new(z[3], z[4], z[5]),
                     r,
@@ -689,9 +771,10 @@ impl FormationFilter {
             }
             Engine::Imm(engine) => {
                 check_inputs(&u)?;
+                let q = *engine.noise(self.follower.is_some());
                 let result = engine.imm.predict_only(
                     imm_process(&self.model, &u, self.dt, self.follower, &failure),
-                    &engine.q,
+                    &q,
                 );
                 let report = outcome(result, &failure)?;
                 self.snapshot = engine.snapshot();
@@ -729,6 +812,23 @@ impl FormationFilter {
                     f.covariance().fixed_view::<2, 2>(6, 6).into_owned(),
                 )
             })),
+        }
+    }
+
+    /// The IMM's per-model estimates of the joint state `[x1, y1, theta1, l12, alpha12,
+    /// beta12, v1, w1, a_v, a_w]` and their covariances, in the order of
+    /// [`model_probabilities`](Self::model_probabilities) (`None` for the dual UKF): what the
+    /// combined estimate mixes, for diagnosing its consistency model by model.
+    pub fn model_estimates(&self) -> Option<[(SVector<f64, 10>, SMatrix<f64, 10, 10>); 3]> {
+        match &self.engine {
+            Engine::Dual(_) => None,
+            Engine::Imm(engine) => Some(
+                engine
+                    .imm
+                    .filters()
+                    .each_ref()
+                    .map(|f| (*f.state(), *f.covariance())),
+            ),
         }
     }
 
@@ -978,6 +1078,42 @@ mod tests {
     }
 
     #[test]
+    fn a_known_controller_drops_model_c_and_stops_the_switching_out_of_b() {
+        let mut cfg = config();
+        cfg.tuning.design = FilterDesign::Imm;
+        let mut f = FormationFilter::new(&cfg).unwrap();
+        let goal = ControllerConfig {
+            l12_desired: 1.03,
+            alpha12_desired: 0.245,
+            k_l: 1.0,
+            k_alpha: 1.0,
+            max_v: None,
+            max_w: None,
+        };
+        assert_eq!(f.model_probabilities(), Some([0.5, 0.25, 0.25]));
+        f.set_follower_controller(Some(goal)).unwrap();
+        // C's probability went to B; the estimate is unchanged (all models start alike).
+        assert_eq!(f.model_probabilities(), Some([0.5, 0.5, 0.0]));
+        let y = Vector3::new(1.03, 0.245, 0.245);
+        for _ in 0..30 {
+            f.set_follower_controller(Some(goal)).unwrap();
+            f.step(&y, &r(), Inputs::new(0.8, 0.0)).unwrap();
+            let mu = f.model_probabilities().unwrap();
+            assert_eq!(mu[2], 0.0, "{mu:?}");
+            assert!((mu.iter().sum::<f64>() - 1.0).abs() < 1e-12, "{mu:?}");
+        }
+        // Back to the three-model switching: C re-enters through the switching matrix.
+        f.set_follower_controller(None).unwrap();
+        f.step(&y, &r(), Inputs::new(0.8, 0.0)).unwrap();
+        assert!(f.model_probabilities().unwrap()[2] > 0.0);
+        // The dual UKF ignores the controller.
+        let mut dual = filter();
+        dual.set_follower_controller(Some(goal)).unwrap();
+        assert_eq!(dual.model_probabilities(), None);
+        dual.step(&y, &r(), Inputs::new(0.8, 0.0)).unwrap();
+    }
+
+    #[test]
     fn bad_imm_settings_are_errors() {
         let imm = || {
             let mut cfg = config();
@@ -992,6 +1128,9 @@ mod tests {
         assert!(FormationFilter::new(&cfg).is_err());
         let mut cfg = imm();
         cfg.tuning.imm.jerk[0] = f64::NAN;
+        assert!(FormationFilter::new(&cfg).is_err());
+        let mut cfg = imm();
+        cfg.tuning.imm.controlled_formation_q[1] = f64::INFINITY;
         assert!(FormationFilter::new(&cfg).is_err());
     }
 

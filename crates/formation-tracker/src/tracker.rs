@@ -99,7 +99,7 @@ pub use smooth::SmoothedLeader;
 use std::collections::BTreeMap;
 
 use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, Vector2, Vector3};
-use unicycle::{Formation, Inputs, PolarState, wrap_angle};
+use unicycle::{ControllerConfig, Formation, Inputs, PolarState, wrap_angle};
 
 use crate::filter::{FilterError, FormationFilter};
 use crate::mount::{
@@ -178,6 +178,9 @@ pub struct Tracker {
     /// Per robot, the pooled corner noise of its recent pose solves (see
     /// [`TrackerConfig::corner_noise_memory_dof`]).
     corner_noise: BTreeMap<u32, CornerNoise>,
+    /// Per leader, the follower's own controller towards it, if told
+    /// ([`set_follower_controller`](Self::set_follower_controller)).
+    controllers: BTreeMap<u32, ControllerConfig>,
 }
 
 /// A pooled estimate of the detector's corner noise: the sums of the squared reprojection
@@ -232,7 +235,25 @@ impl Tracker {
             recording: false,
             finished: Vec::new(),
             corner_noise: BTreeMap::new(),
+            controllers: BTreeMap::new(),
         })
+    }
+
+    /// Tells the tracker the follower's own separation-bearing controller towards the leader
+    /// `robot` (gains and current set-points; `None`: not known, the default). From the next
+    /// [`update`](Self::update) on, that leader's track filters with the IMM's controlled
+    /// model set ([`FormationFilter::set_follower_controller`]; `docs/dukf-reproduction.md`,
+    /// measurements 11-13); call it again when a set-point changes. The dual UKF ignores it.
+    /// Frames do not carry the controller, so a track is only told what is set here.
+    pub fn set_follower_controller(&mut self, robot: u32, controller: Option<ControllerConfig>) {
+        match controller {
+            Some(c) => {
+                self.controllers.insert(robot, c);
+            }
+            None => {
+                self.controllers.remove(&robot);
+            }
+        }
     }
 
     /// Turns recording for [`smooth`](Self::smooth) on or off (off by default). While on,
@@ -294,6 +315,14 @@ impl Tracker {
     pub fn update(&mut self, frame: &FrameInput) -> Result<FrameReport, TrackerError> {
         let t = frame.t;
         self.check_frame(frame)?;
+        // Each track's filters take the follower's controller towards its leader, as told.
+        for (robot, track) in &mut self.tracks {
+            let controller = self.controllers.get(robot).copied();
+            track.main.filter.set_follower_controller(controller)?;
+            if let Some(rival) = &mut track.rival {
+                rival.filter.set_follower_controller(controller)?;
+            }
+        }
         let dt = self.config.filter.dt;
         let steps = match self.last_t {
             Some(prev) => (((t - prev) / dt).round() as u64).max(1),

@@ -33,8 +33,9 @@ enum What {
     /// 8 s at 30 Hz), measures (l12, alpha12, beta12) with Gaussian noise of standard
     /// deviations (0.07 m, 0.03 rad, 0.03 rad), and filters from the paper's x0 = [1.5,
     /// 0.25, 0, 1.047, 0.233, 0.232], w0 = [0, 0], Pw0 = I with the formation filter: the
-    /// IMM of a constant-acceleration leader and a held formation (default) or, with
-    /// --dual, the paper's dual UKF.
+    /// IMM of a constant-acceleration leader and a formation moving as the follower's own
+    /// controller commands (default; the filter is told the controller's gains and
+    /// set-points) or, with --dual, the paper's dual UKF.
     ///
     /// Writes into DIR: series.csv (one row per step: true / measured / estimated
     /// l12, alpha12, beta12 and true / estimated v1, w1), fig12.svg + fig12.png (l12 and

@@ -66,8 +66,8 @@ use std::cell::Cell;
 use dukf::{AngleMask, Gaussian, RtsSmoother, Ukf, UkfError};
 use nalgebra::{Matrix2, Matrix3, SMatrix, SVector, Vector2, Vector3};
 use unicycle::{
-    Formation, Inputs, MEASUREMENT_ANGLES, PolarModel, PolarState, STATE_ANGLES, UnicycleError,
-    wrap_angle,
+    ControllerConfig, Formation, Inputs, MEASUREMENT_ANGLES, PolarModel, PolarState, STATE_ANGLES,
+    UnicycleError, wrap_angle,
 };
 
 use super::{
@@ -103,6 +103,10 @@ pub struct FilterStep {
     /// The IMM's model probabilities after the step (`None` for the dual UKF); the IMM
     /// smoother's forward pass mixes the models' transitions with them.
     pub model_probabilities: Option<[f64; 3]>,
+    /// The follower's controller the filter was told for the step that ended here
+    /// ([`FormationFilter::set_follower_controller`]; `None` if not told): the IMM
+    /// smoother's forward pass predicts that step with it, set-point changes included.
+    pub controller: Option<ControllerConfig>,
 }
 
 /// One smoothed step: the estimate of the state and the leader velocities given the whole
@@ -158,6 +162,7 @@ impl FormationFilter {
             velocity_covariance: self.snapshot.velocity_covariance,
             joint: self.snapshot.joint,
             model_probabilities: self.model_probabilities,
+            controller: self.follower,
         }
     }
 
@@ -289,15 +294,16 @@ impl FormationFilter {
                 .unwrap_or([1.0, 0.0, 0.0])
         };
         let failure: Cell<Option<UnicycleError>> = Cell::new(None);
-        // The follower's controller as last set (`set_follower_controller`, opt-in, `None` by
-        // default): the history does not record its set-point changes.
-        let (model, dt, follower) = (&self.model, self.dt, self.follower);
+        // The follower's controller each step was predicted with, as recorded (set-point
+        // changes included; `None` where the filter was not told it).
+        let (model, dt) = (&self.model, self.dt);
+        let controller = |k: usize| history.get(k + 1).and_then(|s| s.controller);
         let predictions = |k: usize, z: &Joint| -> [Joint; 3] {
             let u: Vector2<f64> = history
                 .get(k + 1)
                 .map_or(Inputs::new(0.0, 0.0), |s| s.inputs)
                 .into();
-            let mut f = imm_process(model, &u, dt, follower, &failure);
+            let mut f = imm_process(model, &u, dt, controller(k), &failure);
             [f(0, z), f(1, z), f(2, z)]
         };
         let wrapped = |mut d: Joint| -> Joint {
@@ -324,7 +330,7 @@ impl FormationFilter {
             let mut q = Matrix10::zeros();
             for j in 0..3 {
                 let d = wrapped(outs[j] - mean);
-                q += (engine.q[j] + d * d.transpose()) * p[j];
+                q += (engine.noise(controller(k).is_some())[j] + d * d.transpose()) * p[j];
             }
             (q + q.transpose()) * 0.5
         };
