@@ -111,6 +111,13 @@ const RATIOS: &[(&str, &str, f64, &str)] = &[
         "noisy scene (sigma 10) vs the same scene clean",
     ),
     (
+        "fiducial/detect_640x480",
+        "fiducial/detect_640x480_no_side_check",
+        1.2,
+        "the default detector vs the same without the occlusion checks (`DetectorConfig::side_check`, #16): \
+         they may cost a fifth of the frame at most",
+    ),
+    (
         "cli/bag_read_16_frames",
         "cli/pipeline_16_frames",
         0.10,
