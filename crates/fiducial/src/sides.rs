@@ -594,7 +594,11 @@ mod tests {
             (-2.0, 0.022_750_132),
             (4.0, 0.999_968_329),
         ] {
-            assert!((normal_cdf(x) - p).abs() < 1e-7, "Phi({x}) = {}", normal_cdf(x));
+            assert!(
+                (normal_cdf(x) - p).abs() < 1e-7,
+                "Phi({x}) = {}",
+                normal_cdf(x)
+            );
             assert!((normal_cdf(-x) - (1.0 - p)).abs() < 1e-7);
         }
         assert!(normal_cdf(f64::NAN).is_nan());
