@@ -41,9 +41,16 @@
 //! the three checks drop 83-86 % (the side check alone: 11-13 %); the deepest cut that
 //! passed hid its corner 3.1 px deep, and its corners were at most 1.9 px off. Of the 907
 //! whole faces in the same scenes and the 56 tags of the real Duckietown frames, none was
-//! dropped. What remains: on
-//! markers over about 70 px the lens allowance lets a corner sliced off along a side pass,
-//! no further off than the cut is deep (`tests/side_check.rs`).
+//! dropped. What remains (`tests/side_check.rs`):
+//! - a board whose edge runs along a side at a slant, cutting the corner at one end, where
+//!   every data cell next to that side is dark: the side gives no inner-edge evidence, the
+//!   quad's side runs along the board's edge, and the corner slides to where that edge
+//!   meets the next side, its border cell still dark (on markers of 36-90 px, corners up to
+//!   12 px off, never further than the board hides the corner);
+//! - a dark grey board (about 0.2 of the contrast above the border) is under
+//!   [`SideCheck::min_step`] for the outer-edge check;
+//! - on markers over about 70 px the lens allowance lets a corner sliced off along a side
+//!   pass, no further off than the cut is deep.
 //!
 //! No allocation: every buffer is a fixed array.
 
