@@ -13,35 +13,13 @@
 
 use formation_sim::scenario::{Scenario, ScenarioConfig, simulate};
 use formation_sim::scenario_file::ScenarioSpec;
-use formation_tracker::filter::{
-    FilterConfig, FilterDesign, FormationFilter, formation_holding_velocity,
-};
-use nalgebra::{Vector2, Vector3};
+use formation_tracker::filter::{FilterConfig, FormationFilter, formation_holding_velocity};
+use nalgebra::Vector2;
 use unicycle::PolarModel;
 
-fn env(name: &str) -> Option<f64> {
-    std::env::var(name).ok().and_then(|v| v.parse().ok())
-}
-
-fn tune(cfg: &mut FilterConfig) {
-    let t = &mut cfg.tuning;
-    t.design = FilterDesign::Imm;
-    if let Some(j) = env("JERK") {
-        t.imm.jerk = Vector2::new(j, j);
-    }
-    if let Some(s) = env("SOJOURN") {
-        t.imm.sojourn = s;
-    }
-    if let Some(h) = env("HELD") {
-        t.imm.held_rate_std = Vector2::new(h, h);
-    }
-    if let Some(m) = env("MU0") {
-        t.imm.mu0_a = m;
-    }
-    if let Some(q) = env("FQ") {
-        t.imm.formation_q = Vector3::new(q, q, q);
-    }
-}
+#[path = "common/imm_tuning.rs"]
+mod imm_tuning;
+use imm_tuning::tune;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();

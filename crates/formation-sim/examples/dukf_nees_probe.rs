@@ -18,39 +18,13 @@
 
 use formation_sim::scenario::{Scenario, ScenarioConfig, simulate};
 use formation_sim::scenario_file::ScenarioSpec;
-use formation_tracker::filter::{FilterConfig, FilterDesign, FormationFilter};
+use formation_tracker::filter::{FilterConfig, FormationFilter};
 use nalgebra::{SMatrix, SVector, Vector2, Vector3};
 use unicycle::{PolarModel, wrap_angle};
 
-fn env(name: &str) -> Option<f64> {
-    std::env::var(name).ok().and_then(|v| v.parse().ok())
-}
-
-fn tune(cfg: &mut FilterConfig) {
-    let t = &mut cfg.tuning;
-    t.design = FilterDesign::Imm;
-    if let Some(j) = env("JERK") {
-        t.imm.jerk = Vector2::new(j, j);
-    }
-    if let Some(s) = env("SOJOURN") {
-        t.imm.sojourn = s;
-    }
-    if let Some(h) = env("HELD") {
-        t.imm.held_rate_std = Vector2::new(h, h);
-    }
-    if let Some(m) = env("MU0") {
-        t.imm.mu0_a = m;
-    }
-    if let Some(q) = env("FQ") {
-        t.imm.formation_q = Vector3::new(q, q, q);
-    }
-    if let Some(q) = env("CFQ") {
-        t.imm.controlled_formation_q = Vector3::new(q, q, q);
-    }
-    if let Some(a) = env("UT_ALPHA") {
-        t.ut.alpha = a;
-    }
-}
+#[path = "common/imm_tuning.rs"]
+mod imm_tuning;
+use imm_tuning::{env, tune};
 
 /// `[e_i^2 / P_ii for l12, alpha12, beta12, v1, w1, NEES formation, NEES velocity, e_l^2,
 /// P_ll]` of one estimate.
