@@ -324,10 +324,12 @@ fn corner_levels(
     out: &mut SideOffsets,
 ) -> [f64; 4] {
     let mut leaks = [0.0f64; 4];
-    let at = |x: f64, y: f64| -> Option<f64> {
-        let q = frame.map(-1.0 + 2.0 * x / wc, -1.0 + 2.0 * y / hc)?;
-        inside(img, q.x, q.y).then(|| bilinear(img, q.x, q.y))
-    };
+    // A point `(x, y)` cells from the marker's NW corner, in the image.
+    let point = |x: f64, y: f64| frame.map(-1.0 + 2.0 * x / wc, -1.0 + 2.0 * y / hc);
+    // The grey level there (`None` outside the frame).
+    let level_at =
+        |q: nalgebra::Point2<f64>| inside(img, q.x, q.y).then(|| bilinear(img, q.x, q.y));
+    let at = |x: f64, y: f64| point(x, y).and_then(level_at);
     // The border's black: the median of its cells other than the corners.
     let mut border = [0.0f64; 4 * MAX_CELLS];
     let mut n = 0;
@@ -364,7 +366,6 @@ fn corner_levels(
         // The corner and its two sides' lines in the image: a sample's distances from
         // them (perpendicular, so a sheared quad's narrow cells count as narrow) are what
         // the blur spans.
-        let point = |x: f64, y: f64| frame.map(-1.0 + 2.0 * x / wc, -1.0 + 2.0 * y / hc);
         let (Some(c), Some(ex), Some(ey)) = (point(cx, cy), point(wc - cx, cy), point(cx, hc - cy))
         else {
             continue;
@@ -384,7 +385,10 @@ fn corner_levels(
         for du in CORNER_SAMPLES {
             for dv in CORNER_SAMPLES {
                 let (x, y) = (cx + du * sx, cy + dv * sy);
-                let (Some(v), Some(q)) = (at(x, y), point(x, y)) else {
+                let Some(q) = point(x, y) else {
+                    continue;
+                };
+                let Some(v) = level_at(q) else {
                     continue;
                 };
                 sum += v;
@@ -442,6 +446,26 @@ fn outer_edges(
         if let (Some(p), Some(q)) = (end0, end1) {
             *side_length = (q - p).norm();
         }
+        // The side's unit normal, pointing into the quad (the grid's direction across the
+        // side, at its middle): an inset is a distance along it from the side's line.
+        let normal = {
+            let (a0, b0) = to_ab(0.0, 0.5 * along);
+            let (a1, b1) = to_ab(1.0, 0.5 * along);
+            let (Some(e0), Some(e1), Some(p0), Some(p1)) =
+                (end0, end1, frame.map(a0, b0), frame.map(a1, b1))
+            else {
+                continue;
+            };
+            let Some(dir) = (e1 - e0).try_normalize(1e-9) else {
+                continue;
+            };
+            let normal = nalgebra::Vector2::new(-dir.y, dir.x);
+            if normal.dot(&(p1 - p0)) < 0.0 {
+                -normal
+            } else {
+                normal
+            }
+        };
         // The two border cells at each end: a cut corner's inset is largest there (the
         // middle of a side cut along its length is the inner edge's business).
         let cells = along as usize;
@@ -472,26 +496,11 @@ fn outer_edges(
             };
             let f = (prof[j] - level) / (prof[j] - prof[j + 1]);
             let u = UO + (UI - UO) * (j as f64 + f) / (N - 1) as f64;
-            let (a0, b0) = to_ab(0.0, v);
-            let (a1, b1) = to_ab(1.0, v);
-            let (Some(p0), Some(p1)) = (frame.map(a0, b0), frame.map(a1, b1)) else {
-                continue;
-            };
             let (a, b) = to_ab(u, v);
-            let (Some(q), Some(e0), Some(e1)) = (frame.map(a, b), end0, end1) else {
+            let (Some(q), Some(e0)) = (frame.map(a, b), end0) else {
                 continue;
             };
             // Signed distance from the side's line, positive into the quad.
-            let Some(dir) = (e1 - e0).try_normalize(1e-9) else {
-                continue;
-            };
-            let into = p1 - p0;
-            let normal = nalgebra::Vector2::new(-dir.y, dir.x);
-            let normal = if normal.dot(&into) < 0.0 {
-                -normal
-            } else {
-                normal
-            };
             offs[n] = (q - e0).dot(&normal);
             n += 1;
         }
