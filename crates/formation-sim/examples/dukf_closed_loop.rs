@@ -18,26 +18,18 @@
 #![allow(clippy::unwrap_used)]
 
 use formation_sim::reproduce::{Baseline, baseline, paper_filter_config_with, run_filter};
+use formation_sim::scenario::reference_leader_inputs;
 use formation_sim::scenario::{PAPER_X0, Sample, Scenario, ScenarioConfig};
 use formation_tracker::filter::FilterDesign;
 use formation_tracker::filter::FormationFilter;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use unicycle::{
-    ControllerConfig, Formation, Inputs, PolarModel, SeparationBearingController, wrap_angle,
-};
+use unicycle::{ControllerConfig, Formation, PolarModel, SeparationBearingController, wrap_angle};
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    0.5 * (v[(n - 1) / 2] + v[n / 2])
-}
-
-/// The reference leader inputs (as `scenario::reference_leader_inputs`).
-fn leader_inputs(t: f64) -> Inputs {
-    Inputs::new(0.8 + 0.2 * (0.5 * t).sin(), 0.2 * (0.4 * t).sin())
-}
+#[path = "common/median.rs"]
+mod median;
+use median::median;
 
 /// Simulates the reference scenario with the dual UKF in the follower's control loop.
 fn closed_loop(seed: u64) -> Scenario {
@@ -73,7 +65,7 @@ fn closed_loop(seed: u64) -> Scenario {
         if let Some(prev) = samples.last() {
             filter.step(&y, &r, prev.follower_inputs).unwrap();
         }
-        let u1 = leader_inputs(t);
+        let u1 = reference_leader_inputs(t);
         // The controller sees only the filter's estimates.
         let u2 = controller
             .inputs(&filter.formation(), filter.leader_velocity())

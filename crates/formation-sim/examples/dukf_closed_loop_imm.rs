@@ -16,6 +16,7 @@
 
 use formation_sim::reproduce::paper_filter_config;
 use formation_sim::scenario::ScenarioConfig;
+use formation_sim::scenario::reference_leader_inputs;
 use formation_tracker::filter::FormationFilter;
 use nalgebra::Vector2;
 use rand::SeedableRng;
@@ -25,16 +26,9 @@ use unicycle::{
     ControllerConfig, Formation, Inputs, PolarModel, SeparationBearingController, wrap_angle,
 };
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    0.5 * (v[(n - 1) / 2] + v[n / 2])
-}
-
-/// The reference leader inputs (as `scenario::reference_leader_inputs`).
-fn leader_inputs(t: f64) -> Inputs {
-    Inputs::new(0.8 + 0.2 * (0.5 * t).sin(), 0.2 * (0.4 * t).sin())
-}
+#[path = "common/median.rs"]
+mod median;
+use median::median;
 
 /// One closed-loop run: `[mse l12, alpha12, beta12, rms v1, rms w1 after 2 s]` and, per step
 /// after 2 s, `[NIS, formation NEES, velocity NEES]`.
@@ -99,7 +93,7 @@ fn run(seed: u64, told: bool) -> ([f64; 5], Vec<[f64; 3]>) {
                 ]);
             }
         }
-        let u1 = leader_inputs(t);
+        let u1 = reference_leader_inputs(t);
         // The controller sees only the filter's estimates.
         let u2 = controller
             .inputs(&filter.formation(), filter.leader_velocity())

@@ -35,11 +35,9 @@ use formation_sim::scenario::{PAPER_X0, ScenarioConfig, simulate};
 use formation_tracker::filter::FilterDesign;
 use nalgebra::{Matrix2, SMatrix, SVector, Vector2};
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    0.5 * (v[(n - 1) / 2] + v[n / 2])
-}
+#[path = "common/median.rs"]
+mod median;
+use median::median;
 
 /// The scenarios of the seeds (env `SEEDS`, `SCENARIO`, `LEADER`) and the filters' initial state.
 fn scenarios() -> (Vec<formation_sim::scenario::Scenario>, [f64; 6]) {

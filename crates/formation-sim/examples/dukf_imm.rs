@@ -6,8 +6,8 @@
 //! ```
 //! Environment overrides of the IMM tuning (for the measurements of
 //! `docs/dukf-reproduction.md`): `JERK`, `SOJOURN`, `HELD` (held-rate std), `MU0`, `FQ`
-//! (formation q), `CFQ` (formation q of model B with the controller known), `DESIGN=dual`,
-//! `FOLLOWER=0` (do not tell the IMM the follower's controller: the model set of
+//! (formation q), `CFQ` (formation q of model B with the controller known), `UT_ALPHA`,
+//! `DESIGN=dual`, `FOLLOWER=0` (do not tell the IMM the follower's controller: the model set of
 //! measurements 9-10; it is told by default, as in `reproduce dukf`).
 #![allow(clippy::unwrap_used)]
 
@@ -15,40 +15,19 @@ use formation_sim::reproduce::{Baseline, Reproduction, baseline, run_filter_with
 use formation_sim::scenario::{Scenario, ScenarioConfig, simulate};
 use formation_sim::scenario_file::ScenarioSpec;
 use formation_tracker::filter::{FilterConfig, FilterDesign};
-use nalgebra::{Vector2, Vector3};
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    0.5 * (v[(n - 1) / 2] + v[n / 2])
-}
+#[path = "common/median.rs"]
+mod median;
+use median::median;
 
-fn env(name: &str) -> Option<f64> {
-    std::env::var(name).ok().and_then(|v| v.parse().ok())
-}
+#[path = "common/imm_tuning.rs"]
+mod imm_tuning;
 
+/// The IMM knobs of the environment, and `DESIGN=dual` for the dual UKF.
 fn tune(cfg: &mut FilterConfig) {
-    let t = &mut cfg.tuning;
-    if let Some(j) = env("JERK") {
-        t.imm.jerk = Vector2::new(j, j);
-    }
-    if let Some(s) = env("SOJOURN") {
-        t.imm.sojourn = s;
-    }
-    if let Some(h) = env("HELD") {
-        t.imm.held_rate_std = Vector2::new(h, h);
-    }
-    if let Some(m) = env("MU0") {
-        t.imm.mu0_a = m;
-    }
-    if let Some(q) = env("FQ") {
-        t.imm.formation_q = Vector3::new(q, q, q);
-    }
-    if let Some(q) = env("CFQ") {
-        t.imm.controlled_formation_q = Vector3::new(q, q, q);
-    }
+    imm_tuning::tune(cfg);
     if std::env::var("DESIGN").is_ok_and(|d| d == "dual") {
-        t.design = FilterDesign::Dual;
+        cfg.tuning.design = FilterDesign::Dual;
     }
 }
 
