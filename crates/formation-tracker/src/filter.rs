@@ -555,6 +555,17 @@ impl ImmEngine {
         }
     }
 
+    /// The IMM and [`ImmEngine::noise`], borrowed apart, so that a step needs no copy of the
+    /// noises.
+    fn filter_and_noise(&mut self, controlled: bool) -> (&mut ImmFilter, &[Matrix10; 3]) {
+        let q = if controlled {
+            &self.q_controlled
+        } else {
+            &self.q
+        };
+        (&mut self.imm, q)
+    }
+
     /// Switches between the two model sets. To the controlled set: C's probability goes to B
     /// (B covers what C was for) and B no longer switches; back: the switching matrix of the
     /// sojourn time, with C re-entering through it.
@@ -732,10 +743,10 @@ impl FormationFilter {
             }
             Engine::Imm(engine) => {
                 check_inputs(&u)?;
-                let q = *engine.noise(self.follower.is_some());
-                let result = engine.imm.step(
+                let (imm, q) = engine.filter_and_noise(self.follower.is_some());
+                let result = imm.step(
                     imm_process(&self.model, &u, self.dt, self.follower, &failure),
-                    &q,
+                    q,
                     y,
                     |z| Vector3::new(z[3], z[4], z[5]),
                     r,
@@ -771,10 +782,10 @@ impl FormationFilter {
             }
             Engine::Imm(engine) => {
                 check_inputs(&u)?;
-                let q = *engine.noise(self.follower.is_some());
-                let result = engine.imm.predict_only(
+                let (imm, q) = engine.filter_and_noise(self.follower.is_some());
+                let result = imm.predict_only(
                     imm_process(&self.model, &u, self.dt, self.follower, &failure),
-                    &q,
+                    q,
                 );
                 let report = outcome(result, &failure)?;
                 self.snapshot = engine.snapshot();
