@@ -19,15 +19,20 @@
 //! Cholesky factorisation exploits). The
 //! candidate that explains the samples best gives the levels, which are read as
 //! [`crate::decode::read_cells`] reads sampled levels. Hard bit correction is off (as in
-//! the default detector); the soft decision of [`DecodeParams`] applies.
+//! the default detector); the soft decision of [`DecodeParams`] applies. When no reading
+//! matches, the entry whose differing cells have the least summed margin is read if that
+//! sum is small, within the correction radius, and clearly below every other entry's
+//! ([`least_cost_match`]): in a deconvolved reading the cells read wrong are weak ones,
+//! but not always the two weakest.
 
 use nalgebra::{Point2, Vector2};
 
 use crate::cross_ratio::CrossRatioFrame;
 use crate::decode::{
-    CellReading, DecodeParams, Decoded, WhiteReference, match_reading, reading_from_levels,
+    CellReading, DecodeParams, Decoded, WhiteReference, decoded_from_match, match_reading,
+    reading_from_levels,
 };
-use crate::dictionary::Dictionary;
+use crate::dictionary::{Dictionary, Match};
 use crate::family::MarkerFamily;
 use crate::image::{Corners, GrayView};
 
@@ -161,6 +166,9 @@ pub(crate) struct BlurScratch {
     weights: Vec<(u32, f64)>,
     /// Levels of the best candidate so far (and their `k`, misfit).
     best: Vec<f64>,
+    /// The readings of the current quad that matched no entry: dictionary, corner shift,
+    /// reading (for [`least_cost_match`]).
+    unmatched: Vec<(usize, u8, CellReading)>,
     /// Quads whose systems were solved since the count was last reset (diagnostics:
     /// [`crate::Detector::blurred_reads`]).
     pub(crate) solved_quads: usize,
@@ -524,20 +532,219 @@ pub(crate) fn decode_blurred(
             let Some(r) = reading(&scratch.best, k, family, white, &exact) else {
                 continue;
             };
-            if let Some(mut d) = match_reading(corners, s, &r, dict, &exact)
-                && best.is_none_or(|b| d.distance < b.distance)
-            {
-                d.dictionary = di;
-                best = Some(d);
+            match match_reading(corners, s, &r, dict, &exact) {
+                Some(mut d) => {
+                    if best.is_none_or(|b| d.distance < b.distance) {
+                        d.dictionary = di;
+                        best = Some(d);
+                    }
+                }
+                None => scratch.unmatched.push((di, s, r)),
             }
         }
     }
+    if best.is_none() {
+        best = least_cost_match(corners, dictionaries, &scratch.unmatched);
+    }
+    scratch.unmatched.clear();
     best
+}
+
+/// Most summed margin of the cells a [`least_cost_match`] flips (in half contrasts).
+const MAX_FLIP_COST: f64 = 0.4;
+
+/// Least summed margin by which the next best entry's flips must cost more.
+const MIN_FLIP_GAP: f64 = 0.3;
+
+/// The entry that the blurred readings `unmatched` (dictionary, corner shift, reading)
+/// come closest to when a flipped cell costs its margin, if it is clearly the one.
+///
+/// The hard and soft lookups of [`match_reading`] flip at most the two least confident
+/// cells. A cell read from the least-squares levels of a long motion is not independent
+/// of its neighbours, though: the box blur's spectral zero leaves patterns of cell levels
+/// that the samples barely constrain, and the cells that read wrong are then the weak ones
+/// but not always the two weakest. Flipping a cell whose level lies a margin `m` (in half
+/// contrasts) from the threshold costs `m` (the log-likelihood ratio of the two levels
+/// under Gaussian noise, up to a common scale), so the entry whose differing cells cost
+/// least is the most likely one. It is accepted only within the dictionary's correction
+/// radius, at a total cost of at most [`MAX_FLIP_COST`], and when every other entry, under
+/// either grid shift and any turn, costs at least [`MIN_FLIP_GAP`] more: a reading that
+/// could be two entries is not read.
+fn least_cost_match(
+    corners: &Corners,
+    dictionaries: &[Dictionary],
+    unmatched: &[(usize, u8, CellReading)],
+) -> Option<Decoded> {
+    // (cost, position in `unmatched`, match) of the cheapest entry, and the cost of the
+    // cheapest other entry.
+    let mut best: Option<(f64, usize, Match)> = None;
+    let mut second = f64::INFINITY;
+    for (u, (di, _, r)) in unmatched.iter().enumerate() {
+        let Some(dict) = dictionaries.get(*di) else {
+            continue;
+        };
+        let family = dict.family();
+        for (index, rotated) in dict.rotated_codes().iter().enumerate() {
+            // The cheapest turn of this entry.
+            let mut entry: Option<(f64, Match)> = None;
+            for &q in family.symmetries() {
+                let code = rotated[q as usize];
+                let diff = code ^ r.code;
+                let flips = diff.count_ones();
+                let mut cost = 0.0;
+                let mut bits = diff;
+                while bits != 0 {
+                    cost += r.margin(bits.trailing_zeros() as usize);
+                    bits &= bits - 1;
+                }
+                if entry.is_none_or(|(c, _)| cost < c) {
+                    let m = Match {
+                        index,
+                        code: rotated[0],
+                        distance: flips,
+                        rotation: q,
+                    };
+                    entry = Some((cost, m));
+                }
+            }
+            let Some((cost, m)) = entry else {
+                continue;
+            };
+            match best {
+                Some((c, bu, bm)) if cost >= c => {
+                    // The same entry under the other shift is the same reading, not a rival.
+                    if !(bm.index == index && unmatched[bu].0 == *di) {
+                        second = second.min(cost);
+                    }
+                }
+                _ => {
+                    if let Some((c, bu, bm)) = best
+                        && !(bm.index == index && unmatched[bu].0 == *di)
+                    {
+                        second = second.min(c);
+                    }
+                    best = Some((cost, u, m));
+                }
+            }
+        }
+    }
+    let (cost, u, m) = best?;
+    let max_flips = dictionaries
+        .get(unmatched[u].0)
+        .map_or(0, Dictionary::max_correctable);
+    if !(m.distance <= max_flips && cost <= MAX_FLIP_COST && second - cost >= MIN_FLIP_GAP) {
+        return None;
+    }
+    let (di, s, r) = &unmatched[u];
+    let mut d = decoded_from_match(corners, *s, r, &m);
+    d.dictionary = *di;
+    Some(d)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A reading of the paper dictionary's entry `index` (turned `q`) with the cells
+    /// `flipped` read wrong, each cell at the margin given by `margins` (cell, margin; the
+    /// others at margin 1): black 0, white 200.
+    fn reading_of(index: usize, q: u8, flipped: &[usize], margins: &[(usize, f64)]) -> CellReading {
+        let dict = Dictionary::paper();
+        let mut code = dict.rotated_codes()[index][q as usize];
+        for &b in flipped {
+            code ^= 1 << b;
+        }
+        let mut levels = [0.0; 64];
+        for (k, l) in levels
+            .iter_mut()
+            .enumerate()
+            .take(dict.family().bits() as usize)
+        {
+            let m = margins
+                .iter()
+                .find(|(c, _)| *c == k)
+                .map_or(1.0, |(_, m)| *m);
+            // Dark cells below the midpoint, light above, at the margin given.
+            *l = if code & (1 << k) != 0 {
+                100.0 - 100.0 * m
+            } else {
+                100.0 + 100.0 * m
+            };
+        }
+        CellReading {
+            code,
+            black: 0.0,
+            white: 200.0,
+            light_border_cells: 0,
+            confidence: 0.0,
+            fit: 1.0,
+            levels,
+        }
+    }
+
+    fn square() -> Corners {
+        [
+            Point2::new(10.0, 10.0),
+            Point2::new(40.0, 10.0),
+            Point2::new(40.0, 40.0),
+            Point2::new(10.0, 40.0),
+        ]
+    }
+
+    /// Two cells read wrong, neither among the two least confident (which the soft lookup
+    /// would try), but cheap: the entry is read; too dear, or beyond the correction
+    /// radius however cheap, it is not.
+    #[test]
+    fn least_cost_match_reads_cheap_flips_within_the_correction_radius_only() {
+        let dicts = [Dictionary::paper().clone()];
+        let weak = [(0, 0.02), (1, 0.03), (7, 0.1), (12, 0.15)];
+        let r = reading_of(5, 2, &[7, 12], &weak);
+        let d = least_cost_match(&square(), &dicts, &[(0, 0, r)]).expect("read");
+        assert_eq!((d.index, d.distance), (5, 2));
+        assert!(
+            match_reading(
+                &square(),
+                0,
+                &r,
+                &dicts[0],
+                &DecodeParams {
+                    max_errors: 0,
+                    soft_errors: 2,
+                    soft_margin: 0.3,
+                    ..DecodeParams::default()
+                }
+            )
+            .is_none(),
+            "the soft lookup alone reads it: the test shows nothing"
+        );
+        // The same flips at margins costing 0.5 in all: not read.
+        let dear = reading_of(
+            5,
+            2,
+            &[7, 12],
+            &[(0, 0.02), (1, 0.03), (7, 0.25), (12, 0.25)],
+        );
+        assert!(least_cost_match(&square(), &dicts, &[(0, 0, dear)]).is_none());
+        // Three flips costing 0.15 in all: beyond the radius of 2, not read.
+        let three = reading_of(5, 2, &[3, 7, 12], &[(3, 0.05), (7, 0.05), (12, 0.05)]);
+        assert!(least_cost_match(&square(), &dicts, &[(0, 0, three)]).is_none());
+    }
+
+    /// A second grid shift that reads another entry almost as cheaply: neither is read;
+    /// the same entry under both shifts is no rival.
+    #[test]
+    fn least_cost_match_refuses_a_reading_that_could_be_two_entries() {
+        let dicts = [Dictionary::paper().clone()];
+        let a = reading_of(5, 0, &[7, 12], &[(7, 0.1), (12, 0.15)]);
+        let b = reading_of(9, 2, &[2, 4], &[(2, 0.15), (4, 0.15)]);
+        assert!(least_cost_match(&square(), &dicts, &[(0, 0, a), (0, 1, b)]).is_none());
+        let b_far = reading_of(9, 2, &[2, 4], &[(2, 0.4), (4, 0.4)]);
+        let d = least_cost_match(&square(), &dicts, &[(0, 0, a), (0, 1, b_far)]).expect("read");
+        assert_eq!(d.index, 5);
+        let same = reading_of(5, 2, &[3], &[(3, 0.2)]);
+        let d = least_cost_match(&square(), &dicts, &[(0, 0, a), (0, 1, same)]).expect("read");
+        assert_eq!(d.index, 5);
+    }
 
     /// The envelope factorisation solves what a dense one does: a symmetric positive
     /// definite matrix whose rows start at varied columns (as the blur systems' do).

@@ -617,8 +617,19 @@ pub(crate) fn match_reading(
     let m = dictionary
         .lookup_within(reading.code, max)
         .or_else(|| soft_lookup(reading, dictionary, params))?;
+    Some(decoded_from_match(corners, s, reading, &m))
+}
+
+/// The decoded marker (dictionary 0) of the entry `m` matched to `reading`, a reading taken
+/// with the corners shifted by `s`.
+pub(crate) fn decoded_from_match(
+    corners: &Corners,
+    s: u8,
+    reading: &CellReading,
+    m: &crate::dictionary::Match,
+) -> Decoded {
     let rotation = (s + m.rotation) % 4;
-    Some(Decoded {
+    Decoded {
         dictionary: 0,
         index: m.index,
         code: m.code,
@@ -627,7 +638,7 @@ pub(crate) fn match_reading(
         corners: core::array::from_fn(|i| corners[(i + rotation as usize) % 4]),
         contrast: reading.contrast(),
         confidence: reading.confidence,
-    })
+    }
 }
 
 /// Most cells considered by the soft decision (the dictionary's correction radius is lower

@@ -390,6 +390,12 @@ impl Dictionary {
         self.correction
     }
 
+    /// Every code under every quarter turn: `[i][q]` is entry `i` turned `q` clockwise
+    /// quarter turns (slots a non-square family does not allow hold the code itself).
+    pub(crate) fn rotated_codes(&self) -> &[[u64; 4]] {
+        &self.rotated
+    }
+
     /// Number of codes.
     pub fn len(&self) -> usize {
         self.codes.len()

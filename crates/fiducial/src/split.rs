@@ -39,6 +39,9 @@ const TILE: usize = 8;
 /// Where the re-cut lies between the local minimum (0) and maximum (1) grey level.
 const CUT: f64 = 0.25;
 
+/// Smallest local contrast (max - min) at which the light cut marks anything dark.
+const LIGHT_CUT_MIN_CONTRAST: u8 = 30;
+
 /// A pixel rectangle, inclusive bounds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Rect {
@@ -84,6 +87,21 @@ impl Splitter {
         bin: &[u8],
         rect: Rect,
         params: &SplitParams<'_>,
+        found: impl FnMut([[f64; 2]; 4]),
+    ) {
+        self.cut_at(img, Some(bin), rect, params, CUT, found);
+    }
+
+    /// Cuts `img` inside `rect` at `cut` of the way from the local minimum to the local
+    /// maximum (only pixels dark in `bin` too, when given) and calls `found` with the
+    /// coarse corners of each quadrilateral traced there.
+    pub fn cut_at(
+        &mut self,
+        img: &GrayView<'_>,
+        bin: Option<&[u8]>,
+        rect: Rect,
+        params: &SplitParams<'_>,
+        cut: f64,
         mut found: impl FnMut([[f64; 2]; 4]),
     ) {
         let (w, h) = (img.width(), img.height());
@@ -121,12 +139,15 @@ impl Splitter {
                         hi = hi.max(self.tile_max[ny * tw + nx]);
                     }
                 }
-                let cut = f64::from(lo) + CUT * f64::from(hi - lo);
+                if hi - lo < LIGHT_CUT_MIN_CONTRAST && bin.is_none() {
+                    continue;
+                }
+                let cut = f64::from(lo) + cut * f64::from(hi - lo);
                 for y in ty * TILE..((ty + 1) * TILE).min(ch) {
                     let src = (y0 + y) * w + x0;
                     let row = img.row(y0 + y);
                     for x in tx * TILE..((tx + 1) * TILE).min(cw) {
-                        if bin[src + x] == DARK && f64::from(row[x0 + x]) < cut {
+                        if bin.is_none_or(|b| b[src + x] == DARK) && f64::from(row[x0 + x]) < cut {
                             self.bin[(y + 1) * bw + x + 1] = DARK;
                         }
                     }

@@ -47,8 +47,10 @@ pub struct Args {
     pub boundary_clusters: bool,
     /// Do not read quads again as motion-blurred markers (on by default: a quad whose
     /// cells are not a code, with a marker's border and edges smeared by at least 1.5
-    /// cells, is re-read with its cell levels solved for the motion). Turning it off saves
-    /// time on frames that are never blurred.
+    /// cells, is re-read with its cell levels solved for the motion; and dark regions up
+    /// to 160 px that gave no quad are cut again nearer the white level, where a smeared
+    /// marker's outline is closed). Turning it off saves time on frames that are never
+    /// blurred.
     #[arg(long)]
     pub no_motion_blur: bool,
     /// Largest image side accepted, pixels; larger images are refused from their header,
