@@ -646,6 +646,174 @@ mod tests {
         }
     }
 
+    /// The whole binarization rule, written out pixel by pixel from the module's
+    /// documentation (not from the row-wise code): the 3x3 box mean `m = (s * 7282) >> 16` of
+    /// the nine-pixel sum `s` (replicated borders); the line-preserving level (`least / 3`
+    /// where the darker of the 1x3 and 3x1 sums `least` satisfies `3 least + 9 LINE_STEP <
+    /// s`, else `m`); for [`Threshold::Adaptive`], per tile (side clamped to 2..=64, the last
+    /// tiles of a row or column cut short) the minimum and maximum of `m` over its 3x3 tile
+    /// neighbourhood, the threshold their rounded-up midpoint, or nothing dark where their
+    /// difference is below `min_contrast`, and dark where the level is below the threshold;
+    /// for [`Threshold::Otsu`], dark where the level is at most Otsu's level of all `m`.
+    fn reference_binarize(img: &[u8], w: usize, h: usize, t: Threshold) -> Vec<u8> {
+        let at = |x: isize, y: isize| {
+            let x = x.clamp(0, w as isize - 1) as usize;
+            let y = y.clamp(0, h as isize - 1) as usize;
+            u32::from(img[y * w + x])
+        };
+        let mut mean = vec![0u8; w * h];
+        let mut level = vec![0u8; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let (xi, yi) = (x as isize, y as isize);
+                let mut s = 0;
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        s += at(xi + dx, yi + dy);
+                    }
+                }
+                let horiz = at(xi - 1, yi) + at(xi, yi) + at(xi + 1, yi);
+                let vert = at(xi, yi - 1) + at(xi, yi) + at(xi, yi + 1);
+                let least = horiz.min(vert);
+                let m = (s * 7282) >> 16;
+                mean[y * w + x] = m as u8;
+                level[y * w + x] = if 3 * least + 9 * LINE_STEP < s {
+                    (least / 3) as u8
+                } else {
+                    m as u8
+                };
+            }
+        }
+        let (tile, min_contrast) = match t {
+            Threshold::Otsu => {
+                let cut = otsu_level(&mean);
+                return level.iter().map(|&v| u8::from(v <= cut)).collect();
+            }
+            Threshold::Adaptive {
+                tile_size,
+                min_contrast,
+            } => (tile_size.clamp(2, 64), min_contrast),
+        };
+        let (tx, ty) = (w.div_ceil(tile), h.div_ceil(tile));
+        let mut out = vec![0u8; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let (i, j) = (x / tile, y / tile);
+                // Pixels of the tiles i-1..=i+1, j-1..=j+1 that exist.
+                let x0 = i.saturating_sub(1) * tile;
+                let x1 = ((i + 2).min(tx) * tile).min(w);
+                let y0 = j.saturating_sub(1) * tile;
+                let y1 = ((j + 2).min(ty) * tile).min(h);
+                let (mut lo, mut hi) = (255u8, 0u8);
+                for yy in y0..y1 {
+                    for xx in x0..x1 {
+                        lo = lo.min(mean[yy * w + xx]);
+                        hi = hi.max(mean[yy * w + xx]);
+                    }
+                }
+                if hi - lo >= min_contrast {
+                    let thr = (u32::from(lo) + u32::from(hi)).div_ceil(2);
+                    out[y * w + x] = u8::from(u32::from(level[y * w + x]) < thr);
+                }
+            }
+        }
+        out
+    }
+
+    /// A test frame of `w x h` from `seed`: random bytes (kind 0), two levels (1, so that
+    /// the line rule fires often), blocks of two levels with noise (2), a smooth ramp with
+    /// noise (3, low contrast, so that `min_contrast` matters).
+    fn test_frame(w: usize, h: usize, kind: u8, seed: u64) -> Vec<u8> {
+        let mut state = seed | 1;
+        (0..w * h)
+            .map(|i| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                let (x, y) = (i % w, i / w);
+                match kind % 4 {
+                    0 => state as u8,
+                    1 => {
+                        if state & 1 == 0 {
+                            20
+                        } else {
+                            230
+                        }
+                    }
+                    2 => {
+                        let base = if (x / 5 + y / 3) % 2 == 0 { 40 } else { 200 };
+                        (base + (state % 24) as u32) as u8
+                    }
+                    _ => (x * 3 + y + (state % 8) as usize).min(255) as u8,
+                }
+            })
+            .collect()
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(512))]
+        #[test]
+        fn binarize_matches_the_pixel_by_pixel_rule(
+            w in 1usize..80,
+            h in 1usize..48,
+            kind in 0u8..4,
+            tile in 0usize..70,
+            min_contrast in proptest::prelude::any::<u8>(),
+            otsu in proptest::prelude::any::<bool>(),
+            pad in 0usize..3,
+            bands in 1usize..5,
+            seed in proptest::prelude::any::<u64>(),
+        ) {
+            let img = test_frame(w, h, kind, seed);
+            let t = if otsu {
+                Threshold::Otsu
+            } else {
+                Threshold::Adaptive { tile_size: tile, min_contrast }
+            };
+            let expected = reference_binarize(&img, w, h, t);
+            // The same frame inside a wider buffer (stride `w + pad`), with garbage between
+            // rows that must not be read.
+            let stride = w + pad;
+            let mut padded = vec![0u8; stride * h];
+            for (y, row) in img.chunks_exact(w).enumerate() {
+                padded[y * stride..y * stride + w].copy_from_slice(row);
+                padded[y * stride + w..(y + 1) * stride].fill(if y % 2 == 0 { 0 } else { 255 });
+            }
+            let view = GrayView::with_stride(&padded, w, h, stride).unwrap();
+            let mut b = Binarizer::new();
+            // Filled with a different frame first, so that stale buffer contents would show.
+            let other = test_frame(70, 40, kind + 1, !seed);
+            let mut out = vec![7u8; 3];
+            b.binarize(&GrayView::new(&other, 70, 40).unwrap(), t, &mut out);
+            b.binarize(&view, t, &mut out);
+            proptest::prop_assert_eq!(&out, &expected);
+            b.binarize_parallel(&view, t, &mut out, bands);
+            proptest::prop_assert_eq!(&out, &expected);
+        }
+    }
+
+    #[test]
+    fn reference_rule_sees_dark_lines_and_flat_areas() {
+        // The reference itself must behave as documented, or the comparison above proves
+        // little: a flat frame has nothing dark, a dark two-pixel line on light is dark
+        // (on the line rule: the 3x3 mean alone would mix in the light surround).
+        let (w, h) = (24usize, 16usize);
+        let flat = vec![128u8; w * h];
+        assert!(
+            reference_binarize(&flat, w, h, Threshold::default())
+                .iter()
+                .all(|&v| v == 0)
+        );
+        let mut lined = vec![220u8; w * h];
+        for y in 0..h {
+            lined[y * w + 11] = 10;
+            lined[y * w + 12] = 10;
+        }
+        let out = reference_binarize(&lined, w, h, Threshold::default());
+        assert!((0..h).all(|y| out[y * w + 11] == DARK && out[y * w + 12] == DARK));
+        assert!((0..h).all(|y| out[y * w + 3] == 0 && out[y * w + 20] == 0));
+    }
+
     #[test]
     fn dark_square_on_gradient_is_dark_everywhere() {
         // A 4:1 lighting gradient left to right with a dark square in each half.
