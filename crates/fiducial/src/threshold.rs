@@ -53,40 +53,71 @@ const LINE_STEP_9: u16 = 9 * LINE_STEP as u16;
 pub const DARK: u8 = 1;
 
 /// Owns the scratch buffers of binarization so that repeated frames allocate nothing.
+///
+/// The frame is read once: each row's 3x3 box mean and line-preserving level are computed
+/// together, the level is written straight into the output (where the cut later replaces
+/// it, in place), and the mean goes only into the running minimum and maximum of its tile
+/// row. Single-threaded, each tile row is cut as soon as the tile row below it is known, while
+/// its pixels are still in cache.
 #[derive(Debug, Default, Clone)]
 pub struct Binarizer {
+    /// The smoothed frame, kept only for [`Threshold::Otsu`] (its histogram).
     smooth: Vec<u8>,
-    fine: Vec<u8>,
     tile_min: Vec<u8>,
     tile_max: Vec<u8>,
-    tile_thr: Vec<u8>,
     /// Scratch rows of each band of rows (one band unless [`Binarizer::binarize_parallel`]).
     bands: Vec<Band>,
 }
 
 /// One band's work in phase 1 of [`Binarizer::binarize_parallel`]: its index, its rows of
-/// the smoothed and line-preserving frames, its tile rows of minima and maxima, its scratch.
-type SmoothBand<'a> = (
+/// the output (which receive the line-preserving level), its tile rows of minima and
+/// maxima, its scratch.
+type LevelBand<'a> = (
     usize,
-    (
-        (((&'a mut [u8], &'a mut [u8]), &'a mut [u8]), &'a mut [u8]),
-        &'a mut Band,
-    ),
+    (((&'a mut [u8], &'a mut [u8]), &'a mut [u8]), &'a mut Band),
 );
 
-/// One band's work in phase 3: its rows of the line-preserving frame and of the output, its
-/// tile rows of thresholds, its scratch.
-type CutBand<'a> = ((&'a [u8], &'a mut [u8]), (&'a [u8], &'a mut Band));
+/// One band's work in phase 2: its index, its rows of the output (levels, cut in place), its
+/// scratch.
+type CutBand<'a> = (usize, (&'a mut [u8], &'a mut Band));
 
 /// The scratch rows one band of rows needs.
 #[derive(Debug, Default, Clone)]
 struct Band {
     /// Three rows of horizontal 3-sums (a ring).
     hsum: Vec<u16>,
-    /// Element-wise minimum of a tile row's rows, later its thresholds expanded per pixel.
+    /// Element-wise minimum of the box means of a tile row's rows.
     row_min: Vec<u8>,
-    /// Element-wise maximum of a tile row's rows.
+    /// Element-wise maximum of the box means of a tile row's rows.
     row_max: Vec<u8>,
+    /// The cut's scratch.
+    cut: CutScratch,
+}
+
+/// The scratch rows of the cut of one tile row.
+#[derive(Debug, Default, Clone)]
+struct CutScratch {
+    /// The minimum over the tiles above, at and below, per tile.
+    col_min: Vec<u8>,
+    /// The maximum over the tiles above, at and below, per tile.
+    col_max: Vec<u8>,
+    /// The tile row's thresholds, one per tile.
+    tile_thr: Vec<u8>,
+    /// The thresholds expanded to one per pixel.
+    expanded: Vec<u8>,
+}
+
+/// The adaptive rule's tile geometry and contrast floor.
+#[derive(Debug, Clone, Copy)]
+struct Tiles {
+    /// Tile side in pixels.
+    side: usize,
+    /// Tiles per row and per column.
+    tx: usize,
+    ty: usize,
+    min_contrast: u8,
+    /// Frame width in pixels.
+    width: usize,
 }
 
 impl Binarizer {
@@ -104,9 +135,9 @@ impl Binarizer {
     /// [`Binarizer::binarize`] on up to `bands` threads of the current rayon pool (with the
     /// crate feature `parallel`; without it the bands run one after the other): the frame
     /// is cut into horizontal bands of whole tile rows, each band is smoothed and reduced to
-    /// tile minima and maxima on its own thread, the tile thresholds are computed once, and
-    /// each band is then cut on its own thread. Every stage reads the same pixels as the
-    /// single-threaded pass, so the output is identical to [`Binarizer::binarize`]'s.
+    /// tile minima and maxima on its own thread, then each band's tile thresholds are
+    /// computed and its pixels cut on its own thread. Every stage reads the same pixels as
+    /// the single-threaded pass, so the output is identical to [`Binarizer::binarize`]'s.
     pub fn binarize_parallel(
         &mut self,
         img: &GrayView<'_>,
@@ -120,10 +151,8 @@ impl Binarizer {
     fn run(&mut self, img: &GrayView<'_>, threshold: Threshold, out: &mut Vec<u8>, bands: usize) {
         let (w, h) = (img.width(), img.height());
         // Every byte of these is written below: resize only (no clear and refill).
-        self.smooth.resize(w * h, 0);
-        self.fine.resize(w * h, 0);
         out.resize(w * h, 0);
-        let (tile, min_contrast) = match threshold {
+        let (side, min_contrast) = match threshold {
             Threshold::Adaptive {
                 tile_size,
                 min_contrast,
@@ -131,274 +160,377 @@ impl Binarizer {
             // Otsu has no tiles; bands are still cut at multiples of 8 rows.
             Threshold::Otsu => (8, None),
         };
-        let (tx, ty) = (w.div_ceil(tile), h.div_ceil(tile));
+        let (tx, ty) = (w.div_ceil(side), h.div_ceil(side));
         let band_tiles = ty.div_ceil(bands.clamp(1, ty));
-        let band_rows = band_tiles * tile;
+        let band_rows = band_tiles * side;
         let count = h.div_ceil(band_rows);
         if self.bands.len() < count {
             self.bands.resize_with(count, Band::default);
         }
-        self.tile_min.resize(tx * ty, 0);
-        self.tile_max.resize(tx * ty, 0);
-        // Phase 1: smoothing, and the tile minima and maxima, per band.
-        let adaptive = min_contrast.is_some();
-        let smooth_band = |(b, ((((sm, fi), mn), mx), band)): SmoothBand<'_>| {
-            box3_rows(img, b * band_rows, sm, fi, &mut band.hsum);
-            if adaptive {
-                tile_extremes(sm, w, tile, tx, band, mn, mx);
-            }
-        };
-        if count == 1 {
-            smooth_band((
-                0,
-                (
-                    (
-                        (
-                            (&mut self.smooth[..], &mut self.fine[..]),
-                            &mut self.tile_min[..],
-                        ),
-                        &mut self.tile_max[..],
-                    ),
-                    &mut self.bands[0],
-                ),
-            ));
-        } else {
-            #[cfg(feature = "parallel")]
-            {
-                use rayon::prelude::*;
-                self.smooth
-                    .par_chunks_mut(band_rows * w)
-                    .zip(self.fine.par_chunks_mut(band_rows * w))
-                    .zip(self.tile_min.par_chunks_mut(band_tiles * tx))
-                    .zip(self.tile_max.par_chunks_mut(band_tiles * tx))
-                    .zip(self.bands.par_iter_mut())
-                    .enumerate()
-                    .for_each(smooth_band);
-            }
-            #[cfg(not(feature = "parallel"))]
-            self.smooth
-                .chunks_mut(band_rows * w)
-                .zip(self.fine.chunks_mut(band_rows * w))
-                .zip(self.tile_min.chunks_mut(band_tiles * tx))
-                .zip(self.tile_max.chunks_mut(band_tiles * tx))
-                .zip(self.bands.iter_mut())
-                .enumerate()
-                .for_each(smooth_band);
-        }
         let Some(min_contrast) = min_contrast else {
+            // Otsu: the smoothed frame's histogram gives one cut for every level.
+            self.smooth.resize(w * h, 0);
+            levels_rows(
+                img,
+                0,
+                &mut out[..],
+                Some(&mut self.smooth[..]),
+                None,
+                &mut self.bands[0],
+            );
             let t = otsu_level(&self.smooth);
-            for (o, &s) in out.iter_mut().zip(&self.fine) {
-                *o = u8::from(s <= t);
+            for o in out.iter_mut() {
+                *o = u8::from(*o <= t);
             }
             return;
         };
-        // Phase 2: one threshold per tile, from its 3x3 tile neighbourhood.
-        tile_thresholds(
-            &self.tile_min,
-            &self.tile_max,
+        let tiles = Tiles {
+            side,
             tx,
             ty,
             min_contrast,
-            &mut self.tile_thr,
-        );
-        // Phase 3: the cut, per band.
-        let cut_band = |((fi, o), (thr, band)): CutBand<'_>| {
-            cut_rows(fi, o, thr, w, tile, &mut band.row_min);
+            width: w,
         };
+        self.tile_min.resize(tx * ty, 0);
+        self.tile_max.resize(tx * ty, 0);
         if count == 1 {
-            cut_band((
-                (&self.fine[..], &mut out[..]),
-                (&self.tile_thr[..], &mut self.bands[0]),
-            ));
-        } else {
-            #[cfg(feature = "parallel")]
-            {
-                use rayon::prelude::*;
-                self.fine
-                    .par_chunks(band_rows * w)
-                    .zip(out.par_chunks_mut(band_rows * w))
-                    .zip(
-                        self.tile_thr
-                            .par_chunks(band_tiles * tx)
-                            .zip(self.bands.par_iter_mut()),
-                    )
-                    .for_each(cut_band);
+            levels_and_cut(
+                img,
+                &mut out[..],
+                &tiles,
+                &mut self.tile_min,
+                &mut self.tile_max,
+                &mut self.bands[0],
+            );
+            return;
+        }
+        // Phase 1: the levels, and the tile minima and maxima, per band.
+        let level_band = |(b, (((o, mn), mx), band)): LevelBand<'_>| {
+            levels_rows(img, b * band_rows, o, None, Some((&tiles, mn, mx)), band);
+        };
+        #[cfg(feature = "parallel")]
+        {
+            use rayon::prelude::*;
+            out.par_chunks_mut(band_rows * w)
+                .zip(self.tile_min.par_chunks_mut(band_tiles * tx))
+                .zip(self.tile_max.par_chunks_mut(band_tiles * tx))
+                .zip(self.bands.par_iter_mut())
+                .enumerate()
+                .for_each(level_band);
+        }
+        #[cfg(not(feature = "parallel"))]
+        out.chunks_mut(band_rows * w)
+            .zip(self.tile_min.chunks_mut(band_tiles * tx))
+            .zip(self.tile_max.chunks_mut(band_tiles * tx))
+            .zip(self.bands.iter_mut())
+            .enumerate()
+            .for_each(level_band);
+        // Phase 2: each band's tile thresholds (from the tile rows above and below it too)
+        // and its cut.
+        let (tile_min, tile_max) = (&self.tile_min[..], &self.tile_max[..]);
+        let cut_band = |(b, (o, band)): CutBand<'_>| {
+            for (k, rows) in o.chunks_mut(side * w).enumerate() {
+                cut_tile_row(
+                    b * band_tiles + k,
+                    rows,
+                    &tiles,
+                    tile_min,
+                    tile_max,
+                    &mut band.cut,
+                );
             }
-            #[cfg(not(feature = "parallel"))]
-            self.fine
-                .chunks(band_rows * w)
-                .zip(out.chunks_mut(band_rows * w))
-                .zip(
-                    self.tile_thr
-                        .chunks(band_tiles * tx)
-                        .zip(self.bands.iter_mut()),
-                )
+        };
+        #[cfg(feature = "parallel")]
+        {
+            use rayon::prelude::*;
+            out.par_chunks_mut(band_rows * w)
+                .zip(self.bands.par_iter_mut())
+                .enumerate()
                 .for_each(cut_band);
         }
+        #[cfg(not(feature = "parallel"))]
+        out.chunks_mut(band_rows * w)
+            .zip(self.bands.iter_mut())
+            .enumerate()
+            .for_each(cut_band);
     }
 
-    /// The smoothed frame of the last call (3x3 box filter), row-major, `width` per row.
+    /// The smoothed frame (3x3 box filter) of the last call with [`Threshold::Otsu`],
+    /// row-major, `width` per row; empty before the first such call. The adaptive threshold
+    /// does not keep the smoothed frame (it needs only its tile minima and maxima).
     pub fn smoothed(&self) -> &[u8] {
         &self.smooth
     }
 }
 
-/// 3x3 box filter with replicated borders of the rows `y0 ..` of `img` that `smooth` holds
-/// (whole rows) into `smooth`, and the line-preserving level into `fine`.
-///
-/// Every row loop runs over slices of one length in 16-bit arithmetic (no sum exceeds
-/// 9 * 255), so it vectorises; the output is identical to the scalar definition (a test
-/// checks it against that).
-fn box3_rows(
+/// The ring of three rows of horizontal 3-sums (end pixels replicated) that the 3x3 box
+/// needs: slot 0 holds row `y - 1`'s, slot 1 row `y`'s, and slot 2 receives row `y + 1`'s
+/// while row `y` is computed (rows clamped to the frame).
+struct Ring<'a> {
+    slots: [&'a mut [u16]; 3],
+}
+
+impl<'a> Ring<'a> {
+    /// The ring ready for row `y0`.
+    fn start(img: &GrayView<'_>, y0: usize, hsum: &'a mut Vec<u16>) -> Self {
+        let w = img.width();
+        hsum.resize(3 * w, 0);
+        let (s0, rest) = hsum.split_at_mut(w);
+        let (s1, s2) = rest.split_at_mut(w);
+        hrow(img.row(y0.saturating_sub(1)), s0);
+        hrow(img.row(y0), s1);
+        Self {
+            slots: [s0, s1, s2],
+        }
+    }
+
+    /// Rows `y0 ..` of the frame, as many as `out` holds (whole rows): their line-preserving
+    /// levels into `out`, with `SMOOTH` their box means into `smooth` (as long as `out`),
+    /// with `EXTREMES` the element-wise minimum and maximum of the box means into `row_min`
+    /// and `row_max` (one row; they are combined with what they hold).
+    fn rows<const SMOOTH: bool, const EXTREMES: bool>(
+        &mut self,
+        img: &GrayView<'_>,
+        y0: usize,
+        out: &mut [u8],
+        smooth: &mut [u8],
+        row_min: &mut [u8],
+        row_max: &mut [u8],
+    ) {
+        let (w, h) = (img.width(), img.height());
+        for (i, o) in out.chunks_exact_mut(w).enumerate() {
+            let y = y0 + i;
+            let px = [
+                img.row(y.saturating_sub(1)),
+                img.row(y),
+                img.row((y + 1).min(h - 1)),
+            ];
+            let sm = if SMOOTH {
+                &mut smooth[i * w..(i + 1) * w]
+            } else {
+                &mut smooth[..0]
+            };
+            let [s0, s1, s2] = &mut self.slots;
+            box_row::<SMOOTH, EXTREMES>([s0, s1], s2, px, o, sm, row_min, row_max);
+            self.slots.rotate_left(1);
+        }
+    }
+}
+
+/// The levels of the rows `y0 ..` of `img` that `out` holds (whole rows) into `out`, with
+/// `smooth` their box means, with `extremes` (tiles, minima, maxima) the minimum and
+/// maximum box mean of each of their tiles (`y0` is then at a tile row's start, and the
+/// minima and maxima have one row of `tx` per tile row).
+fn levels_rows(
     img: &GrayView<'_>,
     y0: usize,
-    smooth: &mut [u8],
-    fine: &mut [u8],
-    hsum: &mut Vec<u16>,
+    out: &mut [u8],
+    smooth: Option<&mut [u8]>,
+    extremes: Option<(&Tiles, &mut [u8], &mut [u8])>,
+    band: &mut Band,
 ) {
-    let (w, h) = (img.width(), img.height());
-    let rows = smooth.len() / w;
-    // Three rows of horizontal 3-sums, as a ring.
-    hsum.resize(3 * w, 0);
-    // hsum slot k holds the horizontal sums of row (y - 1 + k) (clamped).
-    let (s0, rest) = hsum.split_at_mut(w);
-    let (s1, s2) = rest.split_at_mut(w);
-    let mut slots = [s0, s1, s2];
-    hrow(img.row(y0.saturating_sub(1)), slots[0]);
-    hrow(img.row(y0), slots[1]);
-    hrow(img.row((y0 + 1).min(h - 1)), slots[2]);
-    for (i, (out, fine)) in smooth
-        .chunks_exact_mut(w)
-        .zip(fine.chunks_exact_mut(w))
-        .enumerate()
-    {
-        let y = y0 + i;
-        let (up, mid, down) = (
-            img.row(y.saturating_sub(1)),
-            img.row(y),
-            img.row((y + 1).min(h - 1)),
-        );
-        box_row(
-            [&*slots[0], &*slots[1], &*slots[2]],
-            [up, mid, down],
-            out,
-            fine,
-        );
-        if i + 1 < rows {
-            slots.rotate_left(1);
-            hrow(img.row((y + 2).min(h - 1)), slots[2]);
+    let w = img.width();
+    let Band {
+        hsum,
+        row_min,
+        row_max,
+        ..
+    } = band;
+    let mut ring = Ring::start(img, y0, hsum);
+    match (extremes, smooth) {
+        (Some((tiles, mins, maxs)), _) => {
+            row_min.resize(w, 0);
+            row_max.resize(w, 0);
+            let mut y = y0;
+            for ((rows, mins), maxs) in out
+                .chunks_mut(tiles.side * w)
+                .zip(mins.chunks_mut(tiles.tx))
+                .zip(maxs.chunks_mut(tiles.tx))
+            {
+                row_min.fill(u8::MAX);
+                row_max.fill(0);
+                ring.rows::<false, true>(img, y, rows, &mut [], row_min, row_max);
+                y += rows.len() / w;
+                tile_extremes(row_min, row_max, tiles.side, mins, maxs);
+            }
         }
+        (None, Some(smooth)) => ring.rows::<true, false>(img, y0, out, smooth, &mut [], &mut []),
+        (None, None) => ring.rows::<false, false>(img, y0, out, &mut [], &mut [], &mut []),
     }
 }
 
-/// Minimum and maximum of each tile of the band `smooth` (whole tile rows, `w` per row) into
-/// `mins` and `maxs` (`tx` per tile row): per tile row, element-wise min/max over its rows
-/// (vectorises), then one reduction per tile.
-fn tile_extremes(
-    smooth: &[u8],
-    w: usize,
-    tile: usize,
-    tx: usize,
+/// The whole adaptive binarization on one thread: each tile row's levels and tile extremes,
+/// and the cut of the tile row above it as soon as they are known (its pixels are then still
+/// in cache).
+fn levels_and_cut(
+    img: &GrayView<'_>,
+    out: &mut [u8],
+    tiles: &Tiles,
+    tile_min: &mut [u8],
+    tile_max: &mut [u8],
     band: &mut Band,
-    mins: &mut [u8],
-    maxs: &mut [u8],
 ) {
+    let w = img.width();
+    let rows_per = tiles.side * w;
+    let mut ring = Ring::start(img, 0, &mut band.hsum);
     band.row_min.resize(w, 0);
     band.row_max.resize(w, 0);
-    for ((rows, mins), maxs) in smooth
-        .chunks(tile * w)
-        .zip(mins.chunks_mut(tx))
-        .zip(maxs.chunks_mut(tx))
+    for j in 0..tiles.ty {
+        let start = j * rows_per;
+        let end = (start + rows_per).min(out.len());
+        band.row_min.fill(u8::MAX);
+        band.row_max.fill(0);
+        ring.rows::<false, true>(
+            img,
+            j * tiles.side,
+            &mut out[start..end],
+            &mut [],
+            &mut band.row_min,
+            &mut band.row_max,
+        );
+        let k = j * tiles.tx..(j + 1) * tiles.tx;
+        tile_extremes(
+            &band.row_min,
+            &band.row_max,
+            tiles.side,
+            &mut tile_min[k.clone()],
+            &mut tile_max[k],
+        );
+        if j > 0 {
+            let rows = &mut out[start - rows_per..start];
+            cut_tile_row(j - 1, rows, tiles, tile_min, tile_max, &mut band.cut);
+        }
+    }
+    let last = (tiles.ty - 1) * rows_per;
+    cut_tile_row(
+        tiles.ty - 1,
+        &mut out[last..],
+        tiles,
+        tile_min,
+        tile_max,
+        &mut band.cut,
+    );
+}
+
+/// Each tile's minimum and maximum (tiles of `side` pixels, the last one cut short) from the
+/// element-wise minimum and maximum of its rows.
+fn tile_extremes(row_min: &[u8], row_max: &[u8], side: usize, mins: &mut [u8], maxs: &mut [u8]) {
+    if side == 8 {
+        // The default tile: whole tiles as fixed-size arrays.
+        let (cmin, cmax) = (row_min.chunks_exact(8), row_max.chunks_exact(8));
+        let (rmin, rmax) = (cmin.remainder(), cmax.remainder());
+        for (((a, b), mn), mx) in cmin.zip(cmax).zip(mins.iter_mut()).zip(maxs.iter_mut()) {
+            *mn = a.iter().copied().fold(u8::MAX, u8::min);
+            *mx = b.iter().copied().fold(0, u8::max);
+        }
+        if !rmin.is_empty() {
+            let last = mins.len() - 1;
+            mins[last] = rmin.iter().copied().fold(u8::MAX, u8::min);
+            maxs[last] = rmax.iter().copied().fold(0, u8::max);
+        }
+        return;
+    }
+    for (((a, b), mn), mx) in row_min
+        .chunks(side)
+        .zip(row_max.chunks(side))
+        .zip(mins.iter_mut())
+        .zip(maxs.iter_mut())
     {
-        let mut rows = rows.chunks_exact(w);
-        if let Some(first) = rows.next() {
-            band.row_min.copy_from_slice(first);
-            band.row_max.copy_from_slice(first);
-        }
-        for row in rows {
-            for ((mn, mx), &v) in band
-                .row_min
-                .iter_mut()
-                .zip(band.row_max.iter_mut())
-                .zip(row)
-            {
-                *mn = (*mn).min(v);
-                *mx = (*mx).max(v);
-            }
-        }
-        for (((cmin, cmax), mn), mx) in band
-            .row_min
-            .chunks(tile)
-            .zip(band.row_max.chunks(tile))
-            .zip(mins)
-            .zip(maxs)
-        {
-            *mn = cmin.iter().copied().fold(u8::MAX, u8::min);
-            *mx = cmax.iter().copied().fold(0, u8::max);
-        }
+        *mn = a.iter().copied().fold(u8::MAX, u8::min);
+        *mx = b.iter().copied().fold(0, u8::max);
     }
 }
 
-/// Each tile's threshold: the midpoint of the minimum and maximum over its 3x3 tile
-/// neighbourhood, or 0 ("nothing here is dark") where their difference is below
-/// `min_contrast`.
-fn tile_thresholds(
+/// The cut of tile row `j`, whose pixels `rows` holds (levels in, binary out): each tile's
+/// threshold is the midpoint of the minimum and maximum over its 3x3 tile neighbourhood, or
+/// 0 ("nothing here is dark") where their difference is below `min_contrast`; a pixel is
+/// dark where its level is below its tile's threshold.
+fn cut_tile_row(
+    j: usize,
+    rows: &mut [u8],
+    tiles: &Tiles,
     tile_min: &[u8],
     tile_max: &[u8],
-    tx: usize,
-    ty: usize,
-    min_contrast: u8,
-    thr: &mut Vec<u8>,
+    scratch: &mut CutScratch,
 ) {
-    thr.resize(tx * ty, 0);
-    for j in 0..ty {
-        let j0 = j.saturating_sub(1);
-        let j1 = (j + 1).min(ty - 1);
-        for i in 0..tx {
-            let i0 = i.saturating_sub(1);
-            let i1 = (i + 1).min(tx - 1);
-            let mut lo = u8::MAX;
-            let mut hi = 0u8;
-            for jj in j0..=j1 {
-                let base = jj * tx;
-                for k in base + i0..=base + i1 {
-                    lo = lo.min(tile_min[k]);
-                    hi = hi.max(tile_max[k]);
-                }
-            }
-            thr[j * tx + i] = if hi.saturating_sub(lo) < min_contrast {
-                0
-            } else {
-                ((u16::from(lo) + u16::from(hi)).div_ceil(2)) as u8
-            };
+    let Tiles {
+        side,
+        tx,
+        ty,
+        min_contrast,
+        width: w,
+    } = *tiles;
+    let CutScratch {
+        col_min,
+        col_max,
+        tile_thr,
+        expanded,
+    } = scratch;
+    // The neighbourhood's extremes: over the tile rows above, at and below (clamped)...
+    fn tile_row(v: &[u8], k: usize, tx: usize) -> &[u8] {
+        &v[k * tx..(k + 1) * tx]
+    }
+    let (up, down) = (j.saturating_sub(1), (j + 1).min(ty - 1));
+    col_min.resize(tx, 0);
+    col_max.resize(tx, 0);
+    for (((c, a), b), d) in col_min
+        .iter_mut()
+        .zip(tile_row(tile_min, up, tx))
+        .zip(tile_row(tile_min, j, tx))
+        .zip(tile_row(tile_min, down, tx))
+    {
+        *c = (*a).min(*b).min(*d);
+    }
+    for (((c, a), b), d) in col_max
+        .iter_mut()
+        .zip(tile_row(tile_max, up, tx))
+        .zip(tile_row(tile_max, j, tx))
+        .zip(tile_row(tile_max, down, tx))
+    {
+        *c = (*a).max(*b).max(*d);
+    }
+    // ...then over the tiles left, at and right (clamped), and the threshold.
+    tile_thr.resize(tx, 0);
+    let thr = |lo: u8, hi: u8| {
+        if hi - lo < min_contrast {
+            0
+        } else {
+            (u16::from(lo) + u16::from(hi)).div_ceil(2) as u8
+        }
+    };
+    if tx == 1 {
+        tile_thr[0] = thr(col_min[0], col_max[0]);
+    } else {
+        tile_thr[0] = thr(col_min[0].min(col_min[1]), col_max[0].max(col_max[1]));
+        tile_thr[tx - 1] = thr(
+            col_min[tx - 2].min(col_min[tx - 1]),
+            col_max[tx - 2].max(col_max[tx - 1]),
+        );
+        let n = tx - 2;
+        let (l, c, r) = (&col_min[..n], &col_min[1..n + 1], &col_min[2..]);
+        let (lm, cm, rm) = (&col_max[..n], &col_max[1..n + 1], &col_max[2..]);
+        let inner = &mut tile_thr[1..n + 1];
+        for i in 0..n {
+            inner[i] = thr(l[i].min(c[i]).min(r[i]), lm[i].max(cm[i]).max(rm[i]));
         }
     }
-}
-
-/// The cut of the band `fine` into `out`: per tile row, the thresholds `thr` (`w / tile`
-/// rounded up per tile row) expanded to one per pixel in `expanded`, then whole rows compared.
-fn cut_rows(
-    fine: &[u8],
-    out: &mut [u8],
-    thr: &[u8],
-    w: usize,
-    tile: usize,
-    expanded: &mut Vec<u8>,
-) {
-    let tx = w.div_ceil(tile);
+    // One threshold per pixel, then whole rows compared.
     expanded.resize(w, 0);
-    for ((band, oband), thr) in fine
-        .chunks(tile * w)
-        .zip(out.chunks_mut(tile * w))
-        .zip(thr.chunks(tx))
-    {
-        for (chunk, &t) in expanded.chunks_mut(tile).zip(thr) {
-            chunk.fill(t);
+    if side == 8 {
+        let mut chunks = expanded.chunks_exact_mut(8);
+        for (c, &t) in chunks.by_ref().zip(tile_thr.iter()) {
+            c.copy_from_slice(&[t; 8]);
         }
-        for (row, orow) in band.chunks_exact(w).zip(oband.chunks_exact_mut(w)) {
-            for ((o, &v), &t) in orow.iter_mut().zip(row).zip(expanded.iter()) {
-                *o = u8::from(v < t);
-            }
+        let t = tile_thr[tx - 1];
+        chunks.into_remainder().iter_mut().for_each(|v| *v = t);
+    } else {
+        for (c, &t) in expanded.chunks_mut(side).zip(tile_thr.iter()) {
+            c.iter_mut().for_each(|v| *v = t);
+        }
+    }
+    for row in rows.chunks_exact_mut(w) {
+        for (o, &t) in row.iter_mut().zip(expanded.iter()) {
+            *o = u8::from(*o < t);
         }
     }
 }
@@ -421,27 +553,97 @@ fn hrow(src: &[u8], dst: &mut [u16]) {
     dst[w - 1] = u16::from(src[w - 2]) + 2 * u16::from(src[w - 1]);
 }
 
-/// One row of the 3x3 box mean (`out`) and of the line-preserving level (`fine`) from the
-/// horizontal sums of the rows above, at and below (`hs`) and those rows' pixels (`px`).
-#[inline]
-fn box_row(hs: [&[u16]; 3], px: [&[u8]; 3], out: &mut [u8], fine: &mut [u8]) {
+/// The box mean and the line-preserving level of one pixel from its nine-pixel sum `s`, the
+/// 1x3 sum along its row `horiz` and the 3x1 sum along its column `vert`.
+///
+/// The mean is `s / 9` without a division (a 16-bit multiply-high: 7282 / 65536 = 0.11111).
+/// The level is the darkest of the 3x3 box and the 3x1 and 1x3 ones (sums times 3, so that
+/// all three compare on one scale): a dark line two pixels wide along either axis keeps its
+/// level in the 1x3 box along it, where the 3x3 box would mix in its light surround. All
+/// terms stay below 2^16.
+#[inline(always)]
+fn levels(s: u16, horiz: u16, vert: u16) -> (u8, u8) {
+    let mean = ((u32::from(s) * 7282) >> 16) as u8;
+    let least = horiz.min(vert);
+    let level = if 3 * least + LINE_STEP_9 < s {
+        (least / 3) as u8
+    } else {
+        mean
+    };
+    (mean, level)
+}
+
+/// One row of the 3x3 box: from the horizontal sums of the rows above and at it (`hs`) and
+/// the pixels of the rows above, at and below it (`px`), the horizontal sums of the row
+/// below into `next`, the line-preserving levels into `out`, with `SMOOTH` the box means
+/// into `smooth`, with `EXTREMES` the means folded into the element-wise minima `row_min`
+/// and maxima `row_max`.
+///
+/// The inner loop runs over slices of one length in 16-bit arithmetic, so it vectorises; the
+/// two end pixels (replicated borders) are done apart.
+#[inline(always)]
+fn box_row<const SMOOTH: bool, const EXTREMES: bool>(
+    hs: [&[u16]; 2],
+    next: &mut [u16],
+    px: [&[u8]; 3],
+    out: &mut [u8],
+    smooth: &mut [u8],
+    row_min: &mut [u8],
+    row_max: &mut [u8],
+) {
     let w = out.len();
-    let fine = &mut fine[..w];
-    let (a, b, c) = (&hs[0][..w], &hs[1][..w], &hs[2][..w]);
+    let (h0, h1, h2) = (&hs[0][..w], &hs[1][..w], &mut next[..w]);
     let (u, m, d) = (&px[0][..w], &px[1][..w], &px[2][..w]);
-    for i in 0..w {
-        let s = a[i] + b[i] + c[i];
-        // s / 9 without a division (a 16-bit multiply-high): 7282 / 65536 = 0.11111.
-        let o = ((u32::from(s) * 7282) >> 16) as u16;
-        // The darkest of the 3x3 box and the 3x1 and 1x3 ones (sums times 3, so that all
-        // three compare on one scale): a dark line two pixels wide along either axis keeps
-        // its level in the 1x3 box along it, where the 3x3 box would mix in its light
-        // surround (see `Binarizer::binarize`). All terms stay below 2^16.
-        let vert = u16::from(u[i]) + u16::from(m[i]) + u16::from(d[i]);
-        let least = b[i].min(vert);
-        let line = 3 * least + LINE_STEP_9 < s;
-        out[i] = o as u8;
-        fine[i] = if line { (least / 3) as u8 } else { o as u8 };
+    let smooth = &mut smooth[..if SMOOTH { w } else { 0 }];
+    let row_min = &mut row_min[..if EXTREMES { w } else { 0 }];
+    let row_max = &mut row_max[..if EXTREMES { w } else { 0 }];
+    let mut put = |x: usize, mean: u8, level: u8| {
+        out[x] = level;
+        if SMOOTH {
+            smooth[x] = mean;
+        }
+        if EXTREMES {
+            row_min[x] = row_min[x].min(mean);
+            row_max[x] = row_max[x].max(mean);
+        }
+    };
+    let vert = |x: usize| u16::from(u[x]) + u16::from(m[x]) + u16::from(d[x]);
+    if w == 1 {
+        h2[0] = 3 * u16::from(d[0]);
+        let (mean, level) = levels(h0[0] + h1[0] + h2[0], h1[0], vert(0));
+        put(0, mean, level);
+        return;
+    }
+    h2[0] = 2 * u16::from(d[0]) + u16::from(d[1]);
+    h2[w - 1] = u16::from(d[w - 2]) + 2 * u16::from(d[w - 1]);
+    for x in [0, w - 1] {
+        let (mean, level) = levels(h0[x] + h1[x] + h2[x], h1[x], vert(x));
+        put(x, mean, level);
+    }
+    // The inner pixels 1 .. w - 1, on slices offset by one.
+    let n = w - 2;
+    let (dl, dc, dr) = (&d[..n], &d[1..n + 1], &d[2..]);
+    let (uc, mc) = (&u[1..n + 1], &m[1..n + 1]);
+    let (a, b) = (&h0[1..n + 1], &h1[1..n + 1]);
+    let c = &mut h2[1..n + 1];
+    let oc = &mut out[1..n + 1];
+    let sc = &mut smooth[if SMOOTH { 1..n + 1 } else { 0..0 }];
+    let rmin = &mut row_min[if EXTREMES { 1..n + 1 } else { 0..0 }];
+    let rmax = &mut row_max[if EXTREMES { 1..n + 1 } else { 0..0 }];
+    for i in 0..n {
+        let below = u16::from(dl[i]) + u16::from(dc[i]) + u16::from(dr[i]);
+        c[i] = below;
+        let s = a[i] + b[i] + below;
+        let v = u16::from(uc[i]) + u16::from(mc[i]) + u16::from(dc[i]);
+        let (mean, level) = levels(s, b[i], v);
+        oc[i] = level;
+        if SMOOTH {
+            sc[i] = mean;
+        }
+        if EXTREMES {
+            rmin[i] = rmin[i].min(mean);
+            rmax[i] = rmax[i].max(mean);
+        }
     }
 }
 
@@ -544,7 +746,7 @@ mod tests {
     }
 
     /// The scalar definition of the 3x3 box mean and of the line-preserving level, pixel by
-    /// pixel with replicated borders: what `Binarizer::box3` must reproduce exactly.
+    /// pixel with replicated borders: what the row kernel (`levels_rows`) must reproduce exactly.
     fn reference_box3(img: &[u8], w: usize, h: usize) -> (Vec<u8>, Vec<u8>) {
         let at = |x: isize, y: isize| {
             let x = x.clamp(0, w as isize - 1) as usize;
@@ -593,16 +795,30 @@ mod tests {
                 })
                 .collect();
             let view = GrayView::new(&img, w, h).unwrap();
-            let mut b = Binarizer::new();
-            // Twice, with a larger frame in between, so stale buffer contents would show.
+            // The row kernel the binarizer runs (levels into the output, means kept), twice
+            // on one scratch with a larger frame in between, so stale contents would show.
+            let mut band = Band::default();
             let big = vec![255u8; 64 * 16];
+            let (mut smooth, mut fine) = (vec![0u8; 64 * 16], vec![0u8; 64 * 16]);
+            let big_view = GrayView::new(&big, 64, 16).unwrap();
+            levels_rows(&big_view, 0, &mut fine, Some(&mut smooth), None, &mut band);
+            let (mut smooth, mut fine) = (vec![0u8; w * h], vec![0u8; w * h]);
+            levels_rows(&view, 0, &mut fine, Some(&mut smooth), None, &mut band);
+            let (smooth_ref, fine_ref) = reference_box3(&img, w, h);
+            proptest::prop_assert_eq!(&smooth, &smooth_ref);
+            proptest::prop_assert_eq!(&fine, &fine_ref);
+            // Started part-way down (as a band of binarize_parallel is).
+            if h > 2 {
+                let y0 = h / 2;
+                let mut part = vec![0u8; (h - y0) * w];
+                levels_rows(&view, y0, &mut part, None, None, &mut band);
+                proptest::prop_assert_eq!(&part[..], &fine_ref[y0 * w..]);
+            }
+            // Through binarize with Otsu, which keeps the means.
+            let mut b = Binarizer::new();
             let mut out = Vec::new();
-            b.binarize(&view, Threshold::default(), &mut out);
-            b.binarize(&GrayView::new(&big, 64, 16).unwrap(), Threshold::default(), &mut out);
-            b.binarize(&view, Threshold::default(), &mut out);
-            let (smooth, fine) = reference_box3(&img, w, h);
-            proptest::prop_assert_eq!(&b.smooth, &smooth);
-            proptest::prop_assert_eq!(&b.fine, &fine);
+            b.binarize(&view, Threshold::Otsu, &mut out);
+            proptest::prop_assert_eq!(b.smoothed(), &smooth_ref[..]);
             proptest::prop_assert_eq!(out.len(), w * h);
         }
     }
