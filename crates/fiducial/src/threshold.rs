@@ -54,11 +54,13 @@ pub const DARK: u8 = 1;
 
 /// Owns the scratch buffers of binarization so that repeated frames allocate nothing.
 ///
-/// The frame is read once: each row's 3x3 box mean and line-preserving level are computed
-/// together, the level is written straight into the output (where the cut later replaces
-/// it, in place), and the mean goes only into the running minimum and maximum of its tile
-/// row. Single-threaded, each tile row is cut as soon as the tile row below it is known, while
-/// its pixels are still in cache.
+/// The adaptive threshold reads the frame in two passes and keeps no frame-sized buffer.
+/// The first computes each pixel's 3x3 box mean and folds it into its tile's minimum and
+/// maximum, and nothing else. The second visits each tile row once its thresholds are known
+/// (single-threaded: as soon as the tile row below it is done, while its pixels are still in
+/// cache) and computes the line-preserving level only in tiles that have a threshold: in a
+/// tile whose neighbourhood is flat nothing is dark, whatever the level, and a frame of
+/// markers on a plain background is mostly such tiles.
 #[derive(Debug, Default, Clone)]
 pub struct Binarizer {
     /// The smoothed frame, kept only for [`Threshold::Otsu`] (its histogram).
@@ -69,16 +71,11 @@ pub struct Binarizer {
     bands: Vec<Band>,
 }
 
-/// One band's work in phase 1 of [`Binarizer::binarize_parallel`]: its index, its rows of
-/// the output (which receive the line-preserving level), its tile rows of minima and
-/// maxima, its scratch.
-type LevelBand<'a> = (
-    usize,
-    (((&'a mut [u8], &'a mut [u8]), &'a mut [u8]), &'a mut Band),
-);
+/// One band's work in phase 1 of [`Binarizer::binarize_parallel`]: its index, its tile rows
+/// of minima and maxima, its scratch.
+type ExtremesBand<'a> = (usize, ((&'a mut [u8], &'a mut [u8]), &'a mut Band));
 
-/// One band's work in phase 2: its index, its rows of the output (levels, cut in place), its
-/// scratch.
+/// One band's work in phase 2: its index, its rows of the output, its scratch.
 type CutBand<'a> = (usize, (&'a mut [u8], &'a mut Band));
 
 /// The scratch rows one band of rows needs.
@@ -105,6 +102,8 @@ struct CutScratch {
     tile_thr: Vec<u8>,
     /// The thresholds expanded to one per pixel.
     expanded: Vec<u8>,
+    /// The pixel ranges `[x0, x1)` of the runs of tiles that have a threshold.
+    runs: Vec<(usize, usize)>,
 }
 
 /// The adaptive rule's tile geometry and contrast floor.
@@ -116,8 +115,9 @@ struct Tiles {
     tx: usize,
     ty: usize,
     min_contrast: u8,
-    /// Frame width in pixels.
+    /// Frame width and height in pixels.
     width: usize,
+    height: usize,
 }
 
 impl Binarizer {
@@ -136,7 +136,7 @@ impl Binarizer {
     /// crate feature `parallel`; without it the bands run one after the other): the frame
     /// is cut into horizontal bands of whole tile rows, each band is smoothed and reduced to
     /// tile minima and maxima on its own thread, then each band's tile thresholds are
-    /// computed and its pixels cut on its own thread. Every stage reads the same pixels as
+    /// computed and its pixels cut on its own thread (with [`Threshold::Otsu`], one thread). Every stage reads the same pixels as
     /// the single-threaded pass, so the output is identical to [`Binarizer::binarize`]'s.
     pub fn binarize_parallel(
         &mut self,
@@ -175,8 +175,7 @@ impl Binarizer {
                 0,
                 &mut out[..],
                 Some(&mut self.smooth[..]),
-                None,
-                &mut self.bands[0],
+                &mut self.bands[0].hsum,
             );
             let t = otsu_level(&self.smooth);
             for o in out.iter_mut() {
@@ -190,11 +189,12 @@ impl Binarizer {
             ty,
             min_contrast,
             width: w,
+            height: h,
         };
         self.tile_min.resize(tx * ty, 0);
         self.tile_max.resize(tx * ty, 0);
         if count == 1 {
-            levels_and_cut(
+            extremes_and_cut(
                 img,
                 &mut out[..],
                 &tiles,
@@ -204,40 +204,35 @@ impl Binarizer {
             );
             return;
         }
-        // Phase 1: the levels, and the tile minima and maxima, per band.
-        let level_band = |(b, (((o, mn), mx), band)): LevelBand<'_>| {
-            levels_rows(img, b * band_rows, o, None, Some((&tiles, mn, mx)), band);
+        // Phase 1: the tile minima and maxima, per band.
+        let extremes_band = |(b, ((mn, mx), band)): ExtremesBand<'_>| {
+            let y0 = b * band_rows;
+            extremes_rows(img, y0, (y0 + band_rows).min(h), &tiles, mn, mx, band);
         };
         #[cfg(feature = "parallel")]
         {
             use rayon::prelude::*;
-            out.par_chunks_mut(band_rows * w)
-                .zip(self.tile_min.par_chunks_mut(band_tiles * tx))
+            self.tile_min
+                .par_chunks_mut(band_tiles * tx)
                 .zip(self.tile_max.par_chunks_mut(band_tiles * tx))
                 .zip(self.bands.par_iter_mut())
                 .enumerate()
-                .for_each(level_band);
+                .for_each(extremes_band);
         }
         #[cfg(not(feature = "parallel"))]
-        out.chunks_mut(band_rows * w)
-            .zip(self.tile_min.chunks_mut(band_tiles * tx))
+        self.tile_min
+            .chunks_mut(band_tiles * tx)
             .zip(self.tile_max.chunks_mut(band_tiles * tx))
             .zip(self.bands.iter_mut())
             .enumerate()
-            .for_each(level_band);
+            .for_each(extremes_band);
         // Phase 2: each band's tile thresholds (from the tile rows above and below it too)
         // and its cut.
         let (tile_min, tile_max) = (&self.tile_min[..], &self.tile_max[..]);
         let cut_band = |(b, (o, band)): CutBand<'_>| {
             for (k, rows) in o.chunks_mut(side * w).enumerate() {
-                cut_tile_row(
-                    b * band_tiles + k,
-                    rows,
-                    &tiles,
-                    tile_min,
-                    tile_max,
-                    &mut band.cut,
-                );
+                let j = b * band_tiles + k;
+                cut_tile_row(img, j, rows, &tiles, tile_min, tile_max, &mut band.cut);
             }
         };
         #[cfg(feature = "parallel")]
@@ -284,18 +279,31 @@ impl<'a> Ring<'a> {
         }
     }
 
+    /// The box means of the rows `y0 .. y1`, folded into the element-wise minimum `row_min`
+    /// and maximum `row_max` (one row each; combined with what they hold).
+    fn means(
+        &mut self,
+        img: &GrayView<'_>,
+        (y0, y1): (usize, usize),
+        row_min: &mut [u8],
+        row_max: &mut [u8],
+    ) {
+        let h = img.height();
+        for y in y0..y1 {
+            let [s0, s1, s2] = &mut self.slots;
+            mean_row([s0, s1], s2, img.row((y + 1).min(h - 1)), row_min, row_max);
+            self.slots.rotate_left(1);
+        }
+    }
+
     /// Rows `y0 ..` of the frame, as many as `out` holds (whole rows): their line-preserving
-    /// levels into `out`, with `SMOOTH` their box means into `smooth` (as long as `out`),
-    /// with `EXTREMES` the element-wise minimum and maximum of the box means into `row_min`
-    /// and `row_max` (one row; they are combined with what they hold).
-    fn rows<const SMOOTH: bool, const EXTREMES: bool>(
+    /// levels into `out`, with `SMOOTH` their box means into `smooth` (as long as `out`).
+    fn levels<const SMOOTH: bool>(
         &mut self,
         img: &GrayView<'_>,
         y0: usize,
         out: &mut [u8],
         smooth: &mut [u8],
-        row_min: &mut [u8],
-        row_max: &mut [u8],
     ) {
         let (w, h) = (img.width(), img.height());
         for (i, o) in out.chunks_exact_mut(w).enumerate() {
@@ -311,22 +319,38 @@ impl<'a> Ring<'a> {
                 &mut smooth[..0]
             };
             let [s0, s1, s2] = &mut self.slots;
-            box_row::<SMOOTH, EXTREMES>([s0, s1], s2, px, o, sm, row_min, row_max);
+            box_row::<SMOOTH>([s0, s1], s2, px, o, sm);
             self.slots.rotate_left(1);
         }
     }
 }
 
-/// The levels of the rows `y0 ..` of `img` that `out` holds (whole rows) into `out`, with
-/// `smooth` their box means, with `extremes` (tiles, minima, maxima) the minimum and
-/// maximum box mean of each of their tiles (`y0` is then at a tile row's start, and the
-/// minima and maxima have one row of `tx` per tile row).
+/// The line-preserving levels of the rows `y0 ..` of `img` that `out` holds (whole rows)
+/// into `out`, and with `smooth` their box means into it.
 fn levels_rows(
     img: &GrayView<'_>,
     y0: usize,
     out: &mut [u8],
     smooth: Option<&mut [u8]>,
-    extremes: Option<(&Tiles, &mut [u8], &mut [u8])>,
+    hsum: &mut Vec<u16>,
+) {
+    let mut ring = Ring::start(img, y0, hsum);
+    match smooth {
+        Some(smooth) => ring.levels::<true>(img, y0, out, smooth),
+        None => ring.levels::<false>(img, y0, out, &mut []),
+    }
+}
+
+/// The minimum and maximum box mean of each tile of the rows `y0 .. y1` (`y0` at a tile
+/// row's start, `y1` at a tile row's end or the frame's) into `mins` and `maxs` (`tx` per
+/// tile row).
+fn extremes_rows(
+    img: &GrayView<'_>,
+    y0: usize,
+    y1: usize,
+    tiles: &Tiles,
+    mins: &mut [u8],
+    maxs: &mut [u8],
     band: &mut Band,
 ) {
     let w = img.width();
@@ -337,32 +361,23 @@ fn levels_rows(
         ..
     } = band;
     let mut ring = Ring::start(img, y0, hsum);
-    match (extremes, smooth) {
-        (Some((tiles, mins, maxs)), _) => {
-            row_min.resize(w, 0);
-            row_max.resize(w, 0);
-            let mut y = y0;
-            for ((rows, mins), maxs) in out
-                .chunks_mut(tiles.side * w)
-                .zip(mins.chunks_mut(tiles.tx))
-                .zip(maxs.chunks_mut(tiles.tx))
-            {
-                row_min.fill(u8::MAX);
-                row_max.fill(0);
-                ring.rows::<false, true>(img, y, rows, &mut [], row_min, row_max);
-                y += rows.len() / w;
-                tile_extremes(row_min, row_max, tiles.side, mins, maxs);
-            }
-        }
-        (None, Some(smooth)) => ring.rows::<true, false>(img, y0, out, smooth, &mut [], &mut []),
-        (None, None) => ring.rows::<false, false>(img, y0, out, &mut [], &mut [], &mut []),
+    row_min.resize(w, 0);
+    row_max.resize(w, 0);
+    for ((y, mins), maxs) in (y0..y1)
+        .step_by(tiles.side)
+        .zip(mins.chunks_mut(tiles.tx))
+        .zip(maxs.chunks_mut(tiles.tx))
+    {
+        row_min.fill(u8::MAX);
+        row_max.fill(0);
+        ring.means(img, (y, (y + tiles.side).min(y1)), row_min, row_max);
+        tile_extremes(row_min, row_max, tiles.side, mins, maxs);
     }
 }
 
-/// The whole adaptive binarization on one thread: each tile row's levels and tile extremes,
-/// and the cut of the tile row above it as soon as they are known (its pixels are then still
-/// in cache).
-fn levels_and_cut(
+/// The whole adaptive binarization on one thread: each tile row's extremes, and the cut of
+/// the tile row above it as soon as they are known (its pixels are then still in cache).
+fn extremes_and_cut(
     img: &GrayView<'_>,
     out: &mut [u8],
     tiles: &Tiles,
@@ -370,46 +385,38 @@ fn levels_and_cut(
     tile_max: &mut [u8],
     band: &mut Band,
 ) {
-    let w = img.width();
-    let rows_per = tiles.side * w;
-    let mut ring = Ring::start(img, 0, &mut band.hsum);
-    band.row_min.resize(w, 0);
-    band.row_max.resize(w, 0);
+    let (w, side, tx) = (img.width(), tiles.side, tiles.tx);
+    let rows_per = side * w;
+    let Band {
+        hsum,
+        row_min,
+        row_max,
+        cut,
+    } = band;
+    let mut ring = Ring::start(img, 0, hsum);
+    row_min.resize(w, 0);
+    row_max.resize(w, 0);
     for j in 0..tiles.ty {
-        let start = j * rows_per;
-        let end = (start + rows_per).min(out.len());
-        band.row_min.fill(u8::MAX);
-        band.row_max.fill(0);
-        ring.rows::<false, true>(
-            img,
-            j * tiles.side,
-            &mut out[start..end],
-            &mut [],
-            &mut band.row_min,
-            &mut band.row_max,
-        );
-        let k = j * tiles.tx..(j + 1) * tiles.tx;
+        row_min.fill(u8::MAX);
+        row_max.fill(0);
+        let y = j * side;
+        ring.means(img, (y, (y + side).min(tiles.height)), row_min, row_max);
+        let k = j * tx..(j + 1) * tx;
         tile_extremes(
-            &band.row_min,
-            &band.row_max,
-            tiles.side,
+            row_min,
+            row_max,
+            side,
             &mut tile_min[k.clone()],
             &mut tile_max[k],
         );
         if j > 0 {
-            let rows = &mut out[start - rows_per..start];
-            cut_tile_row(j - 1, rows, tiles, tile_min, tile_max, &mut band.cut);
+            let rows = &mut out[(j - 1) * rows_per..j * rows_per];
+            cut_tile_row(img, j - 1, rows, tiles, tile_min, tile_max, cut);
         }
     }
-    let last = (tiles.ty - 1) * rows_per;
-    cut_tile_row(
-        tiles.ty - 1,
-        &mut out[last..],
-        tiles,
-        tile_min,
-        tile_max,
-        &mut band.cut,
-    );
+    let j = tiles.ty - 1;
+    let rows = &mut out[j * rows_per..];
+    cut_tile_row(img, j, rows, tiles, tile_min, tile_max, cut);
 }
 
 /// Each tile's minimum and maximum (tiles of `side` pixels, the last one cut short) from the
@@ -446,6 +453,7 @@ fn tile_extremes(row_min: &[u8], row_max: &[u8], side: usize, mins: &mut [u8], m
 /// 0 ("nothing here is dark") where their difference is below `min_contrast`; a pixel is
 /// dark where its level is below its tile's threshold.
 fn cut_tile_row(
+    img: &GrayView<'_>,
     j: usize,
     rows: &mut [u8],
     tiles: &Tiles,
@@ -459,12 +467,14 @@ fn cut_tile_row(
         ty,
         min_contrast,
         width: w,
+        height: h,
     } = *tiles;
     let CutScratch {
         col_min,
         col_max,
         tile_thr,
         expanded,
+        runs,
     } = scratch;
     // The neighbourhood's extremes: over the tile rows above, at and below (clamped)...
     fn tile_row(v: &[u8], k: usize, tx: usize) -> &[u8] {
@@ -514,7 +524,25 @@ fn cut_tile_row(
             inner[i] = thr(l[i].min(c[i]).min(r[i]), lm[i].max(cm[i]).max(rm[i]));
         }
     }
-    // One threshold per pixel, then whole rows compared.
+    // The runs of tiles that have a threshold; elsewhere nothing is dark.
+    runs.clear();
+    let mut i = 0;
+    while i < tx {
+        if tile_thr[i] == 0 {
+            i += 1;
+            continue;
+        }
+        let start = i;
+        while i < tx && tile_thr[i] != 0 {
+            i += 1;
+        }
+        runs.push((start * side, (i * side).min(w)));
+    }
+    if runs.is_empty() {
+        rows.fill(0);
+        return;
+    }
+    // One threshold per pixel, then the levels of each run computed and compared.
     expanded.resize(w, 0);
     if side == 8 {
         let mut chunks = expanded.chunks_exact_mut(8);
@@ -528,10 +556,62 @@ fn cut_tile_row(
             c.iter_mut().for_each(|v| *v = t);
         }
     }
-    for row in rows.chunks_exact_mut(w) {
-        for (o, &t) in row.iter_mut().zip(expanded.iter()) {
-            *o = u8::from(*o < t);
+    for (i, row) in rows.chunks_exact_mut(w).enumerate() {
+        let y = j * side + i;
+        let px = [
+            img.row(y.saturating_sub(1)),
+            img.row(y),
+            img.row((y + 1).min(h - 1)),
+        ];
+        let mut done = 0;
+        for &(x0, x1) in runs.iter() {
+            row[done..x0].fill(0);
+            cut_run(px, x0, x1, expanded, row);
+            done = x1;
         }
+        row[done..].fill(0);
+    }
+}
+
+/// The cut of the pixels `x0 .. x1` of one row: dark where the line-preserving level is below
+/// the pixel's threshold in `thr`. `px` holds the rows above, at and below (clamped), `out`
+/// the row's binary pixels.
+fn cut_run(px: [&[u8]; 3], x0: usize, x1: usize, thr: &[u8], out: &mut [u8]) {
+    let w = out.len();
+    let (u, m, d) = (&px[0][..w], &px[1][..w], &px[2][..w]);
+    let thr = &thr[..w];
+    // One pixel with its neighbours clamped to the row.
+    let mut one = |x: usize| {
+        let (l, r) = (x.saturating_sub(1), (x + 1).min(w - 1));
+        let hsum = |p: &[u8]| u16::from(p[l]) + u16::from(p[x]) + u16::from(p[r]);
+        let (hu, hm, hd) = (hsum(u), hsum(m), hsum(d));
+        let vert = u16::from(u[x]) + u16::from(m[x]) + u16::from(d[x]);
+        let (_, level) = levels(hu + hm + hd, hm, vert);
+        out[x] = u8::from(level < thr[x]);
+    };
+    // The pixels with both row neighbours, `a .. b`; the row's end pixels apart.
+    let (a, b) = (x0.max(1), x1.min(w - 1));
+    if x0 == 0 {
+        one(0);
+    }
+    if x1 == w && w > 1 {
+        one(w - 1);
+    }
+    if a >= b {
+        return;
+    }
+    let n = b - a;
+    let (ul, uc, ur) = (&u[a - 1..b - 1], &u[a..b], &u[a + 1..b + 1]);
+    let (ml, mc, mr) = (&m[a - 1..b - 1], &m[a..b], &m[a + 1..b + 1]);
+    let (dl, dc, dr) = (&d[a - 1..b - 1], &d[a..b], &d[a + 1..b + 1]);
+    let (t, o) = (&thr[a..b], &mut out[a..b]);
+    for i in 0..n {
+        let hu = u16::from(ul[i]) + u16::from(uc[i]) + u16::from(ur[i]);
+        let hm = u16::from(ml[i]) + u16::from(mc[i]) + u16::from(mr[i]);
+        let hd = u16::from(dl[i]) + u16::from(dc[i]) + u16::from(dr[i]);
+        let vert = u16::from(uc[i]) + u16::from(mc[i]) + u16::from(dc[i]);
+        let (_, level) = levels(hu + hm + hd, hm, vert);
+        o[i] = u8::from(level < t[i]);
     }
 }
 
@@ -553,17 +633,23 @@ fn hrow(src: &[u8], dst: &mut [u16]) {
     dst[w - 1] = u16::from(src[w - 2]) + 2 * u16::from(src[w - 1]);
 }
 
+/// The 3x3 box mean of a pixel from its nine-pixel sum: `s / 9` without a division (a 16-bit
+/// multiply-high: 7282 / 65536 = 0.11111).
+#[inline(always)]
+fn box_mean(s: u16) -> u8 {
+    ((u32::from(s) * 7282) >> 16) as u8
+}
+
 /// The box mean and the line-preserving level of one pixel from its nine-pixel sum `s`, the
 /// 1x3 sum along its row `horiz` and the 3x1 sum along its column `vert`.
 ///
-/// The mean is `s / 9` without a division (a 16-bit multiply-high: 7282 / 65536 = 0.11111).
 /// The level is the darkest of the 3x3 box and the 3x1 and 1x3 ones (sums times 3, so that
 /// all three compare on one scale): a dark line two pixels wide along either axis keeps its
 /// level in the 1x3 box along it, where the 3x3 box would mix in its light surround. All
 /// terms stay below 2^16.
 #[inline(always)]
 fn levels(s: u16, horiz: u16, vert: u16) -> (u8, u8) {
-    let mean = ((u32::from(s) * 7282) >> 16) as u8;
+    let mean = box_mean(s);
     let least = horiz.min(vert);
     let level = if 3 * least + LINE_STEP_9 < s {
         (least / 3) as u8
@@ -576,74 +662,76 @@ fn levels(s: u16, horiz: u16, vert: u16) -> (u8, u8) {
 /// One row of the 3x3 box: from the horizontal sums of the rows above and at it (`hs`) and
 /// the pixels of the rows above, at and below it (`px`), the horizontal sums of the row
 /// below into `next`, the line-preserving levels into `out`, with `SMOOTH` the box means
-/// into `smooth`, with `EXTREMES` the means folded into the element-wise minima `row_min`
-/// and maxima `row_max`.
+/// into `smooth`.
 ///
 /// The inner loop runs over slices of one length in 16-bit arithmetic, so it vectorises; the
 /// two end pixels (replicated borders) are done apart.
 #[inline(always)]
-fn box_row<const SMOOTH: bool, const EXTREMES: bool>(
+fn box_row<const SMOOTH: bool>(
     hs: [&[u16]; 2],
     next: &mut [u16],
     px: [&[u8]; 3],
     out: &mut [u8],
     smooth: &mut [u8],
-    row_min: &mut [u8],
-    row_max: &mut [u8],
 ) {
     let w = out.len();
-    let (h0, h1, h2) = (&hs[0][..w], &hs[1][..w], &mut next[..w]);
+    let (h0, h1) = (&hs[0][..w], &hs[1][..w]);
     let (u, m, d) = (&px[0][..w], &px[1][..w], &px[2][..w]);
     let smooth = &mut smooth[..if SMOOTH { w } else { 0 }];
-    let row_min = &mut row_min[..if EXTREMES { w } else { 0 }];
-    let row_max = &mut row_max[..if EXTREMES { w } else { 0 }];
-    let mut put = |x: usize, mean: u8, level: u8| {
+    hrow(d, next);
+    let h2 = &next[..w];
+    for x in 0..w {
+        let vert = u16::from(u[x]) + u16::from(m[x]) + u16::from(d[x]);
+        let (mean, level) = levels(h0[x] + h1[x] + h2[x], h1[x], vert);
         out[x] = level;
         if SMOOTH {
             smooth[x] = mean;
         }
-        if EXTREMES {
-            row_min[x] = row_min[x].min(mean);
-            row_max[x] = row_max[x].max(mean);
-        }
+    }
+}
+
+/// One row of box means, folded into the element-wise minimum `row_min` and maximum
+/// `row_max`: from the horizontal sums of the rows above and at it (`hs`) and the pixels of
+/// the row below (`below`), whose horizontal sums go into `next` on the way.
+///
+/// The inner loop runs over slices of one length in 16-bit arithmetic, so it vectorises; the
+/// two end pixels (replicated borders) are done apart.
+#[inline(always)]
+fn mean_row(
+    hs: [&[u16]; 2],
+    next: &mut [u16],
+    below: &[u8],
+    row_min: &mut [u8],
+    row_max: &mut [u8],
+) {
+    let w = row_min.len();
+    let (h0, h1, h2, d) = (&hs[0][..w], &hs[1][..w], &mut next[..w], &below[..w]);
+    let row_max = &mut row_max[..w];
+    let mean = box_mean;
+    let mut put = |x: usize, s: u16| {
+        row_min[x] = row_min[x].min(mean(s));
+        row_max[x] = row_max[x].max(mean(s));
     };
-    let vert = |x: usize| u16::from(u[x]) + u16::from(m[x]) + u16::from(d[x]);
     if w == 1 {
         h2[0] = 3 * u16::from(d[0]);
-        let (mean, level) = levels(h0[0] + h1[0] + h2[0], h1[0], vert(0));
-        put(0, mean, level);
+        put(0, h0[0] + h1[0] + h2[0]);
         return;
     }
     h2[0] = 2 * u16::from(d[0]) + u16::from(d[1]);
     h2[w - 1] = u16::from(d[w - 2]) + 2 * u16::from(d[w - 1]);
-    for x in [0, w - 1] {
-        let (mean, level) = levels(h0[x] + h1[x] + h2[x], h1[x], vert(x));
-        put(x, mean, level);
-    }
+    put(0, h0[0] + h1[0] + h2[0]);
+    put(w - 1, h0[w - 1] + h1[w - 1] + h2[w - 1]);
     // The inner pixels 1 .. w - 1, on slices offset by one.
     let n = w - 2;
     let (dl, dc, dr) = (&d[..n], &d[1..n + 1], &d[2..]);
-    let (uc, mc) = (&u[1..n + 1], &m[1..n + 1]);
-    let (a, b) = (&h0[1..n + 1], &h1[1..n + 1]);
-    let c = &mut h2[1..n + 1];
-    let oc = &mut out[1..n + 1];
-    let sc = &mut smooth[if SMOOTH { 1..n + 1 } else { 0..0 }];
-    let rmin = &mut row_min[if EXTREMES { 1..n + 1 } else { 0..0 }];
-    let rmax = &mut row_max[if EXTREMES { 1..n + 1 } else { 0..0 }];
+    let (a, b, c) = (&h0[1..n + 1], &h1[1..n + 1], &mut h2[1..n + 1]);
+    let (rmin, rmax) = (&mut row_min[1..n + 1], &mut row_max[1..n + 1]);
     for i in 0..n {
         let below = u16::from(dl[i]) + u16::from(dc[i]) + u16::from(dr[i]);
         c[i] = below;
-        let s = a[i] + b[i] + below;
-        let v = u16::from(uc[i]) + u16::from(mc[i]) + u16::from(dc[i]);
-        let (mean, level) = levels(s, b[i], v);
-        oc[i] = level;
-        if SMOOTH {
-            sc[i] = mean;
-        }
-        if EXTREMES {
-            rmin[i] = rmin[i].min(mean);
-            rmax[i] = rmax[i].max(mean);
-        }
+        let m = mean(a[i] + b[i] + below);
+        rmin[i] = rmin[i].min(m);
+        rmax[i] = rmax[i].max(m);
     }
 }
 
@@ -801,9 +889,9 @@ mod tests {
             let big = vec![255u8; 64 * 16];
             let (mut smooth, mut fine) = (vec![0u8; 64 * 16], vec![0u8; 64 * 16]);
             let big_view = GrayView::new(&big, 64, 16).unwrap();
-            levels_rows(&big_view, 0, &mut fine, Some(&mut smooth), None, &mut band);
+            levels_rows(&big_view, 0, &mut fine, Some(&mut smooth), &mut band.hsum);
             let (mut smooth, mut fine) = (vec![0u8; w * h], vec![0u8; w * h]);
-            levels_rows(&view, 0, &mut fine, Some(&mut smooth), None, &mut band);
+            levels_rows(&view, 0, &mut fine, Some(&mut smooth), &mut band.hsum);
             let (smooth_ref, fine_ref) = reference_box3(&img, w, h);
             proptest::prop_assert_eq!(&smooth, &smooth_ref);
             proptest::prop_assert_eq!(&fine, &fine_ref);
@@ -811,7 +899,7 @@ mod tests {
             if h > 2 {
                 let y0 = h / 2;
                 let mut part = vec![0u8; (h - y0) * w];
-                levels_rows(&view, y0, &mut part, None, None, &mut band);
+                levels_rows(&view, y0, &mut part, None, &mut band.hsum);
                 proptest::prop_assert_eq!(&part[..], &fine_ref[y0 * w..]);
             }
             // Through binarize with Otsu, which keeps the means.
