@@ -100,8 +100,12 @@ struct CutScratch {
     col_max: Vec<u8>,
     /// The tile row's thresholds, one per tile.
     tile_thr: Vec<u8>,
-    /// The thresholds expanded to one per pixel.
-    expanded: Vec<u8>,
+    /// Per pixel, the least nine-pixel sum whose box mean reaches the pixel's threshold.
+    sum_thr: Vec<i16>,
+    /// Per pixel, three times its threshold (the same test on the scale of 3-sums).
+    line_thr: Vec<i16>,
+    /// Three rows of horizontal 3-sums over a run of tiles (a ring).
+    hsum: Vec<i16>,
     /// The pixel ranges `[x0, x1)` of the runs of tiles that have a threshold.
     runs: Vec<(usize, usize)>,
 }
@@ -467,13 +471,15 @@ fn cut_tile_row(
         ty,
         min_contrast,
         width: w,
-        height: h,
+        ..
     } = *tiles;
     let CutScratch {
         col_min,
         col_max,
         tile_thr,
-        expanded,
+        sum_thr,
+        line_thr,
+        hsum,
         runs,
     } = scratch;
     // The neighbourhood's extremes: over the tile rows above, at and below (clamped)...
@@ -542,76 +548,136 @@ fn cut_tile_row(
         rows.fill(0);
         return;
     }
-    // One threshold per pixel, then the levels of each run computed and compared.
-    expanded.resize(w, 0);
-    if side == 8 {
-        let mut chunks = expanded.chunks_exact_mut(8);
-        for (c, &t) in chunks.by_ref().zip(tile_thr.iter()) {
-            c.copy_from_slice(&[t; 8]);
-        }
-        let t = tile_thr[tx - 1];
-        chunks.into_remainder().iter_mut().for_each(|v| *v = t);
-    } else {
-        for (c, &t) in expanded.chunks_mut(side).zip(tile_thr.iter()) {
-            c.iter_mut().for_each(|v| *v = t);
+    // The thresholds per pixel, as the two tests of the cut need them, then each run's
+    // levels computed and compared, one row after the other; the rest of each row is light.
+    for (v, t) in [
+        (&mut *sum_thr, SumOrLine::Sum),
+        (&mut *line_thr, SumOrLine::Line),
+    ] {
+        v.resize(w, 0);
+        let at = |k: usize| t.scale(tile_thr[k]);
+        if side == 8 {
+            let mut chunks = v.chunks_exact_mut(8);
+            for (k, c) in chunks.by_ref().enumerate() {
+                c.copy_from_slice(&[at(k); 8]);
+            }
+            let last = at(tx - 1);
+            chunks.into_remainder().iter_mut().for_each(|v| *v = last);
+        } else {
+            for (k, c) in v.chunks_mut(side).enumerate() {
+                let t = at(k);
+                c.iter_mut().for_each(|v| *v = t);
+            }
         }
     }
-    for (i, row) in rows.chunks_exact_mut(w).enumerate() {
-        let y = j * side + i;
-        let px = [
-            img.row(y.saturating_sub(1)),
-            img.row(y),
-            img.row((y + 1).min(h - 1)),
-        ];
+    let y0 = j * side;
+    let n_rows = rows.len() / w;
+    for &(x0, x1) in runs.iter() {
+        cut_run(img, (y0, n_rows), (x0, x1), (sum_thr, line_thr), hsum, rows);
+    }
+    for row in rows.chunks_exact_mut(w) {
         let mut done = 0;
         for &(x0, x1) in runs.iter() {
             row[done..x0].fill(0);
-            cut_run(px, x0, x1, expanded, row);
             done = x1;
         }
         row[done..].fill(0);
     }
 }
 
-/// The cut of the pixels `x0 .. x1` of one row: dark where the line-preserving level is below
-/// the pixel's threshold in `thr`. `px` holds the rows above, at and below (clamped), `out`
-/// the row's binary pixels.
-fn cut_run(px: [&[u8]; 3], x0: usize, x1: usize, thr: &[u8], out: &mut [u8]) {
-    let w = out.len();
-    let (u, m, d) = (&px[0][..w], &px[1][..w], &px[2][..w]);
-    let thr = &thr[..w];
-    // One pixel with its neighbours clamped to the row.
-    let mut one = |x: usize| {
-        let (l, r) = (x.saturating_sub(1), (x + 1).min(w - 1));
-        let hsum = |p: &[u8]| u16::from(p[l]) + u16::from(p[x]) + u16::from(p[r]);
-        let (hu, hm, hd) = (hsum(u), hsum(m), hsum(d));
-        let vert = u16::from(u[x]) + u16::from(m[x]) + u16::from(d[x]);
-        let (_, level) = levels(hu + hm + hd, hm, vert);
-        out[x] = u8::from(level < thr[x]);
-    };
+/// A tile threshold `t` on the scale of one of the two tests of the cut.
+#[derive(Debug, Clone, Copy)]
+enum SumOrLine {
+    /// The least nine-pixel sum `s` whose box mean is at least `t`: the mean is below `t`
+    /// exactly where `s` is below this. As `box_mean(s) = floor(7282 s / 65536)`, it is
+    /// `ceil(65536 t / 7282)`.
+    Sum,
+    /// `3 t`: a 3-sum `l` has `l / 3 < t` exactly where `l < 3 t`.
+    Line,
+}
+
+impl SumOrLine {
+    #[inline]
+    fn scale(self, t: u8) -> i16 {
+        match self {
+            Self::Sum => (u32::from(t) * 65536).div_ceil(7282) as i16,
+            Self::Line => 3 * i16::from(t),
+        }
+    }
+}
+
+/// The cut of the pixels `x0 .. x1` of the rows `y0 .. y0 + n` (`rows` holds those rows,
+/// whole): dark where the line-preserving level is below the threshold. With the thresholds
+/// scaled ([`SumOrLine`]), that is where the nine-pixel sum `s` is below `sum_thr` (the box
+/// mean is below the threshold, and the level is never above the mean), or where the line
+/// rule holds (`3 least + 9 LINE_STEP < s`) and the least 3-sum is below `line_thr` (its
+/// third is below the threshold): no division and no choice of level per pixel.
+///
+/// The horizontal 3-sums go through a ring of three rows over the run (`hsum`), so that each
+/// row's are computed once; the inner loops run in 16-bit arithmetic over slices of one
+/// length, so they vectorise.
+fn cut_run(
+    img: &GrayView<'_>,
+    (y0, n): (usize, usize),
+    (x0, x1): (usize, usize),
+    (sum_thr, line_thr): (&[i16], &[i16]),
+    hsum: &mut Vec<i16>,
+    rows: &mut [u8],
+) {
+    let (w, h) = (img.width(), img.height());
+    let len = x1 - x0;
+    hsum.resize(3 * len, 0);
+    let (s0, rest) = hsum.split_at_mut(len);
+    let (s1, s2) = rest.split_at_mut(len);
+    let mut slots = [s0, s1, s2];
+    hsum_range(img.row(y0.saturating_sub(1)), x0, slots[0]);
+    hsum_range(img.row(y0), x0, slots[1]);
+    let (st, lt) = (&sum_thr[x0..x1], &line_thr[x0..x1]);
+    for (i, row) in rows.chunks_exact_mut(w).take(n).enumerate() {
+        let y = y0 + i;
+        let below = img.row((y + 1).min(h - 1));
+        hsum_range(below, x0, slots[2]);
+        let (u, m, d) = (
+            &img.row(y.saturating_sub(1))[x0..x1],
+            &img.row(y)[x0..x1],
+            &below[x0..x1],
+        );
+        let (a, b, c) = (&slots[0][..len], &slots[1][..len], &slots[2][..len]);
+        let out = &mut row[x0..x1];
+        for k in 0..len {
+            let s = a[k] + b[k] + c[k];
+            let vert = i16::from(u[k]) + i16::from(m[k]) + i16::from(d[k]);
+            let least = b[k].min(vert);
+            // Bitwise, not short-circuit: no branch in the loop.
+            let line = (3 * least + (LINE_STEP_9 as i16) < s) & (least < lt[k]);
+            out[k] = u8::from((s < st[k]) | line);
+        }
+        slots.rotate_left(1);
+    }
+}
+
+/// Horizontal 3-sums (end pixels of the row replicated) of the pixels `x0 .. x0 +
+/// dst.len()` of the row `src`, into `dst`.
+fn hsum_range(src: &[u8], x0: usize, dst: &mut [i16]) {
+    let w = src.len();
+    let x1 = x0 + dst.len();
+    let at = |x: usize| i16::from(src[x]);
+    let one = |x: usize| at(x.saturating_sub(1)) + at(x) + at((x + 1).min(w - 1));
     // The pixels with both row neighbours, `a .. b`; the row's end pixels apart.
     let (a, b) = (x0.max(1), x1.min(w - 1));
     if x0 == 0 {
-        one(0);
+        dst[0] = one(0);
     }
     if x1 == w && w > 1 {
-        one(w - 1);
+        dst[w - 1 - x0] = one(w - 1);
     }
     if a >= b {
         return;
     }
-    let n = b - a;
-    let (ul, uc, ur) = (&u[a - 1..b - 1], &u[a..b], &u[a + 1..b + 1]);
-    let (ml, mc, mr) = (&m[a - 1..b - 1], &m[a..b], &m[a + 1..b + 1]);
-    let (dl, dc, dr) = (&d[a - 1..b - 1], &d[a..b], &d[a + 1..b + 1]);
-    let (t, o) = (&thr[a..b], &mut out[a..b]);
-    for i in 0..n {
-        let hu = u16::from(ul[i]) + u16::from(uc[i]) + u16::from(ur[i]);
-        let hm = u16::from(ml[i]) + u16::from(mc[i]) + u16::from(mr[i]);
-        let hd = u16::from(dl[i]) + u16::from(dc[i]) + u16::from(dr[i]);
-        let vert = u16::from(uc[i]) + u16::from(mc[i]) + u16::from(dc[i]);
-        let (_, level) = levels(hu + hm + hd, hm, vert);
-        o[i] = u8::from(level < t[i]);
+    let (l, c, r) = (&src[a - 1..b - 1], &src[a..b], &src[a + 1..b + 1]);
+    let out = &mut dst[a - x0..b - x0];
+    for k in 0..out.len() {
+        out[k] = i16::from(l[k]) + i16::from(c[k]) + i16::from(r[k]);
     }
 }
 
@@ -1116,6 +1182,25 @@ mod tests {
         let out = reference_binarize(&lined, w, h, Threshold::default());
         assert!((0..h).all(|y| out[y * w + 11] == DARK && out[y * w + 12] == DARK));
         assert!((0..h).all(|y| out[y * w + 3] == 0 && out[y * w + 20] == 0));
+    }
+
+    #[test]
+    fn scaled_thresholds_give_the_same_tests() {
+        // Every nine-pixel sum and 3-sum a frame can give, against every threshold: the cut's
+        // scaled tests (`cut_run`) decide as the level's definition does.
+        for t in 0..=255u8 {
+            let (st, lt) = (SumOrLine::Sum.scale(t), SumOrLine::Line.scale(t));
+            for s in 0..=9 * 255u16 {
+                assert_eq!(box_mean(s) < t, (s as i16) < st, "sum {s}, threshold {t}");
+            }
+            for l in 0..=3 * 255u16 {
+                assert_eq!(
+                    ((l / 3) as u8) < t,
+                    (l as i16) < lt,
+                    "3-sum {l}, threshold {t}"
+                );
+            }
+        }
     }
 
     #[test]
