@@ -7,7 +7,9 @@
 //! without markers; `detect_1920x1080_rayon` the 1920x1080 scene through
 //! `Detector::detect_parallel` (binarization on rayon's threads with `--features parallel`).
 //! `fiducial/find_quads_640x480` is the quad phase alone
-//! (`binarize_640x480` and `label_640x480` its first two stages apart) and
+//! (`binarize_640x480` and `label_640x480` its first two stages apart;
+//! `binarize_clutter_640x480` binarization of the clutter frame, where every tile has
+//! contrast) and
 //! `fiducial/baseline_sum_640x480` a plain pass summing the frame's bytes, measured in
 //! the same run so that ratios survive a loaded machine.
 
@@ -146,6 +148,21 @@ fn benches(c: &mut Criterion) {
     )
     .expect("valid clutter size");
     bench_detect(c, "fiducial/detect_clutter_640x480", &clutter, 640, 480);
+    // Binarization of the clutter frame: textures everywhere, so (unlike the marker scenes,
+    // mostly plain background) nearly every tile has contrast and needs its levels computed.
+    let clutter_img = GrayView::new(&clutter, 640, 480).expect("valid frame");
+    let mut binarizer = fiducial::threshold::Binarizer::new();
+    let mut bin = Vec::new();
+    c.bench_function("fiducial/binarize_clutter_640x480", |b| {
+        b.iter(|| {
+            binarizer.binarize(
+                black_box(&clutter_img),
+                fiducial::Threshold::default(),
+                &mut bin,
+            );
+            black_box(bin.len())
+        })
+    });
 
     let img = GrayView::new(&vga, 640, 480).expect("valid frame");
     let mut det = Detector::new(DetectorConfig::default());

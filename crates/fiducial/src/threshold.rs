@@ -53,40 +53,75 @@ const LINE_STEP_9: u16 = 9 * LINE_STEP as u16;
 pub const DARK: u8 = 1;
 
 /// Owns the scratch buffers of binarization so that repeated frames allocate nothing.
+///
+/// The adaptive threshold reads the frame in two passes and keeps no frame-sized buffer.
+/// The first computes each pixel's 3x3 box mean and folds it into its tile's minimum and
+/// maximum, and nothing else. The second visits each tile row once its thresholds are known
+/// (single-threaded: as soon as the tile row below it is done, while its pixels are still in
+/// cache) and computes the line-preserving level only in tiles that have a threshold: in a
+/// tile whose neighbourhood is flat nothing is dark, whatever the level, and a frame of
+/// markers on a plain background is mostly such tiles.
 #[derive(Debug, Default, Clone)]
 pub struct Binarizer {
+    /// The smoothed frame, kept only for [`Threshold::Otsu`] (its histogram).
     smooth: Vec<u8>,
-    fine: Vec<u8>,
     tile_min: Vec<u8>,
     tile_max: Vec<u8>,
-    tile_thr: Vec<u8>,
     /// Scratch rows of each band of rows (one band unless [`Binarizer::binarize_parallel`]).
     bands: Vec<Band>,
 }
 
-/// One band's work in phase 1 of [`Binarizer::binarize_parallel`]: its index, its rows of
-/// the smoothed and line-preserving frames, its tile rows of minima and maxima, its scratch.
-type SmoothBand<'a> = (
-    usize,
-    (
-        (((&'a mut [u8], &'a mut [u8]), &'a mut [u8]), &'a mut [u8]),
-        &'a mut Band,
-    ),
-);
+/// One band's work in phase 1 of [`Binarizer::binarize_parallel`]: its index, its tile rows
+/// of minima and maxima, its scratch.
+type ExtremesBand<'a> = (usize, ((&'a mut [u8], &'a mut [u8]), &'a mut Band));
 
-/// One band's work in phase 3: its rows of the line-preserving frame and of the output, its
-/// tile rows of thresholds, its scratch.
-type CutBand<'a> = ((&'a [u8], &'a mut [u8]), (&'a [u8], &'a mut Band));
+/// One band's work in phase 2: its index, its rows of the output, its scratch.
+type CutBand<'a> = (usize, (&'a mut [u8], &'a mut Band));
 
 /// The scratch rows one band of rows needs.
 #[derive(Debug, Default, Clone)]
 struct Band {
     /// Three rows of horizontal 3-sums (a ring).
     hsum: Vec<u16>,
-    /// Element-wise minimum of a tile row's rows, later its thresholds expanded per pixel.
+    /// Element-wise minimum of the box means of a tile row's rows.
     row_min: Vec<u8>,
-    /// Element-wise maximum of a tile row's rows.
+    /// Element-wise maximum of the box means of a tile row's rows.
     row_max: Vec<u8>,
+    /// The cut's scratch.
+    cut: CutScratch,
+}
+
+/// The scratch rows of the cut of one tile row.
+#[derive(Debug, Default, Clone)]
+struct CutScratch {
+    /// The minimum over the tiles above, at and below, per tile.
+    col_min: Vec<u8>,
+    /// The maximum over the tiles above, at and below, per tile.
+    col_max: Vec<u8>,
+    /// The tile row's thresholds, one per tile.
+    tile_thr: Vec<u8>,
+    /// Per pixel, the least nine-pixel sum whose box mean reaches the pixel's threshold.
+    sum_thr: Vec<i16>,
+    /// Per pixel, three times its threshold (the same test on the scale of 3-sums).
+    line_thr: Vec<i16>,
+    /// Three rows of horizontal 3-sums over a run of tiles (a ring).
+    hsum: Vec<i16>,
+    /// The pixel ranges `[x0, x1)` of the runs of tiles that have a threshold.
+    runs: Vec<(usize, usize)>,
+}
+
+/// The adaptive rule's tile geometry and contrast floor.
+#[derive(Debug, Clone, Copy)]
+struct Tiles {
+    /// Tile side in pixels.
+    side: usize,
+    /// Tiles per row and per column.
+    tx: usize,
+    ty: usize,
+    min_contrast: u8,
+    /// Frame width and height in pixels.
+    width: usize,
+    height: usize,
 }
 
 impl Binarizer {
@@ -104,9 +139,9 @@ impl Binarizer {
     /// [`Binarizer::binarize`] on up to `bands` threads of the current rayon pool (with the
     /// crate feature `parallel`; without it the bands run one after the other): the frame
     /// is cut into horizontal bands of whole tile rows, each band is smoothed and reduced to
-    /// tile minima and maxima on its own thread, the tile thresholds are computed once, and
-    /// each band is then cut on its own thread. Every stage reads the same pixels as the
-    /// single-threaded pass, so the output is identical to [`Binarizer::binarize`]'s.
+    /// tile minima and maxima on its own thread, then each band's tile thresholds are
+    /// computed and its pixels cut on its own thread (with [`Threshold::Otsu`], one thread). Every stage reads the same pixels as
+    /// the single-threaded pass, so the output is identical to [`Binarizer::binarize`]'s.
     pub fn binarize_parallel(
         &mut self,
         img: &GrayView<'_>,
@@ -120,10 +155,8 @@ impl Binarizer {
     fn run(&mut self, img: &GrayView<'_>, threshold: Threshold, out: &mut Vec<u8>, bands: usize) {
         let (w, h) = (img.width(), img.height());
         // Every byte of these is written below: resize only (no clear and refill).
-        self.smooth.resize(w * h, 0);
-        self.fine.resize(w * h, 0);
         out.resize(w * h, 0);
-        let (tile, min_contrast) = match threshold {
+        let (side, min_contrast) = match threshold {
             Threshold::Adaptive {
                 tile_size,
                 min_contrast,
@@ -131,275 +164,520 @@ impl Binarizer {
             // Otsu has no tiles; bands are still cut at multiples of 8 rows.
             Threshold::Otsu => (8, None),
         };
-        let (tx, ty) = (w.div_ceil(tile), h.div_ceil(tile));
+        let (tx, ty) = (w.div_ceil(side), h.div_ceil(side));
         let band_tiles = ty.div_ceil(bands.clamp(1, ty));
-        let band_rows = band_tiles * tile;
+        let band_rows = band_tiles * side;
         let count = h.div_ceil(band_rows);
         if self.bands.len() < count {
             self.bands.resize_with(count, Band::default);
         }
-        self.tile_min.resize(tx * ty, 0);
-        self.tile_max.resize(tx * ty, 0);
-        // Phase 1: smoothing, and the tile minima and maxima, per band.
-        let adaptive = min_contrast.is_some();
-        let smooth_band = |(b, ((((sm, fi), mn), mx), band)): SmoothBand<'_>| {
-            box3_rows(img, b * band_rows, sm, fi, &mut band.hsum);
-            if adaptive {
-                tile_extremes(sm, w, tile, tx, band, mn, mx);
-            }
-        };
-        if count == 1 {
-            smooth_band((
-                0,
-                (
-                    (
-                        (
-                            (&mut self.smooth[..], &mut self.fine[..]),
-                            &mut self.tile_min[..],
-                        ),
-                        &mut self.tile_max[..],
-                    ),
-                    &mut self.bands[0],
-                ),
-            ));
-        } else {
-            #[cfg(feature = "parallel")]
-            {
-                use rayon::prelude::*;
-                self.smooth
-                    .par_chunks_mut(band_rows * w)
-                    .zip(self.fine.par_chunks_mut(band_rows * w))
-                    .zip(self.tile_min.par_chunks_mut(band_tiles * tx))
-                    .zip(self.tile_max.par_chunks_mut(band_tiles * tx))
-                    .zip(self.bands.par_iter_mut())
-                    .enumerate()
-                    .for_each(smooth_band);
-            }
-            #[cfg(not(feature = "parallel"))]
-            self.smooth
-                .chunks_mut(band_rows * w)
-                .zip(self.fine.chunks_mut(band_rows * w))
-                .zip(self.tile_min.chunks_mut(band_tiles * tx))
-                .zip(self.tile_max.chunks_mut(band_tiles * tx))
-                .zip(self.bands.iter_mut())
-                .enumerate()
-                .for_each(smooth_band);
-        }
         let Some(min_contrast) = min_contrast else {
+            // Otsu: the smoothed frame's histogram gives one cut for every level.
+            self.smooth.resize(w * h, 0);
+            levels_rows(
+                img,
+                0,
+                &mut out[..],
+                Some(&mut self.smooth[..]),
+                &mut self.bands[0].hsum,
+            );
             let t = otsu_level(&self.smooth);
-            for (o, &s) in out.iter_mut().zip(&self.fine) {
-                *o = u8::from(s <= t);
+            for o in out.iter_mut() {
+                *o = u8::from(*o <= t);
             }
             return;
         };
-        // Phase 2: one threshold per tile, from its 3x3 tile neighbourhood.
-        tile_thresholds(
-            &self.tile_min,
-            &self.tile_max,
+        let tiles = Tiles {
+            side,
             tx,
             ty,
             min_contrast,
-            &mut self.tile_thr,
-        );
-        // Phase 3: the cut, per band.
-        let cut_band = |((fi, o), (thr, band)): CutBand<'_>| {
-            cut_rows(fi, o, thr, w, tile, &mut band.row_min);
+            width: w,
+            height: h,
         };
+        self.tile_min.resize(tx * ty, 0);
+        self.tile_max.resize(tx * ty, 0);
         if count == 1 {
-            cut_band((
-                (&self.fine[..], &mut out[..]),
-                (&self.tile_thr[..], &mut self.bands[0]),
-            ));
-        } else {
-            #[cfg(feature = "parallel")]
-            {
-                use rayon::prelude::*;
-                self.fine
-                    .par_chunks(band_rows * w)
-                    .zip(out.par_chunks_mut(band_rows * w))
-                    .zip(
-                        self.tile_thr
-                            .par_chunks(band_tiles * tx)
-                            .zip(self.bands.par_iter_mut()),
-                    )
-                    .for_each(cut_band);
+            extremes_and_cut(
+                img,
+                &mut out[..],
+                &tiles,
+                &mut self.tile_min,
+                &mut self.tile_max,
+                &mut self.bands[0],
+            );
+            return;
+        }
+        // Phase 1: the tile minima and maxima, per band.
+        let extremes_band = |(b, ((mn, mx), band)): ExtremesBand<'_>| {
+            let y0 = b * band_rows;
+            extremes_rows(img, y0, (y0 + band_rows).min(h), &tiles, mn, mx, band);
+        };
+        #[cfg(feature = "parallel")]
+        {
+            use rayon::prelude::*;
+            self.tile_min
+                .par_chunks_mut(band_tiles * tx)
+                .zip(self.tile_max.par_chunks_mut(band_tiles * tx))
+                .zip(self.bands.par_iter_mut())
+                .enumerate()
+                .for_each(extremes_band);
+        }
+        #[cfg(not(feature = "parallel"))]
+        self.tile_min
+            .chunks_mut(band_tiles * tx)
+            .zip(self.tile_max.chunks_mut(band_tiles * tx))
+            .zip(self.bands.iter_mut())
+            .enumerate()
+            .for_each(extremes_band);
+        // Phase 2: each band's tile thresholds (from the tile rows above and below it too)
+        // and its cut.
+        let (tile_min, tile_max) = (&self.tile_min[..], &self.tile_max[..]);
+        let cut_band = |(b, (o, band)): CutBand<'_>| {
+            for (k, rows) in o.chunks_mut(side * w).enumerate() {
+                let j = b * band_tiles + k;
+                cut_tile_row(img, j, rows, &tiles, tile_min, tile_max, &mut band.cut);
             }
-            #[cfg(not(feature = "parallel"))]
-            self.fine
-                .chunks(band_rows * w)
-                .zip(out.chunks_mut(band_rows * w))
-                .zip(
-                    self.tile_thr
-                        .chunks(band_tiles * tx)
-                        .zip(self.bands.iter_mut()),
-                )
+        };
+        #[cfg(feature = "parallel")]
+        {
+            use rayon::prelude::*;
+            out.par_chunks_mut(band_rows * w)
+                .zip(self.bands.par_iter_mut())
+                .enumerate()
                 .for_each(cut_band);
         }
+        #[cfg(not(feature = "parallel"))]
+        out.chunks_mut(band_rows * w)
+            .zip(self.bands.iter_mut())
+            .enumerate()
+            .for_each(cut_band);
     }
 
-    /// The smoothed frame of the last call (3x3 box filter), row-major, `width` per row.
+    /// The smoothed frame (3x3 box filter) of the last call with [`Threshold::Otsu`],
+    /// row-major, `width` per row; empty before the first such call. The adaptive threshold
+    /// does not keep the smoothed frame (it needs only its tile minima and maxima).
     pub fn smoothed(&self) -> &[u8] {
         &self.smooth
     }
 }
 
-/// 3x3 box filter with replicated borders of the rows `y0 ..` of `img` that `smooth` holds
-/// (whole rows) into `smooth`, and the line-preserving level into `fine`.
-///
-/// Every row loop runs over slices of one length in 16-bit arithmetic (no sum exceeds
-/// 9 * 255), so it vectorises; the output is identical to the scalar definition (a test
-/// checks it against that).
-fn box3_rows(
+/// The ring of three rows of horizontal 3-sums (end pixels replicated) that the 3x3 box
+/// needs: slot 0 holds row `y - 1`'s, slot 1 row `y`'s, and slot 2 receives row `y + 1`'s
+/// while row `y` is computed (rows clamped to the frame).
+struct Ring<'a> {
+    slots: [&'a mut [u16]; 3],
+}
+
+impl<'a> Ring<'a> {
+    /// The ring ready for row `y0`.
+    fn start(img: &GrayView<'_>, y0: usize, hsum: &'a mut Vec<u16>) -> Self {
+        let w = img.width();
+        hsum.resize(3 * w, 0);
+        let (s0, rest) = hsum.split_at_mut(w);
+        let (s1, s2) = rest.split_at_mut(w);
+        hrow(img.row(y0.saturating_sub(1)), s0);
+        hrow(img.row(y0), s1);
+        Self {
+            slots: [s0, s1, s2],
+        }
+    }
+
+    /// The box means of the rows `y0 .. y1`, folded into the element-wise minimum `row_min`
+    /// and maximum `row_max` (one row each; combined with what they hold).
+    fn means(
+        &mut self,
+        img: &GrayView<'_>,
+        (y0, y1): (usize, usize),
+        row_min: &mut [u8],
+        row_max: &mut [u8],
+    ) {
+        let h = img.height();
+        for y in y0..y1 {
+            let [s0, s1, s2] = &mut self.slots;
+            mean_row([s0, s1], s2, img.row((y + 1).min(h - 1)), row_min, row_max);
+            self.slots.rotate_left(1);
+        }
+    }
+
+    /// Rows `y0 ..` of the frame, as many as `out` holds (whole rows): their line-preserving
+    /// levels into `out`, with `SMOOTH` their box means into `smooth` (as long as `out`).
+    fn levels<const SMOOTH: bool>(
+        &mut self,
+        img: &GrayView<'_>,
+        y0: usize,
+        out: &mut [u8],
+        smooth: &mut [u8],
+    ) {
+        let (w, h) = (img.width(), img.height());
+        for (i, o) in out.chunks_exact_mut(w).enumerate() {
+            let y = y0 + i;
+            let px = [
+                img.row(y.saturating_sub(1)),
+                img.row(y),
+                img.row((y + 1).min(h - 1)),
+            ];
+            let sm = if SMOOTH {
+                &mut smooth[i * w..(i + 1) * w]
+            } else {
+                &mut smooth[..0]
+            };
+            let [s0, s1, s2] = &mut self.slots;
+            box_row::<SMOOTH>([s0, s1], s2, px, o, sm);
+            self.slots.rotate_left(1);
+        }
+    }
+}
+
+/// The line-preserving levels of the rows `y0 ..` of `img` that `out` holds (whole rows)
+/// into `out`, and with `smooth` their box means into it.
+fn levels_rows(
     img: &GrayView<'_>,
     y0: usize,
-    smooth: &mut [u8],
-    fine: &mut [u8],
+    out: &mut [u8],
+    smooth: Option<&mut [u8]>,
     hsum: &mut Vec<u16>,
 ) {
-    let (w, h) = (img.width(), img.height());
-    let rows = smooth.len() / w;
-    // Three rows of horizontal 3-sums, as a ring.
-    hsum.resize(3 * w, 0);
-    // hsum slot k holds the horizontal sums of row (y - 1 + k) (clamped).
-    let (s0, rest) = hsum.split_at_mut(w);
-    let (s1, s2) = rest.split_at_mut(w);
-    let mut slots = [s0, s1, s2];
-    hrow(img.row(y0.saturating_sub(1)), slots[0]);
-    hrow(img.row(y0), slots[1]);
-    hrow(img.row((y0 + 1).min(h - 1)), slots[2]);
-    for (i, (out, fine)) in smooth
-        .chunks_exact_mut(w)
-        .zip(fine.chunks_exact_mut(w))
-        .enumerate()
-    {
-        let y = y0 + i;
-        let (up, mid, down) = (
-            img.row(y.saturating_sub(1)),
-            img.row(y),
-            img.row((y + 1).min(h - 1)),
-        );
-        box_row(
-            [&*slots[0], &*slots[1], &*slots[2]],
-            [up, mid, down],
-            out,
-            fine,
-        );
-        if i + 1 < rows {
-            slots.rotate_left(1);
-            hrow(img.row((y + 2).min(h - 1)), slots[2]);
-        }
+    let mut ring = Ring::start(img, y0, hsum);
+    match smooth {
+        Some(smooth) => ring.levels::<true>(img, y0, out, smooth),
+        None => ring.levels::<false>(img, y0, out, &mut []),
     }
 }
 
-/// Minimum and maximum of each tile of the band `smooth` (whole tile rows, `w` per row) into
-/// `mins` and `maxs` (`tx` per tile row): per tile row, element-wise min/max over its rows
-/// (vectorises), then one reduction per tile.
-fn tile_extremes(
-    smooth: &[u8],
-    w: usize,
-    tile: usize,
-    tx: usize,
-    band: &mut Band,
+/// The minimum and maximum box mean of each tile of the rows `y0 .. y1` (`y0` at a tile
+/// row's start, `y1` at a tile row's end or the frame's) into `mins` and `maxs` (`tx` per
+/// tile row).
+fn extremes_rows(
+    img: &GrayView<'_>,
+    y0: usize,
+    y1: usize,
+    tiles: &Tiles,
     mins: &mut [u8],
     maxs: &mut [u8],
+    band: &mut Band,
 ) {
-    band.row_min.resize(w, 0);
-    band.row_max.resize(w, 0);
-    for ((rows, mins), maxs) in smooth
-        .chunks(tile * w)
-        .zip(mins.chunks_mut(tx))
-        .zip(maxs.chunks_mut(tx))
+    let w = img.width();
+    let Band {
+        hsum,
+        row_min,
+        row_max,
+        ..
+    } = band;
+    let mut ring = Ring::start(img, y0, hsum);
+    row_min.resize(w, 0);
+    row_max.resize(w, 0);
+    for ((y, mins), maxs) in (y0..y1)
+        .step_by(tiles.side)
+        .zip(mins.chunks_mut(tiles.tx))
+        .zip(maxs.chunks_mut(tiles.tx))
     {
-        let mut rows = rows.chunks_exact(w);
-        if let Some(first) = rows.next() {
-            band.row_min.copy_from_slice(first);
-            band.row_max.copy_from_slice(first);
-        }
-        for row in rows {
-            for ((mn, mx), &v) in band
-                .row_min
-                .iter_mut()
-                .zip(band.row_max.iter_mut())
-                .zip(row)
-            {
-                *mn = (*mn).min(v);
-                *mx = (*mx).max(v);
-            }
-        }
-        for (((cmin, cmax), mn), mx) in band
-            .row_min
-            .chunks(tile)
-            .zip(band.row_max.chunks(tile))
-            .zip(mins)
-            .zip(maxs)
-        {
-            *mn = cmin.iter().copied().fold(u8::MAX, u8::min);
-            *mx = cmax.iter().copied().fold(0, u8::max);
-        }
+        row_min.fill(u8::MAX);
+        row_max.fill(0);
+        ring.means(img, (y, (y + tiles.side).min(y1)), row_min, row_max);
+        tile_extremes(row_min, row_max, tiles.side, mins, maxs);
     }
 }
 
-/// Each tile's threshold: the midpoint of the minimum and maximum over its 3x3 tile
-/// neighbourhood, or 0 ("nothing here is dark") where their difference is below
-/// `min_contrast`.
-fn tile_thresholds(
+/// The whole adaptive binarization on one thread: each tile row's extremes, and the cut of
+/// the tile row above it as soon as they are known (its pixels are then still in cache).
+fn extremes_and_cut(
+    img: &GrayView<'_>,
+    out: &mut [u8],
+    tiles: &Tiles,
+    tile_min: &mut [u8],
+    tile_max: &mut [u8],
+    band: &mut Band,
+) {
+    let (w, side, tx) = (img.width(), tiles.side, tiles.tx);
+    let rows_per = side * w;
+    let Band {
+        hsum,
+        row_min,
+        row_max,
+        cut,
+    } = band;
+    let mut ring = Ring::start(img, 0, hsum);
+    row_min.resize(w, 0);
+    row_max.resize(w, 0);
+    for j in 0..tiles.ty {
+        row_min.fill(u8::MAX);
+        row_max.fill(0);
+        let y = j * side;
+        ring.means(img, (y, (y + side).min(tiles.height)), row_min, row_max);
+        let k = j * tx..(j + 1) * tx;
+        tile_extremes(
+            row_min,
+            row_max,
+            side,
+            &mut tile_min[k.clone()],
+            &mut tile_max[k],
+        );
+        if j > 0 {
+            let rows = &mut out[(j - 1) * rows_per..j * rows_per];
+            cut_tile_row(img, j - 1, rows, tiles, tile_min, tile_max, cut);
+        }
+    }
+    let j = tiles.ty - 1;
+    let rows = &mut out[j * rows_per..];
+    cut_tile_row(img, j, rows, tiles, tile_min, tile_max, cut);
+}
+
+/// Each tile's minimum and maximum (tiles of `side` pixels, the last one cut short) from the
+/// element-wise minimum and maximum of its rows.
+fn tile_extremes(row_min: &[u8], row_max: &[u8], side: usize, mins: &mut [u8], maxs: &mut [u8]) {
+    if side == 8 {
+        // The default tile: whole tiles as fixed-size arrays.
+        let (cmin, cmax) = (row_min.chunks_exact(8), row_max.chunks_exact(8));
+        let (rmin, rmax) = (cmin.remainder(), cmax.remainder());
+        for (((a, b), mn), mx) in cmin.zip(cmax).zip(mins.iter_mut()).zip(maxs.iter_mut()) {
+            *mn = a.iter().copied().fold(u8::MAX, u8::min);
+            *mx = b.iter().copied().fold(0, u8::max);
+        }
+        if !rmin.is_empty() {
+            let last = mins.len() - 1;
+            mins[last] = rmin.iter().copied().fold(u8::MAX, u8::min);
+            maxs[last] = rmax.iter().copied().fold(0, u8::max);
+        }
+        return;
+    }
+    for (((a, b), mn), mx) in row_min
+        .chunks(side)
+        .zip(row_max.chunks(side))
+        .zip(mins.iter_mut())
+        .zip(maxs.iter_mut())
+    {
+        *mn = a.iter().copied().fold(u8::MAX, u8::min);
+        *mx = b.iter().copied().fold(0, u8::max);
+    }
+}
+
+/// The cut of tile row `j`, whose pixels `rows` holds (levels in, binary out): each tile's
+/// threshold is the midpoint of the minimum and maximum over its 3x3 tile neighbourhood, or
+/// 0 ("nothing here is dark") where their difference is below `min_contrast`; a pixel is
+/// dark where its level is below its tile's threshold.
+fn cut_tile_row(
+    img: &GrayView<'_>,
+    j: usize,
+    rows: &mut [u8],
+    tiles: &Tiles,
     tile_min: &[u8],
     tile_max: &[u8],
-    tx: usize,
-    ty: usize,
-    min_contrast: u8,
-    thr: &mut Vec<u8>,
+    scratch: &mut CutScratch,
 ) {
-    thr.resize(tx * ty, 0);
-    for j in 0..ty {
-        let j0 = j.saturating_sub(1);
-        let j1 = (j + 1).min(ty - 1);
-        for i in 0..tx {
-            let i0 = i.saturating_sub(1);
-            let i1 = (i + 1).min(tx - 1);
-            let mut lo = u8::MAX;
-            let mut hi = 0u8;
-            for jj in j0..=j1 {
-                let base = jj * tx;
-                for k in base + i0..=base + i1 {
-                    lo = lo.min(tile_min[k]);
-                    hi = hi.max(tile_max[k]);
-                }
+    let Tiles {
+        side,
+        tx,
+        ty,
+        min_contrast,
+        width: w,
+        ..
+    } = *tiles;
+    let CutScratch {
+        col_min,
+        col_max,
+        tile_thr,
+        sum_thr,
+        line_thr,
+        hsum,
+        runs,
+    } = scratch;
+    // The neighbourhood's extremes: over the tile rows above, at and below (clamped)...
+    fn tile_row(v: &[u8], k: usize, tx: usize) -> &[u8] {
+        &v[k * tx..(k + 1) * tx]
+    }
+    let (up, down) = (j.saturating_sub(1), (j + 1).min(ty - 1));
+    col_min.resize(tx, 0);
+    col_max.resize(tx, 0);
+    for (((c, a), b), d) in col_min
+        .iter_mut()
+        .zip(tile_row(tile_min, up, tx))
+        .zip(tile_row(tile_min, j, tx))
+        .zip(tile_row(tile_min, down, tx))
+    {
+        *c = (*a).min(*b).min(*d);
+    }
+    for (((c, a), b), d) in col_max
+        .iter_mut()
+        .zip(tile_row(tile_max, up, tx))
+        .zip(tile_row(tile_max, j, tx))
+        .zip(tile_row(tile_max, down, tx))
+    {
+        *c = (*a).max(*b).max(*d);
+    }
+    // ...then over the tiles left, at and right (clamped), and the threshold.
+    tile_thr.resize(tx, 0);
+    let thr = |lo: u8, hi: u8| {
+        if hi - lo < min_contrast {
+            0
+        } else {
+            (u16::from(lo) + u16::from(hi)).div_ceil(2) as u8
+        }
+    };
+    if tx == 1 {
+        tile_thr[0] = thr(col_min[0], col_max[0]);
+    } else {
+        tile_thr[0] = thr(col_min[0].min(col_min[1]), col_max[0].max(col_max[1]));
+        tile_thr[tx - 1] = thr(
+            col_min[tx - 2].min(col_min[tx - 1]),
+            col_max[tx - 2].max(col_max[tx - 1]),
+        );
+        let n = tx - 2;
+        let (l, c, r) = (&col_min[..n], &col_min[1..n + 1], &col_min[2..]);
+        let (lm, cm, rm) = (&col_max[..n], &col_max[1..n + 1], &col_max[2..]);
+        let inner = &mut tile_thr[1..n + 1];
+        for i in 0..n {
+            inner[i] = thr(l[i].min(c[i]).min(r[i]), lm[i].max(cm[i]).max(rm[i]));
+        }
+    }
+    // The runs of tiles that have a threshold; elsewhere nothing is dark.
+    runs.clear();
+    let mut i = 0;
+    while i < tx {
+        if tile_thr[i] == 0 {
+            i += 1;
+            continue;
+        }
+        let start = i;
+        while i < tx && tile_thr[i] != 0 {
+            i += 1;
+        }
+        runs.push((start * side, (i * side).min(w)));
+    }
+    if runs.is_empty() {
+        rows.fill(0);
+        return;
+    }
+    // The thresholds per pixel, as the two tests of the cut need them, then each run's
+    // levels computed and compared, one row after the other; the rest of each row is light.
+    for (v, t) in [
+        (&mut *sum_thr, SumOrLine::Sum),
+        (&mut *line_thr, SumOrLine::Line),
+    ] {
+        v.resize(w, 0);
+        let at = |k: usize| t.scale(tile_thr[k]);
+        if side == 8 {
+            let mut chunks = v.chunks_exact_mut(8);
+            for (k, c) in chunks.by_ref().enumerate() {
+                c.copy_from_slice(&[at(k); 8]);
             }
-            thr[j * tx + i] = if hi.saturating_sub(lo) < min_contrast {
-                0
-            } else {
-                ((u16::from(lo) + u16::from(hi)).div_ceil(2)) as u8
-            };
+            let last = at(tx - 1);
+            chunks.into_remainder().iter_mut().for_each(|v| *v = last);
+        } else {
+            for (k, c) in v.chunks_mut(side).enumerate() {
+                let t = at(k);
+                c.iter_mut().for_each(|v| *v = t);
+            }
+        }
+    }
+    let y0 = j * side;
+    let n_rows = rows.len() / w;
+    for &(x0, x1) in runs.iter() {
+        cut_run(img, (y0, n_rows), (x0, x1), (sum_thr, line_thr), hsum, rows);
+    }
+    for row in rows.chunks_exact_mut(w) {
+        let mut done = 0;
+        for &(x0, x1) in runs.iter() {
+            row[done..x0].fill(0);
+            done = x1;
+        }
+        row[done..].fill(0);
+    }
+}
+
+/// A tile threshold `t` on the scale of one of the two tests of the cut.
+#[derive(Debug, Clone, Copy)]
+enum SumOrLine {
+    /// The least nine-pixel sum `s` whose box mean is at least `t`: the mean is below `t`
+    /// exactly where `s` is below this. As `box_mean(s) = floor(7282 s / 65536)`, it is
+    /// `ceil(65536 t / 7282)`.
+    Sum,
+    /// `3 t`: a 3-sum `l` has `l / 3 < t` exactly where `l < 3 t`.
+    Line,
+}
+
+impl SumOrLine {
+    #[inline]
+    fn scale(self, t: u8) -> i16 {
+        match self {
+            Self::Sum => (u32::from(t) * 65536).div_ceil(7282) as i16,
+            Self::Line => 3 * i16::from(t),
         }
     }
 }
 
-/// The cut of the band `fine` into `out`: per tile row, the thresholds `thr` (`w / tile`
-/// rounded up per tile row) expanded to one per pixel in `expanded`, then whole rows compared.
-fn cut_rows(
-    fine: &[u8],
-    out: &mut [u8],
-    thr: &[u8],
-    w: usize,
-    tile: usize,
-    expanded: &mut Vec<u8>,
+/// The cut of the pixels `x0 .. x1` of the rows `y0 .. y0 + n` (`rows` holds those rows,
+/// whole): dark where the line-preserving level is below the threshold. With the thresholds
+/// scaled ([`SumOrLine`]), that is where the nine-pixel sum `s` is below `sum_thr` (the box
+/// mean is below the threshold, and the level is never above the mean), or where the line
+/// rule holds (`3 least + 9 LINE_STEP < s`) and the least 3-sum is below `line_thr` (its
+/// third is below the threshold): no division and no choice of level per pixel.
+///
+/// The horizontal 3-sums go through a ring of three rows over the run (`hsum`), so that each
+/// row's are computed once; the inner loops run in 16-bit arithmetic over slices of one
+/// length, so they vectorise.
+fn cut_run(
+    img: &GrayView<'_>,
+    (y0, n): (usize, usize),
+    (x0, x1): (usize, usize),
+    (sum_thr, line_thr): (&[i16], &[i16]),
+    hsum: &mut Vec<i16>,
+    rows: &mut [u8],
 ) {
-    let tx = w.div_ceil(tile);
-    expanded.resize(w, 0);
-    for ((band, oband), thr) in fine
-        .chunks(tile * w)
-        .zip(out.chunks_mut(tile * w))
-        .zip(thr.chunks(tx))
-    {
-        for (chunk, &t) in expanded.chunks_mut(tile).zip(thr) {
-            chunk.fill(t);
+    let (w, h) = (img.width(), img.height());
+    let len = x1 - x0;
+    hsum.resize(3 * len, 0);
+    let (s0, rest) = hsum.split_at_mut(len);
+    let (s1, s2) = rest.split_at_mut(len);
+    let mut slots = [s0, s1, s2];
+    hsum_range(img.row(y0.saturating_sub(1)), x0, slots[0]);
+    hsum_range(img.row(y0), x0, slots[1]);
+    let (st, lt) = (&sum_thr[x0..x1], &line_thr[x0..x1]);
+    for (i, row) in rows.chunks_exact_mut(w).take(n).enumerate() {
+        let y = y0 + i;
+        let below = img.row((y + 1).min(h - 1));
+        hsum_range(below, x0, slots[2]);
+        let (u, m, d) = (
+            &img.row(y.saturating_sub(1))[x0..x1],
+            &img.row(y)[x0..x1],
+            &below[x0..x1],
+        );
+        let (a, b, c) = (&slots[0][..len], &slots[1][..len], &slots[2][..len]);
+        let out = &mut row[x0..x1];
+        for k in 0..len {
+            let s = a[k] + b[k] + c[k];
+            let vert = i16::from(u[k]) + i16::from(m[k]) + i16::from(d[k]);
+            let least = b[k].min(vert);
+            // Bitwise, not short-circuit: no branch in the loop.
+            let line = (3 * least + (LINE_STEP_9 as i16) < s) & (least < lt[k]);
+            out[k] = u8::from((s < st[k]) | line);
         }
-        for (row, orow) in band.chunks_exact(w).zip(oband.chunks_exact_mut(w)) {
-            for ((o, &v), &t) in orow.iter_mut().zip(row).zip(expanded.iter()) {
-                *o = u8::from(v < t);
-            }
-        }
+        slots.rotate_left(1);
+    }
+}
+
+/// Horizontal 3-sums (end pixels of the row replicated) of the pixels `x0 .. x0 +
+/// dst.len()` of the row `src`, into `dst`.
+fn hsum_range(src: &[u8], x0: usize, dst: &mut [i16]) {
+    let w = src.len();
+    let x1 = x0 + dst.len();
+    let at = |x: usize| i16::from(src[x]);
+    let one = |x: usize| at(x.saturating_sub(1)) + at(x) + at((x + 1).min(w - 1));
+    // The pixels with both row neighbours, `a .. b`; the row's end pixels apart.
+    let (a, b) = (x0.max(1), x1.min(w - 1));
+    if x0 == 0 {
+        dst[0] = one(0);
+    }
+    if x1 == w && w > 1 {
+        dst[w - 1 - x0] = one(w - 1);
+    }
+    if a >= b {
+        return;
+    }
+    let (l, c, r) = (&src[a - 1..b - 1], &src[a..b], &src[a + 1..b + 1]);
+    let out = &mut dst[a - x0..b - x0];
+    for k in 0..out.len() {
+        out[k] = i16::from(l[k]) + i16::from(c[k]) + i16::from(r[k]);
     }
 }
 
@@ -421,27 +699,105 @@ fn hrow(src: &[u8], dst: &mut [u16]) {
     dst[w - 1] = u16::from(src[w - 2]) + 2 * u16::from(src[w - 1]);
 }
 
-/// One row of the 3x3 box mean (`out`) and of the line-preserving level (`fine`) from the
-/// horizontal sums of the rows above, at and below (`hs`) and those rows' pixels (`px`).
-#[inline]
-fn box_row(hs: [&[u16]; 3], px: [&[u8]; 3], out: &mut [u8], fine: &mut [u8]) {
+/// The 3x3 box mean of a pixel from its nine-pixel sum: `s / 9` without a division (a 16-bit
+/// multiply-high: 7282 / 65536 = 0.11111).
+#[inline(always)]
+fn box_mean(s: u16) -> u8 {
+    ((u32::from(s) * 7282) >> 16) as u8
+}
+
+/// The box mean and the line-preserving level of one pixel from its nine-pixel sum `s`, the
+/// 1x3 sum along its row `horiz` and the 3x1 sum along its column `vert`.
+///
+/// The level is the darkest of the 3x3 box and the 3x1 and 1x3 ones (sums times 3, so that
+/// all three compare on one scale): a dark line two pixels wide along either axis keeps its
+/// level in the 1x3 box along it, where the 3x3 box would mix in its light surround. All
+/// terms stay below 2^16.
+#[inline(always)]
+fn levels(s: u16, horiz: u16, vert: u16) -> (u8, u8) {
+    let mean = box_mean(s);
+    let least = horiz.min(vert);
+    let level = if 3 * least + LINE_STEP_9 < s {
+        (least / 3) as u8
+    } else {
+        mean
+    };
+    (mean, level)
+}
+
+/// One row of the 3x3 box: from the horizontal sums of the rows above and at it (`hs`) and
+/// the pixels of the rows above, at and below it (`px`), the horizontal sums of the row
+/// below into `next`, the line-preserving levels into `out`, with `SMOOTH` the box means
+/// into `smooth`.
+///
+/// The inner loop runs over slices of one length in 16-bit arithmetic, so it vectorises; the
+/// two end pixels (replicated borders) are done apart.
+#[inline(always)]
+fn box_row<const SMOOTH: bool>(
+    hs: [&[u16]; 2],
+    next: &mut [u16],
+    px: [&[u8]; 3],
+    out: &mut [u8],
+    smooth: &mut [u8],
+) {
     let w = out.len();
-    let fine = &mut fine[..w];
-    let (a, b, c) = (&hs[0][..w], &hs[1][..w], &hs[2][..w]);
+    let (h0, h1) = (&hs[0][..w], &hs[1][..w]);
     let (u, m, d) = (&px[0][..w], &px[1][..w], &px[2][..w]);
-    for i in 0..w {
-        let s = a[i] + b[i] + c[i];
-        // s / 9 without a division (a 16-bit multiply-high): 7282 / 65536 = 0.11111.
-        let o = ((u32::from(s) * 7282) >> 16) as u16;
-        // The darkest of the 3x3 box and the 3x1 and 1x3 ones (sums times 3, so that all
-        // three compare on one scale): a dark line two pixels wide along either axis keeps
-        // its level in the 1x3 box along it, where the 3x3 box would mix in its light
-        // surround (see `Binarizer::binarize`). All terms stay below 2^16.
-        let vert = u16::from(u[i]) + u16::from(m[i]) + u16::from(d[i]);
-        let least = b[i].min(vert);
-        let line = 3 * least + LINE_STEP_9 < s;
-        out[i] = o as u8;
-        fine[i] = if line { (least / 3) as u8 } else { o as u8 };
+    let smooth = &mut smooth[..if SMOOTH { w } else { 0 }];
+    hrow(d, next);
+    let h2 = &next[..w];
+    for x in 0..w {
+        let vert = u16::from(u[x]) + u16::from(m[x]) + u16::from(d[x]);
+        let (mean, level) = levels(h0[x] + h1[x] + h2[x], h1[x], vert);
+        out[x] = level;
+        if SMOOTH {
+            smooth[x] = mean;
+        }
+    }
+}
+
+/// One row of box means, folded into the element-wise minimum `row_min` and maximum
+/// `row_max`: from the horizontal sums of the rows above and at it (`hs`) and the pixels of
+/// the row below (`below`), whose horizontal sums go into `next` on the way.
+///
+/// The inner loop runs over slices of one length in 16-bit arithmetic, so it vectorises; the
+/// two end pixels (replicated borders) are done apart.
+#[inline(always)]
+fn mean_row(
+    hs: [&[u16]; 2],
+    next: &mut [u16],
+    below: &[u8],
+    row_min: &mut [u8],
+    row_max: &mut [u8],
+) {
+    let w = row_min.len();
+    let (h0, h1, h2, d) = (&hs[0][..w], &hs[1][..w], &mut next[..w], &below[..w]);
+    let row_max = &mut row_max[..w];
+    let mean = box_mean;
+    let mut put = |x: usize, s: u16| {
+        row_min[x] = row_min[x].min(mean(s));
+        row_max[x] = row_max[x].max(mean(s));
+    };
+    if w == 1 {
+        h2[0] = 3 * u16::from(d[0]);
+        put(0, h0[0] + h1[0] + h2[0]);
+        return;
+    }
+    h2[0] = 2 * u16::from(d[0]) + u16::from(d[1]);
+    h2[w - 1] = u16::from(d[w - 2]) + 2 * u16::from(d[w - 1]);
+    put(0, h0[0] + h1[0] + h2[0]);
+    put(w - 1, h0[w - 1] + h1[w - 1] + h2[w - 1]);
+    // The inner pixels 1 .. w - 1, on slices offset by one.
+    let n = w - 2;
+    let (dl, dc, dr) = (&d[..n], &d[1..n + 1], &d[2..]);
+    let (a, b, c) = (&h0[1..n + 1], &h1[1..n + 1], &mut h2[1..n + 1]);
+    let (rmin, rmax) = (&mut row_min[1..n + 1], &mut row_max[1..n + 1]);
+    for i in 0..n {
+        let below = u16::from(dl[i]) + u16::from(dc[i]) + u16::from(dr[i]);
+        c[i] = below;
+        let m = mean(a[i] + b[i] + below);
+        rmin[i] = rmin[i].min(m);
+        rmax[i] = rmax[i].max(m);
     }
 }
 
@@ -544,7 +900,7 @@ mod tests {
     }
 
     /// The scalar definition of the 3x3 box mean and of the line-preserving level, pixel by
-    /// pixel with replicated borders: what `Binarizer::box3` must reproduce exactly.
+    /// pixel with replicated borders: what the row kernel (`levels_rows`) must reproduce exactly.
     fn reference_box3(img: &[u8], w: usize, h: usize) -> (Vec<u8>, Vec<u8>) {
         let at = |x: isize, y: isize| {
             let x = x.clamp(0, w as isize - 1) as usize;
@@ -593,16 +949,30 @@ mod tests {
                 })
                 .collect();
             let view = GrayView::new(&img, w, h).unwrap();
-            let mut b = Binarizer::new();
-            // Twice, with a larger frame in between, so stale buffer contents would show.
+            // The row kernel the binarizer runs (levels into the output, means kept), twice
+            // on one scratch with a larger frame in between, so stale contents would show.
+            let mut band = Band::default();
             let big = vec![255u8; 64 * 16];
+            let (mut smooth, mut fine) = (vec![0u8; 64 * 16], vec![0u8; 64 * 16]);
+            let big_view = GrayView::new(&big, 64, 16).unwrap();
+            levels_rows(&big_view, 0, &mut fine, Some(&mut smooth), &mut band.hsum);
+            let (mut smooth, mut fine) = (vec![0u8; w * h], vec![0u8; w * h]);
+            levels_rows(&view, 0, &mut fine, Some(&mut smooth), &mut band.hsum);
+            let (smooth_ref, fine_ref) = reference_box3(&img, w, h);
+            proptest::prop_assert_eq!(&smooth, &smooth_ref);
+            proptest::prop_assert_eq!(&fine, &fine_ref);
+            // Started part-way down (as a band of binarize_parallel is).
+            if h > 2 {
+                let y0 = h / 2;
+                let mut part = vec![0u8; (h - y0) * w];
+                levels_rows(&view, y0, &mut part, None, &mut band.hsum);
+                proptest::prop_assert_eq!(&part[..], &fine_ref[y0 * w..]);
+            }
+            // Through binarize with Otsu, which keeps the means.
+            let mut b = Binarizer::new();
             let mut out = Vec::new();
-            b.binarize(&view, Threshold::default(), &mut out);
-            b.binarize(&GrayView::new(&big, 64, 16).unwrap(), Threshold::default(), &mut out);
-            b.binarize(&view, Threshold::default(), &mut out);
-            let (smooth, fine) = reference_box3(&img, w, h);
-            proptest::prop_assert_eq!(&b.smooth, &smooth);
-            proptest::prop_assert_eq!(&b.fine, &fine);
+            b.binarize(&view, Threshold::Otsu, &mut out);
+            proptest::prop_assert_eq!(b.smoothed(), &smooth_ref[..]);
             proptest::prop_assert_eq!(out.len(), w * h);
         }
     }
@@ -643,6 +1013,193 @@ mod tests {
             b.binarize(&view, t, &mut out);
             b.binarize_parallel(&view, t, &mut out, bands);
             proptest::prop_assert_eq!(&out, &serial);
+        }
+    }
+
+    /// The whole binarization rule, written out pixel by pixel from the module's
+    /// documentation (not from the row-wise code): the 3x3 box mean `m = (s * 7282) >> 16` of
+    /// the nine-pixel sum `s` (replicated borders); the line-preserving level (`least / 3`
+    /// where the darker of the 1x3 and 3x1 sums `least` satisfies `3 least + 9 LINE_STEP <
+    /// s`, else `m`); for [`Threshold::Adaptive`], per tile (side clamped to 2..=64, the last
+    /// tiles of a row or column cut short) the minimum and maximum of `m` over its 3x3 tile
+    /// neighbourhood, the threshold their rounded-up midpoint, or nothing dark where their
+    /// difference is below `min_contrast`, and dark where the level is below the threshold;
+    /// for [`Threshold::Otsu`], dark where the level is at most Otsu's level of all `m`.
+    fn reference_binarize(img: &[u8], w: usize, h: usize, t: Threshold) -> Vec<u8> {
+        let at = |x: isize, y: isize| {
+            let x = x.clamp(0, w as isize - 1) as usize;
+            let y = y.clamp(0, h as isize - 1) as usize;
+            u32::from(img[y * w + x])
+        };
+        let mut mean = vec![0u8; w * h];
+        let mut level = vec![0u8; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let (xi, yi) = (x as isize, y as isize);
+                let mut s = 0;
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        s += at(xi + dx, yi + dy);
+                    }
+                }
+                let horiz = at(xi - 1, yi) + at(xi, yi) + at(xi + 1, yi);
+                let vert = at(xi, yi - 1) + at(xi, yi) + at(xi, yi + 1);
+                let least = horiz.min(vert);
+                let m = (s * 7282) >> 16;
+                mean[y * w + x] = m as u8;
+                level[y * w + x] = if 3 * least + 9 * LINE_STEP < s {
+                    (least / 3) as u8
+                } else {
+                    m as u8
+                };
+            }
+        }
+        let (tile, min_contrast) = match t {
+            Threshold::Otsu => {
+                let cut = otsu_level(&mean);
+                return level.iter().map(|&v| u8::from(v <= cut)).collect();
+            }
+            Threshold::Adaptive {
+                tile_size,
+                min_contrast,
+            } => (tile_size.clamp(2, 64), min_contrast),
+        };
+        let (tx, ty) = (w.div_ceil(tile), h.div_ceil(tile));
+        let mut out = vec![0u8; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let (i, j) = (x / tile, y / tile);
+                // Pixels of the tiles i-1..=i+1, j-1..=j+1 that exist.
+                let x0 = i.saturating_sub(1) * tile;
+                let x1 = ((i + 2).min(tx) * tile).min(w);
+                let y0 = j.saturating_sub(1) * tile;
+                let y1 = ((j + 2).min(ty) * tile).min(h);
+                let (mut lo, mut hi) = (255u8, 0u8);
+                for yy in y0..y1 {
+                    for xx in x0..x1 {
+                        lo = lo.min(mean[yy * w + xx]);
+                        hi = hi.max(mean[yy * w + xx]);
+                    }
+                }
+                if hi - lo >= min_contrast {
+                    let thr = (u32::from(lo) + u32::from(hi)).div_ceil(2);
+                    out[y * w + x] = u8::from(u32::from(level[y * w + x]) < thr);
+                }
+            }
+        }
+        out
+    }
+
+    /// A test frame of `w x h` from `seed`: random bytes (kind 0), two levels (1, so that
+    /// the line rule fires often), blocks of two levels with noise (2), a smooth ramp with
+    /// noise (3, low contrast, so that `min_contrast` matters).
+    fn test_frame(w: usize, h: usize, kind: u8, seed: u64) -> Vec<u8> {
+        let mut state = seed | 1;
+        (0..w * h)
+            .map(|i| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                let (x, y) = (i % w, i / w);
+                match kind % 4 {
+                    0 => state as u8,
+                    1 => {
+                        if state & 1 == 0 {
+                            20
+                        } else {
+                            230
+                        }
+                    }
+                    2 => {
+                        let base = if (x / 5 + y / 3) % 2 == 0 { 40 } else { 200 };
+                        (base + (state % 24) as u32) as u8
+                    }
+                    _ => (x * 3 + y + (state % 8) as usize).min(255) as u8,
+                }
+            })
+            .collect()
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(512))]
+        #[test]
+        fn binarize_matches_the_pixel_by_pixel_rule(
+            w in 1usize..80,
+            h in 1usize..48,
+            kind in 0u8..4,
+            tile in 0usize..70,
+            min_contrast in proptest::prelude::any::<u8>(),
+            otsu in proptest::prelude::any::<bool>(),
+            pad in 0usize..3,
+            bands in 1usize..5,
+            seed in proptest::prelude::any::<u64>(),
+        ) {
+            let img = test_frame(w, h, kind, seed);
+            let t = if otsu {
+                Threshold::Otsu
+            } else {
+                Threshold::Adaptive { tile_size: tile, min_contrast }
+            };
+            let expected = reference_binarize(&img, w, h, t);
+            // The same frame inside a wider buffer (stride `w + pad`), with garbage between
+            // rows that must not be read.
+            let stride = w + pad;
+            let mut padded = vec![0u8; stride * h];
+            for (y, row) in img.chunks_exact(w).enumerate() {
+                padded[y * stride..y * stride + w].copy_from_slice(row);
+                padded[y * stride + w..(y + 1) * stride].fill(if y % 2 == 0 { 0 } else { 255 });
+            }
+            let view = GrayView::with_stride(&padded, w, h, stride).unwrap();
+            let mut b = Binarizer::new();
+            // Filled with a different frame first, so that stale buffer contents would show.
+            let other = test_frame(70, 40, kind + 1, !seed);
+            let mut out = vec![7u8; 3];
+            b.binarize(&GrayView::new(&other, 70, 40).unwrap(), t, &mut out);
+            b.binarize(&view, t, &mut out);
+            proptest::prop_assert_eq!(&out, &expected);
+            b.binarize_parallel(&view, t, &mut out, bands);
+            proptest::prop_assert_eq!(&out, &expected);
+        }
+    }
+
+    #[test]
+    fn reference_rule_sees_dark_lines_and_flat_areas() {
+        // The reference itself must behave as documented, or the comparison above proves
+        // little: a flat frame has nothing dark, a dark two-pixel line on light is dark
+        // (on the line rule: the 3x3 mean alone would mix in the light surround).
+        let (w, h) = (24usize, 16usize);
+        let flat = vec![128u8; w * h];
+        assert!(
+            reference_binarize(&flat, w, h, Threshold::default())
+                .iter()
+                .all(|&v| v == 0)
+        );
+        let mut lined = vec![220u8; w * h];
+        for y in 0..h {
+            lined[y * w + 11] = 10;
+            lined[y * w + 12] = 10;
+        }
+        let out = reference_binarize(&lined, w, h, Threshold::default());
+        assert!((0..h).all(|y| out[y * w + 11] == DARK && out[y * w + 12] == DARK));
+        assert!((0..h).all(|y| out[y * w + 3] == 0 && out[y * w + 20] == 0));
+    }
+
+    #[test]
+    fn scaled_thresholds_give_the_same_tests() {
+        // Every nine-pixel sum and 3-sum a frame can give, against every threshold: the cut's
+        // scaled tests (`cut_run`) decide as the level's definition does.
+        for t in 0..=255u8 {
+            let (st, lt) = (SumOrLine::Sum.scale(t), SumOrLine::Line.scale(t));
+            for s in 0..=9 * 255u16 {
+                assert_eq!(box_mean(s) < t, (s as i16) < st, "sum {s}, threshold {t}");
+            }
+            for l in 0..=3 * 255u16 {
+                assert_eq!(
+                    ((l / 3) as u8) < t,
+                    (l as i16) < lt,
+                    "3-sum {l}, threshold {t}"
+                );
+            }
         }
     }
 
