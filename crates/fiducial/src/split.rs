@@ -62,6 +62,8 @@ pub struct Splitter {
     bin: Vec<u8>,
     tile_min: Vec<u8>,
     tile_max: Vec<u8>,
+    /// Per tile: grey levels below this are cut dark.
+    tile_cut: Vec<u8>,
     labeller: Labeller,
     contour: Vec<[i32; 2]>,
 }
@@ -111,7 +113,7 @@ impl Splitter {
             return;
         }
         let (cw, ch) = (x1 - x0 + 1, y1 - y0 + 1);
-        // Tile statistics over the rectangle.
+        // Tile statistics over the rectangle, a row at a time.
         let (tw, th) = (cw.div_ceil(TILE), ch.div_ceil(TILE));
         self.tile_min.clear();
         self.tile_min.resize(tw * th, u8::MAX);
@@ -120,16 +122,16 @@ impl Splitter {
         for y in 0..ch {
             let row = &img.row(y0 + y)[x0..=x1];
             let t = (y / TILE) * tw;
-            for (x, &v) in row.iter().enumerate() {
-                let i = t + x / TILE;
-                self.tile_min[i] = self.tile_min[i].min(v);
-                self.tile_max[i] = self.tile_max[i].max(v);
+            let (mins, maxs) = (&mut self.tile_min[t..t + tw], &mut self.tile_max[t..t + tw]);
+            for ((chunk, lo), hi) in row.chunks(TILE).zip(mins).zip(maxs) {
+                *lo = chunk.iter().fold(*lo, |a, &v| a.min(v));
+                *hi = chunk.iter().fold(*hi, |a, &v| a.max(v));
             }
         }
-        // The re-cut, with a light frame of one pixel so that no component touches it.
-        let (bw, bh) = (cw + 2, ch + 2);
-        self.bin.clear();
-        self.bin.resize(bw * bh, 0);
+        // Each tile's cut as an integer: a grey level `v` is below `lo + cut (hi - lo)`
+        // exactly when it is below that value rounded up (0 where nothing is cut).
+        self.tile_cut.clear();
+        self.tile_cut.resize(tw * th, 0);
         for ty in 0..th {
             for tx in 0..tw {
                 let (mut lo, mut hi) = (u8::MAX, 0u8);
@@ -142,13 +144,37 @@ impl Splitter {
                 if hi - lo < LIGHT_CUT_MIN_CONTRAST && bin.is_none() {
                     continue;
                 }
-                let cut = f64::from(lo) + cut * f64::from(hi - lo);
-                for y in ty * TILE..((ty + 1) * TILE).min(ch) {
-                    let src = (y0 + y) * w + x0;
-                    let row = img.row(y0 + y);
-                    for x in tx * TILE..((tx + 1) * TILE).min(cw) {
-                        if bin.is_none_or(|b| b[src + x] == DARK) && f64::from(row[x0 + x]) < cut {
-                            self.bin[(y + 1) * bw + x + 1] = DARK;
+                let level = f64::from(lo) + cut * f64::from(hi - lo);
+                // In [lo, hi]: the rounding up stays a grey level.
+                self.tile_cut[ty * tw + tx] = level.ceil().clamp(0.0, 255.0) as u8;
+            }
+        }
+        // The re-cut, with a light frame of one pixel so that no component touches it.
+        let (bw, bh) = (cw + 2, ch + 2);
+        self.bin.clear();
+        self.bin.resize(bw * bh, 0);
+        for y in 0..ch {
+            let row = &img.row(y0 + y)[x0..=x1];
+            let out = &mut self.bin[(y + 1) * bw + 1..(y + 1) * bw + 1 + cw];
+            let cuts = &self.tile_cut[(y / TILE) * tw..(y / TILE + 1) * tw];
+            match bin {
+                Some(b) => {
+                    let first = &b[(y0 + y) * w + x0..(y0 + y) * w + x0 + cw];
+                    for (((o, v), f), &t) in out
+                        .chunks_mut(TILE)
+                        .zip(row.chunks(TILE))
+                        .zip(first.chunks(TILE))
+                        .zip(cuts)
+                    {
+                        for ((o, &v), &f) in o.iter_mut().zip(v).zip(f) {
+                            *o = u8::from(f == DARK && v < t) * DARK;
+                        }
+                    }
+                }
+                None => {
+                    for ((o, v), &t) in out.chunks_mut(TILE).zip(row.chunks(TILE)).zip(cuts) {
+                        for (o, &v) in o.iter_mut().zip(v) {
+                            *o = u8::from(v < t) * DARK;
                         }
                     }
                 }
@@ -189,4 +215,87 @@ impl Splitter {
             found(coarse.map(|[x, y]| [x + ox, y + oy]));
         }
     }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// The cut written out pixel by pixel: the rectangle's 8-px tiles, each pixel against
+    /// `lo + cut (hi - lo)` over its tile's 3 x 3 tile neighbourhood (flat neighbourhoods
+    /// cut nothing without a first binary image), and dark in `first` too when given.
+    fn reference(px: &[u8], w: usize, first: Option<&[u8]>, rect: Rect, cut: f64) -> Vec<u8> {
+        let (x0, y0, x1, y1) = (
+            rect.x0 as usize,
+            rect.y0 as usize,
+            rect.x1 as usize,
+            rect.y1 as usize,
+        );
+        let (cw, ch) = (x1 - x0 + 1, y1 - y0 + 1);
+        let (tw, th) = (cw.div_ceil(TILE), ch.div_ceil(TILE));
+        let mut out = vec![0u8; (cw + 2) * (ch + 2)];
+        for y in 0..ch {
+            for x in 0..cw {
+                let (tx, ty) = (x / TILE, y / TILE);
+                let (mut lo, mut hi) = (u8::MAX, 0u8);
+                for yy in 0..ch {
+                    for xx in 0..cw {
+                        if (xx / TILE).abs_diff(tx) <= 1 && (yy / TILE).abs_diff(ty) <= 1 {
+                            let v = px[(y0 + yy) * w + x0 + xx];
+                            lo = lo.min(v);
+                            hi = hi.max(v);
+                        }
+                    }
+                }
+                let _ = (tw, th);
+                if first.is_none() && hi - lo < LIGHT_CUT_MIN_CONTRAST {
+                    continue;
+                }
+                let v = px[(y0 + y) * w + x0 + x];
+                let dark_first = first.is_none_or(|b| b[(y0 + y) * w + x0 + x] == DARK);
+                if dark_first && f64::from(v) < f64::from(lo) + cut * f64::from(hi - lo) {
+                    out[(y + 1) * (cw + 2) + x + 1] = DARK;
+                }
+            }
+        }
+        out
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// The tiled, integer cut of `cut_at` is the pixel-by-pixel rule, with and without
+        /// a first binary image, at the re-cut's and the light cut's levels.
+        #[test]
+        fn cut_matches_the_pixel_rule(
+            w in 1usize..40,
+            h in 1usize..40,
+            seed in any::<u64>(),
+            light in any::<bool>(),
+            corner in (0usize..40, 0usize..40, 0usize..40, 0usize..40),
+        ) {
+            let mut state = seed | 1;
+            let mut next = || {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                state
+            };
+            let px: Vec<u8> = (0..w * h).map(|_| (next() % 256) as u8).collect();
+            let first: Vec<u8> = (0..w * h).map(|_| u8::from(next() % 3 != 0)).collect();
+            let (a, b) = (corner.0 % w, corner.1 % w);
+            let (c, d) = (corner.2 % h, corner.3 % h);
+            let rect = Rect { x0: a.min(b) as u32, x1: a.max(b) as u32, y0: c.min(d) as u32, y1: c.max(d) as u32 };
+            let img = GrayView::new(&px, w, h).unwrap();
+            let limits = QuadLimits { min_side: 4.0, min_angle_deg: 20.0, line_tolerance: 1.0, line_tolerance_rel: 0.05 };
+            let params = SplitParams { limits: &limits, border_margin: 1, min_side: 4 };
+            let mut s = Splitter::default();
+            let (given, cut) = if light { (None, LIGHT_CUT_TEST) } else { (Some(first.as_slice()), CUT) };
+            s.cut_at(&img, given, rect, &params, cut, |_| {});
+            prop_assert_eq!(s.bin.clone(), reference(&px, w, given, rect, cut));
+        }
+    }
+
+    /// The light cut's level in the detector (`detector::LIGHT_CUT`).
+    const LIGHT_CUT_TEST: f64 = 0.7;
 }
