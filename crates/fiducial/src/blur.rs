@@ -100,6 +100,56 @@ fn step_width(image: &GrayView<'_>, corners: &Corners, i: usize) -> Option<f64> 
     Some((12.0 * (var - OPTICAL_VARIANCE).max(0.0)).sqrt())
 }
 
+/// How far outside side `i` of `corners` the smear of the marker reaches: the median over
+/// stations along the side of the distance from the side to where the darkness of the
+/// profile, outwards, has fallen to a tenth of its value on the side (pixels; `None` when
+/// the side is too short or shows no step).
+///
+/// A box blur of length `r` across a side spreads the border's darkness `0.4 r` to `0.5 r`
+/// outside it whatever lies inside (the box there covers only the border and the white
+/// margin), while a sharp edge under an optical blur of sigma 1 falls off within about 1.5
+/// px. Unlike [`step_width`], which reads the profile across the side and so also sees the
+/// edges of whatever lies inside a quad, this looks only outwards, into the marker's quiet
+/// zone.
+fn outer_reach(image: &GrayView<'_>, corners: &Corners, i: usize, reach: f64) -> Option<f64> {
+    let centre = corners.iter().fold(Vector2::zeros(), |a, p| a + p.coords) / 4.0;
+    let (p, q) = (corners[i], corners[(i + 1) % 4]);
+    let along = q - p;
+    let len = along.norm();
+    if len.is_nan() || len <= 6.0 {
+        return None;
+    }
+    let t = along / len;
+    let mut n = Vector2::new(t.y, -t.x);
+    if n.dot(&(p.coords - centre)) < 0.0 {
+        n = -n;
+    }
+    let steps = ((reach / 0.5) as usize).clamp(4, 40);
+    let mut found = [0.0f64; 7];
+    let mut m = 0;
+    for k in 1..8 {
+        let base = p + along * (f64::from(k) / 8.0);
+        let at = |j: usize| bilinear(image, base + n * (0.5 * j as f64));
+        let (Some(on), Some(white)) = (at(0), at(steps)) else {
+            continue;
+        };
+        let dark = white - on;
+        if dark.is_nan() || dark < 10.0 {
+            continue;
+        }
+        if let Some(j) = (1..=steps).find(|&j| at(j).is_some_and(|v| white - v <= 0.1 * dark)) {
+            found[m] = 0.5 * j as f64;
+            m += 1;
+        }
+    }
+    if m < 3 {
+        return None;
+    }
+    let v = &mut found[..m];
+    v.sort_unstable_by(f64::total_cmp);
+    Some(v[m / 2])
+}
+
 /// Most candidate motions: two sign choices at three scales. (A search over eight further
 /// directions at two lengths, tried before, gained one marker in 80 at 9 px and cost
 /// nearly four times as much on every quad that is not a marker.)
@@ -543,12 +593,27 @@ pub(crate) fn decode_blurred(
             }
         }
     }
+    // The least-cost reading only where the quad's own outline shows the smear: on sharp
+    // clutter the step widths can read a long motion from edges inside the quad.
     if best.is_none() {
-        best = least_cost_match(corners, dictionaries, &scratch.unmatched);
+        let smeared = (0..4)
+            .filter_map(|i| outer_reach(image, corners, i, 0.6 * length + 3.0))
+            .fold(0.0, f64::max);
+        if smeared >= (MIN_SMEAR_FRACTION * length).max(MIN_SMEAR) {
+            best = least_cost_match(corners, dictionaries, &scratch.unmatched);
+        }
     }
     scratch.unmatched.clear();
     best
 }
+
+/// Least [`outer_reach`] (over the four sides) of a quad read by [`least_cost_match`], as a
+/// fraction of the estimated motion length: the side most across a motion of length `L`
+/// reaches at least `0.4 L cos 45` = `0.28 L` out.
+const MIN_SMEAR_FRACTION: f64 = 0.2;
+
+/// ...and at least this many pixels (a sharp edge reaches about 1.5 px).
+const MIN_SMEAR: f64 = 2.5;
 
 /// Most summed margin of the cells a [`least_cost_match`] flips (in half contrasts).
 const MAX_FLIP_COST: f64 = 0.4;

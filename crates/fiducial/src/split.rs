@@ -64,6 +64,8 @@ pub struct Splitter {
     tile_max: Vec<u8>,
     /// Per tile: grey levels below this are cut dark.
     tile_cut: Vec<u8>,
+    /// The levels of the current tile row, per pixel.
+    row_cut: Vec<u8>,
     labeller: Labeller,
     contour: Vec<[i32; 2]>,
 }
@@ -153,29 +155,30 @@ impl Splitter {
         let (bw, bh) = (cw + 2, ch + 2);
         self.bin.clear();
         self.bin.resize(bw * bh, 0);
+        self.row_cut.clear();
+        self.row_cut.resize(cw, 0);
         for y in 0..ch {
+            if y % TILE == 0 {
+                // Each tile's level spread over its pixels, so that the cut is one pass
+                // over whole rows (which vectorises).
+                let cuts = &self.tile_cut[(y / TILE) * tw..(y / TILE + 1) * tw];
+                for (chunk, &t) in self.row_cut.chunks_mut(TILE).zip(cuts) {
+                    chunk.fill(t);
+                }
+            }
             let row = &img.row(y0 + y)[x0..=x1];
             let out = &mut self.bin[(y + 1) * bw + 1..(y + 1) * bw + 1 + cw];
-            let cuts = &self.tile_cut[(y / TILE) * tw..(y / TILE + 1) * tw];
             match bin {
                 Some(b) => {
                     let first = &b[(y0 + y) * w + x0..(y0 + y) * w + x0 + cw];
-                    for (((o, v), f), &t) in out
-                        .chunks_mut(TILE)
-                        .zip(row.chunks(TILE))
-                        .zip(first.chunks(TILE))
-                        .zip(cuts)
+                    for (((o, &v), &f), &t) in out.iter_mut().zip(row).zip(first).zip(&self.row_cut)
                     {
-                        for ((o, &v), &f) in o.iter_mut().zip(v).zip(f) {
-                            *o = u8::from(f == DARK && v < t) * DARK;
-                        }
+                        *o = (u8::from(f == DARK) & u8::from(v < t)) * DARK;
                     }
                 }
                 None => {
-                    for ((o, v), &t) in out.chunks_mut(TILE).zip(row.chunks(TILE)).zip(cuts) {
-                        for (o, &v) in o.iter_mut().zip(v) {
-                            *o = u8::from(v < t) * DARK;
-                        }
+                    for ((o, &v), &t) in out.iter_mut().zip(row).zip(&self.row_cut) {
+                        *o = u8::from(v < t) * DARK;
                     }
                 }
             }

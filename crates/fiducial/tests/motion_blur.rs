@@ -166,3 +166,32 @@ fn a_marker_whose_outline_the_blur_opened_is_found_by_the_light_cut() {
         "a wrong code"
     );
 }
+
+/// Regression (issue #16): the least-cost reading of blurred cells read two sharp clutter
+/// squares of `cargo xtask detector-accuracy`'s clutter set (frames 259 and 463, seeds
+/// 7,259 and 7,463) as markers 1 and 58: the step widths across their sides, which also
+/// cross the edges inside them, read motions of 10-20 px, and their random insides were
+/// two cheap flips from an entry. It now runs only where the quad's outline itself is
+/// smeared outwards.
+#[test]
+fn sharp_clutter_is_not_read_by_the_least_cost_reading() {
+    let mut det = Detector::new(DetectorConfig::default());
+    let mut out = Vec::new();
+    for seed in [7_259, 7_463] {
+        let px = clutter_frame(
+            640,
+            480,
+            1.0,
+            3.0,
+            common::not_markers(),
+            &mut ChaCha8Rng::seed_from_u64(seed),
+        )
+        .unwrap();
+        det.detect(&GrayView::new(&px, 640, 480).unwrap(), &mut out);
+        assert!(
+            out.is_empty(),
+            "clutter seed {seed} read as {:?}",
+            out.iter().map(|d| d.index).collect::<Vec<_>>()
+        );
+    }
+}
