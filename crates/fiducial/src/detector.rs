@@ -576,11 +576,7 @@ impl Detector {
     /// frame in which every dark component was a quad pays nothing.
     fn light_cuts(&mut self, img: &GrayView<'_>, limits: &QuadLimits, cells_across: f64) {
         let cfg = &self.config;
-        let params = SplitParams {
-            limits,
-            border_margin: cfg.border_margin,
-            min_side: cfg.min_side.max(3.0) as u32,
-        };
+        let params = split_params(cfg, limits);
         let (quads, refiner) = (&mut self.quads, &mut self.refiner);
         for &rect in &self.retry {
             if rect.x1 - rect.x0 >= LIGHT_CUT_MAX_SIDE || rect.y1 - rect.y0 >= LIGHT_CUT_MAX_SIDE {
@@ -634,11 +630,7 @@ impl Detector {
             self.retry.push(u);
         }
         let cfg = &self.config;
-        let params = SplitParams {
-            limits,
-            border_margin: cfg.border_margin,
-            min_side: cfg.min_side.max(3.0) as u32,
-        };
+        let params = split_params(cfg, limits);
         let (quads, refiner) = (&mut self.quads, &mut self.refiner);
         let mut add = |coarse: [[f64; 2]; 4], min_angle_deg: f64| {
             add_refined(
@@ -678,6 +670,15 @@ const LIGHT_CUT: f64 = 0.7;
 /// cells of over 20 px, which a motion blur of less than 1.5 cells (30 px) leaves readable
 /// at the midpoint threshold.
 const LIGHT_CUT_MAX_SIDE: u32 = 160;
+
+/// What the re-cut, the light cut and boundary clustering need from the settings.
+fn split_params<'a>(cfg: &DetectorConfig, limits: &'a QuadLimits) -> SplitParams<'a> {
+    SplitParams {
+        limits,
+        border_margin: cfg.border_margin,
+        min_side: cfg.min_side.max(3.0) as u32,
+    }
+}
 
 /// Refines the coarse corners of a re-cut or light-cut quad on `img` and adds the quad to
 /// `quads` unless it is already there: most re-cut components are ones already found (or

@@ -53,6 +53,20 @@ fn read(length: f64, scenes: u64) -> (usize, usize, usize) {
     (total, found, wrong)
 }
 
+/// The 640 x 480 clutter frame of `seed` (blur 1, noise 3; no paper-dictionary entry), as
+/// `cargo xtask detector-accuracy` renders its clutter set (seeds 7,000 on).
+fn clutter(seed: u64) -> Vec<u8> {
+    clutter_frame(
+        640,
+        480,
+        1.0,
+        3.0,
+        common::not_markers(),
+        &mut ChaCha8Rng::seed_from_u64(seed),
+    )
+    .unwrap()
+}
+
 #[test]
 fn nine_pixel_motion_blur_is_read_without_wrong_codes() {
     let (total, found, wrong) = read(9.0, 4);
@@ -72,15 +86,7 @@ fn clutter_rarely_takes_the_blurred_reading_and_sharp_markers_never() {
     let mut out = Vec::new();
     let (mut quads, mut reads) = (0, 0);
     for seed in 43..53 {
-        let px = clutter_frame(
-            640,
-            480,
-            1.0,
-            3.0,
-            common::not_markers(),
-            &mut ChaCha8Rng::seed_from_u64(seed),
-        )
-        .unwrap();
+        let px = clutter(seed);
         det.detect(&GrayView::new(&px, 640, 480).unwrap(), &mut out);
         assert!(out.is_empty());
         quads += det.quads().len();
@@ -178,15 +184,7 @@ fn sharp_clutter_is_not_read_by_the_least_cost_reading() {
     let mut det = Detector::new(DetectorConfig::default());
     let mut out = Vec::new();
     for seed in [7_259, 7_463] {
-        let px = clutter_frame(
-            640,
-            480,
-            1.0,
-            3.0,
-            common::not_markers(),
-            &mut ChaCha8Rng::seed_from_u64(seed),
-        )
-        .unwrap();
+        let px = clutter(seed);
         det.detect(&GrayView::new(&px, 640, 480).unwrap(), &mut out);
         assert!(
             out.is_empty(),
