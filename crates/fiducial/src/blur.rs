@@ -595,7 +595,7 @@ pub(crate) fn decode_blurred(
     }
     // The least-cost reading only where the quad's own outline shows the smear: on sharp
     // clutter the step widths can read a long motion from edges inside the quad.
-    if best.is_none() {
+    if best.is_none() && !scratch.unmatched.is_empty() {
         let smeared = (0..4)
             .filter_map(|i| outer_reach(image, corners, i, 0.6 * length + 3.0))
             .fold(0.0, f64::max);
@@ -675,21 +675,19 @@ fn least_cost_match(
             let Some((cost, m)) = entry else {
                 continue;
             };
+            // The same entry under the other shift is the same reading, not a rival.
+            let same = best.is_some_and(|(_, bu, bm)| bm.index == index && unmatched[bu].0 == *di);
             match best {
-                Some((c, bu, bm)) if cost >= c => {
-                    // The same entry under the other shift is the same reading, not a rival.
-                    if !(bm.index == index && unmatched[bu].0 == *di) {
+                Some((c, _, _)) if cost >= c => {
+                    if !same {
                         second = second.min(cost);
                     }
                 }
-                _ => {
-                    if let Some((c, bu, bm)) = best
-                        && !(bm.index == index && unmatched[bu].0 == *di)
-                    {
-                        second = second.min(c);
-                    }
+                Some((c, _, _)) if !same => {
+                    second = second.min(c);
                     best = Some((cost, u, m));
                 }
+                _ => best = Some((cost, u, m)),
             }
         }
     }

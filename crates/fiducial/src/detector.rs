@@ -560,48 +560,24 @@ impl Detector {
         self.split_retries(img, &full_limits, cells_across, f);
     }
 
-    /// Cuts the box of each component that gave no quad (up to [`LIGHT_CUT_MAX_SIDE`]) at
-    /// [`LIGHT_CUT`] of the way from the local minimum to the local maximum, and adds the
-    /// quads found there (refined on `img`) that are not already in the list.
-    ///
-    /// A marker smeared by a motion of two cells or more has no closed dark outline at the
-    /// midpoint threshold: where a white data cell lies next to its one-cell border, the
-    /// box blur averages the border with that cell and the border reads light, so the dark
-    /// component of the marker opens into its inside. Cut nearer the white level, the
-    /// smeared border is dark again all round and the outline closes: it is the marker
-    /// grown along the motion, whose sides are the marker's own sides moved outwards by a
-    /// fraction of the motion, and the refinement on the grey image takes it from there.
-    /// On seeds 70,000-70,039 at 9 px of motion blur it turned 55 of 320 markers with no
-    /// quad into 17. Only boxes of components the first cut could not fit are cut, so a
-    /// frame in which every dark component was a quad pays nothing.
-    fn light_cuts(&mut self, img: &GrayView<'_>, limits: &QuadLimits, cells_across: f64) {
-        let cfg = &self.config;
-        let params = split_params(cfg, limits);
-        let (quads, refiner) = (&mut self.quads, &mut self.refiner);
-        for &rect in &self.retry {
-            if rect.x1 - rect.x0 >= LIGHT_CUT_MAX_SIDE || rect.y1 - rect.y0 >= LIGHT_CUT_MAX_SIDE {
-                continue;
-            }
-            self.splitter
-                .cut_at(img, None, rect, &params, LIGHT_CUT, |coarse| {
-                    add_refined(
-                        quads,
-                        refiner,
-                        img,
-                        coarse,
-                        cfg,
-                        cfg.min_angle_deg,
-                        cells_across,
-                    )
-                });
-        }
-    }
-
     /// Re-cuts the components that gave no quad ([`Splitter`]; only after a full-resolution
     /// scan, `factor` 1, as it re-cuts that scan's binary image) and clusters their
     /// boundaries ([`Clusterer`], any scan: it reads the grey image alone), and adds the
     /// quads found there that are not already in the list. `self.retry` is in
     /// full-resolution pixels.
+    ///
+    /// With [`DetectorConfig::motion_blur`], the box of each such component (up to
+    /// [`LIGHT_CUT_MAX_SIDE`]) is first cut at [`LIGHT_CUT`] of the way from the local
+    /// minimum to the local maximum. A marker smeared by a motion of two cells or more has
+    /// no closed dark outline at the midpoint threshold: where a white data cell lies next
+    /// to its one-cell border, the box blur averages the border with that cell and the
+    /// border reads light, so the dark component of the marker opens into its inside. Cut
+    /// nearer the white level, the smeared border is dark again all round and the outline
+    /// closes: it is the marker grown along the motion, whose sides are the marker's own
+    /// sides moved outwards by a fraction of the motion, and the refinement on the grey
+    /// image takes it from there. On seeds 70,000-70,039 at 9 px of motion blur it turned
+    /// 55 of 320 markers with no quad into 17. Only boxes of components the first cut could
+    /// not fit are cut, so a frame in which every dark component was a quad pays nothing.
     fn split_retries(
         &mut self,
         img: &GrayView<'_>,
@@ -612,22 +588,6 @@ impl Detector {
         let area = |r: &Rect| u64::from(r.x1 - r.x0 + 1) * u64::from(r.y1 - r.y0 + 1);
         if self.retry.is_empty() {
             return;
-        }
-        if self.config.motion_blur {
-            self.light_cuts(img, limits, cells_across);
-        }
-        let frame = (img.width() * img.height()) as u64;
-        let total: u64 = self.retry.iter().map(area).sum();
-        if total > frame {
-            // Nested boxes: one pass over their union costs less.
-            let u = self.retry.iter().fold(self.retry[0], |u, r| Rect {
-                x0: u.x0.min(r.x0),
-                y0: u.y0.min(r.y0),
-                x1: u.x1.max(r.x1),
-                y1: u.y1.max(r.y1),
-            });
-            self.retry.clear();
-            self.retry.push(u);
         }
         let cfg = &self.config;
         let params = split_params(cfg, limits);
@@ -643,6 +603,35 @@ impl Detector {
                 cells_across,
             );
         };
+        if cfg.motion_blur {
+            for &rect in &self.retry {
+                if rect.x1 - rect.x0 < LIGHT_CUT_MAX_SIDE && rect.y1 - rect.y0 < LIGHT_CUT_MAX_SIDE
+                {
+                    self.splitter.cut_at(
+                        img,
+                        None,
+                        rect,
+                        &params,
+                        LIGHT_CUT,
+                        LIGHT_CUT_MIN_CONTRAST,
+                        |c| add(c, cfg.min_angle_deg),
+                    );
+                }
+            }
+        }
+        let frame = (img.width() * img.height()) as u64;
+        let total: u64 = self.retry.iter().map(area).sum();
+        if total > frame {
+            // Nested boxes: one pass over their union costs less.
+            let u = self.retry.iter().fold(self.retry[0], |u, r| Rect {
+                x0: u.x0.min(r.x0),
+                y0: u.y0.min(r.y0),
+                x1: u.x1.max(r.x1),
+                y1: u.y1.max(r.y1),
+            });
+            self.retry.clear();
+            self.retry.push(u);
+        }
         for &rect in &self.retry {
             if factor == 1 {
                 self.splitter
@@ -658,13 +647,18 @@ impl Detector {
     }
 }
 
-/// Where the light cut of [`Detector::light_cuts`] lies between the local minimum (0) and
+/// Where the light cut of [`Detector`]'s `split_retries` lies between the local minimum (0) and
 /// maximum (1) grey level: at 0.7, a smeared border whose box blur covers it for only
 /// half its length (a one-cell border next to a white cell under a motion of two cells)
 /// still reads dark under blur sigma 1 and noise, while the white margin around the
 /// marker stays light (at 9 px of motion blur, 0.6 read 2 markers more in 960 but once
 /// gave a wrong code, 0.8 read 6 fewer).
-const LIGHT_CUT: f64 = 0.7;
+pub(crate) const LIGHT_CUT: f64 = 0.7;
+
+/// Least local contrast (max - min grey level over a 3 x 3 tile neighbourhood) in which
+/// the light cut marks anything dark: a flat neighbourhood cut near its own maximum would
+/// turn noise into dark blobs (the first cut's default `min_contrast` is the same).
+pub(crate) const LIGHT_CUT_MIN_CONTRAST: u8 = 30;
 
 /// Boxes of at least this many pixels across are not light-cut: a marker that large has
 /// cells of over 20 px, which a motion blur of less than 1.5 cells (30 px) leaves readable

@@ -39,9 +39,6 @@ const TILE: usize = 8;
 /// Where the re-cut lies between the local minimum (0) and maximum (1) grey level.
 const CUT: f64 = 0.25;
 
-/// Smallest local contrast (max - min) at which the light cut marks anything dark.
-const LIGHT_CUT_MIN_CONTRAST: u8 = 30;
-
 /// A pixel rectangle, inclusive bounds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Rect {
@@ -93,12 +90,14 @@ impl Splitter {
         params: &SplitParams<'_>,
         found: impl FnMut([[f64; 2]; 4]),
     ) {
-        self.cut_at(img, Some(bin), rect, params, CUT, found);
+        self.cut_at(img, Some(bin), rect, params, CUT, 0, found);
     }
 
     /// Cuts `img` inside `rect` at `cut` of the way from the local minimum to the local
-    /// maximum (only pixels dark in `bin` too, when given) and calls `found` with the
-    /// coarse corners of each quadrilateral traced there.
+    /// maximum (only pixels dark in `bin` too, when given; nothing where that neighbourhood's
+    /// max - min is below `min_contrast`) and calls `found` with the coarse corners of each
+    /// quadrilateral traced there.
+    #[allow(clippy::too_many_arguments)]
     pub fn cut_at(
         &mut self,
         img: &GrayView<'_>,
@@ -106,6 +105,7 @@ impl Splitter {
         rect: Rect,
         params: &SplitParams<'_>,
         cut: f64,
+        min_contrast: u8,
         mut found: impl FnMut([[f64; 2]; 4]),
     ) {
         let (w, h) = (img.width(), img.height());
@@ -143,7 +143,7 @@ impl Splitter {
                         hi = hi.max(self.tile_max[ny * tw + nx]);
                     }
                 }
-                if hi - lo < LIGHT_CUT_MIN_CONTRAST && bin.is_none() {
+                if hi - lo < min_contrast {
                     continue;
                 }
                 let level = f64::from(lo) + cut * f64::from(hi - lo);
@@ -223,12 +223,20 @@ impl Splitter {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::detector::{LIGHT_CUT, LIGHT_CUT_MIN_CONTRAST};
     use proptest::prelude::*;
 
     /// The cut written out pixel by pixel: the rectangle's 8-px tiles, each pixel against
-    /// `lo + cut (hi - lo)` over its tile's 3 x 3 tile neighbourhood (flat neighbourhoods
-    /// cut nothing without a first binary image), and dark in `first` too when given.
-    fn reference(px: &[u8], w: usize, first: Option<&[u8]>, rect: Rect, cut: f64) -> Vec<u8> {
+    /// `lo + cut (hi - lo)` over its tile's 3 x 3 tile neighbourhood (nothing where `hi -
+    /// lo` is below `min_contrast`), and dark in `first` too when given.
+    fn reference(
+        px: &[u8],
+        w: usize,
+        first: Option<&[u8]>,
+        rect: Rect,
+        cut: f64,
+        min_contrast: u8,
+    ) -> Vec<u8> {
         let (x0, y0, x1, y1) = (
             rect.x0 as usize,
             rect.y0 as usize,
@@ -252,7 +260,7 @@ mod tests {
                     }
                 }
                 let _ = (tw, th);
-                if first.is_none() && hi - lo < LIGHT_CUT_MIN_CONTRAST {
+                if hi - lo < min_contrast {
                     continue;
                 }
                 let v = px[(y0 + y) * w + x0 + x];
@@ -293,12 +301,13 @@ mod tests {
             let limits = QuadLimits { min_side: 4.0, min_angle_deg: 20.0, line_tolerance: 1.0, line_tolerance_rel: 0.05 };
             let params = SplitParams { limits: &limits, border_margin: 1, min_side: 4 };
             let mut s = Splitter::default();
-            let (given, cut) = if light { (None, LIGHT_CUT_TEST) } else { (Some(first.as_slice()), CUT) };
-            s.cut_at(&img, given, rect, &params, cut, |_| {});
-            prop_assert_eq!(s.bin.clone(), reference(&px, w, given, rect, cut));
+            let (given, cut, min_contrast) = if light {
+                (None, LIGHT_CUT, LIGHT_CUT_MIN_CONTRAST)
+            } else {
+                (Some(first.as_slice()), CUT, 0)
+            };
+            s.cut_at(&img, given, rect, &params, cut, min_contrast, |_| {});
+            prop_assert_eq!(s.bin.clone(), reference(&px, w, given, rect, cut, min_contrast));
         }
     }
-
-    /// The light cut's level in the detector (`detector::LIGHT_CUT`).
-    const LIGHT_CUT_TEST: f64 = 0.7;
 }
