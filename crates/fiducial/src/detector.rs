@@ -177,6 +177,7 @@ pub struct Detector {
     labeller: Labeller,
     contour: Vec<[i32; 2]>,
     refiner: Refiner,
+    pattern: crate::pattern::PatternRefiner,
     quads: Vec<Quad>,
     /// Boxes of large components that gave no quad, re-cut by [`Splitter`].
     retry: Vec<Rect>,
@@ -248,6 +249,7 @@ impl Detector {
             labeller: Labeller::default(),
             contour: Vec::new(),
             refiner: Refiner::default(),
+            pattern: crate::pattern::PatternRefiner::default(),
             quads: Vec::new(),
             retry: Vec::new(),
             splitter: Splitter::default(),
@@ -335,6 +337,7 @@ impl Detector {
                     best = Some(d);
                 }
             }
+            let plain = best.is_some();
             // Not an entry as sampled: read it as a motion-blurred marker (issue #16).
             let best = best.or_else(|| {
                 (self.config.motion_blur && marker_like)
@@ -349,7 +352,7 @@ impl Detector {
                     })
                     .flatten()
             });
-            let Some(d) = best else {
+            let Some(mut d) = best else {
                 continue;
             };
             // A side along an occluder, not the border (issue #16).
@@ -357,6 +360,18 @@ impl Detector {
                 let family = self.dictionaries[d.dictionary].family();
                 if side_offsets(img, &d, family, check).is_some_and(|o| !o.consistent()) {
                     continue;
+                }
+            }
+            if plain && self.config.refine.with_pattern {
+                let family = self.dictionaries[d.dictionary].family();
+                if let Some(c) = self.pattern.refine(
+                    img,
+                    &d.corners.map(|p| [p.x, p.y]),
+                    family,
+                    d.code,
+                    &self.config.refine,
+                ) {
+                    d.corners = c.map(|[x, y]| Point2::new(x, y));
                 }
             }
             push_unique(out, d);

@@ -148,6 +148,7 @@ pub mod error;
 pub mod family;
 pub mod image;
 pub(crate) mod parallel;
+mod pattern;
 pub mod quad;
 pub mod refine;
 pub mod render;
