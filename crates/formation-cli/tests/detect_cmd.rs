@@ -171,18 +171,26 @@ fn ids_read(args: &[&str], image: &std::path::Path) -> Vec<u64> {
     ids
 }
 
-/// `--boundary-clusters` reads the Duckietown tags that touch something as dark as their
-/// ink (ids 22, 24, 58 and 85 in this frame; AprilTag 3 reads all five), which the default
-/// detector misses; `--no-motion-blur` changes nothing on this sharp frame.
+/// `detect` reads the Duckietown tags that touch something as dark as their ink (ids 22,
+/// 24, 58 and 85 in this frame; AprilTag 3 reads all five) by default, with boundary
+/// clustering; `--no-boundary-clusters` misses them; the old `--boundary-clusters` flag
+/// still runs and changes nothing; `--no-motion-blur` changes nothing on this sharp frame.
 #[test]
-fn boundary_clusters_flag_reads_tags_touching_dark_regions() {
+fn boundary_clusters_are_on_by_default_and_read_tags_touching_dark_regions() {
     let frame = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../../fixtures/realdata/duckietown/test_image_multiple_09.png");
     let default = ids_read(&["--dictionary", "tag36h11"], &frame);
-    let clustered = ids_read(&["--dictionary", "tag36h11", "--boundary-clusters"], &frame);
-    assert_eq!(clustered, vec![22, 24, 58, 85, 144]);
-    assert!(default.len() < clustered.len(), "default read {default:?}");
-    assert!(default.iter().all(|id| clustered.contains(id)));
+    let plain = ids_read(
+        &["--dictionary", "tag36h11", "--no-boundary-clusters"],
+        &frame,
+    );
+    assert_eq!(default, vec![22, 24, 58, 85, 144]);
+    assert!(plain.len() < default.len(), "without clustering: {plain:?}");
+    assert!(plain.iter().all(|id| default.contains(id)));
+    assert_eq!(
+        ids_read(&["--dictionary", "tag36h11", "--boundary-clusters"], &frame),
+        default
+    );
     assert_eq!(
         ids_read(&["--dictionary", "tag36h11", "--no-motion-blur"], &frame),
         default

@@ -38,12 +38,18 @@ pub struct Args {
     /// AprilTag name such as `tag36h11`. Repeat it to read several dictionaries in one pass.
     #[arg(long = "dictionary", value_name = "NAME")]
     pub dictionaries: Vec<String>,
-    /// Also search large dark regions that gave no quad by AprilTag 3's boundary
-    /// clustering: reads tags that touch something as dark as their ink (a tag lying on a
-    /// dark floor or against a shadow), as in 5 of the 56 Duckietown tags. Off by
-    /// default: on cluttered frames it multiplies the detection time (see
-    /// docs/performance.md).
+    /// Do not search large dark regions that gave no quad by AprilTag 3's boundary
+    /// clustering. It is on by default in `detect` (photographs, where recall matters more
+    /// than milliseconds): it reads tags that touch something as dark as their ink (a tag
+    /// lying on a dark floor or against a shadow, as 4 of the 56 Duckietown tags do), and
+    /// costs about 3 ms more per 640x480 real frame, 2-4x the time on cluttered frames
+    /// (docs/marker-families.md). The library's `DetectorConfig::default()` and `track`
+    /// keep it off.
     #[arg(long)]
+    pub no_boundary_clusters: bool,
+    /// The default since boundary clustering is on in `detect`; kept so that older
+    /// scripts still run.
+    #[arg(long, hide = true, conflicts_with = "no_boundary_clusters")]
     pub boundary_clusters: bool,
     /// Do not read quads again as motion-blurred markers (on by default: a quad whose
     /// cells are not a code, with a marker's border and edges smeared by at least 1.5
@@ -243,7 +249,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     let rig_dict = names.iter().position(|n| *n == rig.dictionary);
     let mut detector = Detector::with_dictionaries(
         DetectorConfig {
-            boundary_clusters: args.boundary_clusters,
+            boundary_clusters: !args.no_boundary_clusters,
             motion_blur: !args.no_motion_blur,
             ..DetectorConfig::default()
         },

@@ -111,6 +111,13 @@ pub struct Args {
     #[arg(long, value_name = "N", requires = "guided", default_value_t = GuidedConfig::default().full_scan_period,
           value_parser = clap::value_parser!(u32).range(1..))]
     pub(super) full_scan_every: u32,
+    /// Also search large dark regions that gave no quad by AprilTag 3's boundary
+    /// clustering, as `detect` does by default: reads markers that touch something as dark
+    /// as their ink (a rig's tag against a dark floor or a shadow). Off by default in
+    /// `track`: it costs about 3 ms more per 640x480 real frame, and 2-4x the detection
+    /// time on cluttered frames (docs/marker-families.md).
+    #[arg(long)]
+    pub(super) boundary_clusters: bool,
 }
 
 #[derive(Serialize)]
@@ -321,7 +328,13 @@ pub(super) fn build_pipeline(
     // The rig's dictionary: our own unless the rig file names another (e.g. tag36h11).
     let dictionary = rig.marker_dictionary()?.clone();
     let mut pipeline = Pipeline::new(
-        Detector::with_dictionary(DetectorConfig::default(), dictionary),
+        Detector::with_dictionary(
+            DetectorConfig {
+                boundary_clusters: args.boundary_clusters,
+                ..DetectorConfig::default()
+            },
+            dictionary,
+        ),
         solver,
         (calibration.width, calibration.height),
         rig,
