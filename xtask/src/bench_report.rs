@@ -118,6 +118,21 @@ const RATIOS: &[(&str, &str, f64, &str)] = &[
          they may cost a fifth of the frame at most",
     ),
     (
+        "fiducial/detect_640x480_tag36h11",
+        "fiducial/detect_640x480",
+        1.2,
+        "eight tag36h11 markers (587 codes, sorted-table lookup) vs eight of our own in the same \
+         placements (#13): within 1.2x",
+    ),
+    (
+        "fiducial/detect_640x480",
+        "fiducial/detect_640x480_no_pattern",
+        1.5,
+        "the default detector vs the same without the corner refinement against the decoded \
+         pattern (`RefineConfig::with_pattern`, #13), which halves the corner error of 20-40 px \
+         markers: it may cost half the frame at most",
+    ),
+    (
         "cli/bag_read_16_frames",
         "cli/pipeline_16_frames",
         0.10,

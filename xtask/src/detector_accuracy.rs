@@ -448,7 +448,10 @@ fn motion_blur_rows(doc: &mut String, all: &[CellPattern], per: usize) -> crate:
          `DetectorConfig::motion_blur` (the plain reading) and by the default detector, \
          which has it on (a quad with a marker's border whose cells are not an entry, and \
          whose edges show a motion of at least 1.5 cells, is read again with its cell \
-         levels solved for that motion). The \
+         levels solved for that motion, and when that matches no entry, as the entry whose \
+         differing cells have the least summed margin, if its outline is smeared outwards \
+         and no other entry comes close; dark regions up to 160 px that gave no quad are \
+         also cut nearer the white level, where a smeared outline is closed). The \
          peers' figures of issue #16 (OpenCV-made scenes, horizontal blur, each detector with \
          its own markers in the same placements) were, at 5 px: AprilTag 3 66/80, OpenCV \
          ArUco 63/80; at 9 px: AprilTag 3 41/80, OpenCV ArUco 49/80. They are quoted, not \

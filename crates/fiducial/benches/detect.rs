@@ -3,7 +3,8 @@
 //! `fiducial/detect_*`: full detection (quads + decoding) of 8-marker scenes (20-120 px,
 //! blur 1, noise 3) at three frame sizes; `_tag36h11` the 640x480 scene with tag36h11
 //! markers and a tag36h11 detector; `_clean` (noise 0) against `_noisy` (noise 10) at
-//! 640x480; `_no_side_check` the 640x480 scene without the occlusion checks; clutter
+//! 640x480; `_no_side_check` the 640x480 scene without the occlusion checks, `_no_pattern`
+//! without the corner refinement against the decoded pattern; clutter
 //! without markers; `detect_1920x1080_rayon` the 1920x1080 scene through
 //! `Detector::detect_parallel` (binarization on rayon's threads with `--features parallel`).
 //! `fiducial/find_quads_640x480` is the quad phase alone
@@ -82,6 +83,18 @@ fn benches(c: &mut Criterion) {
             side_check: None,
             ..DetectorConfig::default()
         }),
+        &vga,
+        640,
+        480,
+    );
+    // The same without the corner refinement against the decoded pattern
+    // (`RefineConfig::with_pattern`, #13): what it costs.
+    let mut no_pattern = DetectorConfig::default();
+    no_pattern.refine.with_pattern = false;
+    bench_with(
+        c,
+        "fiducial/detect_640x480_no_pattern",
+        Detector::new(no_pattern),
         &vga,
         640,
         480,

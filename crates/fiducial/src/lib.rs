@@ -58,6 +58,14 @@
 //!    correction, which accepts any entry within two bits, is off by default because it
 //!    invents markers in clutter). A soft read is still never 3 or more bits from its
 //!    entry. Two readings of one marker are merged.
+//! 6. **Corners against the decoded pattern** (`RefineConfig::with_pattern`, default on):
+//!    once a marker with cells under 8 px is read, its whole cell pattern is known, so the
+//!    ink and paper levels and the blur are fitted to every cell, and each edge is corrected
+//!    for the blur of its white inner neighbours and of the adjacent sides, which the plain
+//!    refinement's per-side levels cannot see on a one-cell border a few pixels wide. On
+//!    the accuracy scenes it halves the corner error of 20-40 px markers (own family 0.055
+//!    -> 0.027 px, tag36h11 0.063 -> 0.026 px); corners that the model cannot fit keep the
+//!    plain refinement's.
 //!
 //! Measured on seeded synthetic scenes (`cargo xtask detector-accuracy`): 1599 of 1600
 //! markers found, no wrong code, 2 codes read in 1000 marker-free clutter frames, none from
