@@ -13,7 +13,7 @@
 
 use std::path::PathBuf;
 
-use fiducial::{Detector, DetectorConfig, GrayView, dictionary_by_name};
+use fiducial::{Decoded, Detector, DetectorConfig, GrayView, dictionary_by_name};
 
 /// The ids AprilTag 3 reads per frame (fixtures/realdata/duckietown/README.md).
 const APRILTAG3: &[(&str, &[usize])] = &[
@@ -30,27 +30,36 @@ const APRILTAG3: &[(&str, &[usize])] = &[
     ("test_image_multiple_10.png", &[24, 58, 85, 198]),
 ];
 
-#[test]
-fn duckietown_frames_read_every_apriltag3_id_and_no_other() {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/realdata/duckietown");
-    let dict = dictionary_by_name("tag36h11").unwrap().clone();
-    let mut det = Detector::with_dictionary(
+/// A tag36h11 detector with the default settings, boundary clustering as given.
+fn tag36h11_detector(boundary_clusters: bool) -> Detector {
+    Detector::with_dictionary(
         DetectorConfig {
-            // The last four tags touch something as dark as their ink.
-            boundary_clusters: true,
+            boundary_clusters,
             ..DetectorConfig::default()
         },
-        dict,
+        dictionary_by_name("tag36h11").unwrap().clone(),
+    )
+}
+
+/// Reads the Duckietown frame `file` (as grey) and detects its markers into `out`.
+fn detect_frame(det: &mut Detector, file: &str, out: &mut Vec<Decoded>) {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/realdata/duckietown");
+    let img = image::open(dir.join(file)).unwrap().to_luma8();
+    let (w, h) = img.dimensions();
+    det.detect(
+        &GrayView::new(img.as_raw(), w as usize, h as usize).unwrap(),
+        out,
     );
+}
+
+#[test]
+fn duckietown_frames_read_every_apriltag3_id_and_no_other() {
+    // The last four tags touch something as dark as their ink.
+    let mut det = tag36h11_detector(true);
     let mut expected = 0;
     let mut out = Vec::new();
     for (file, ids) in APRILTAG3 {
-        let img = image::open(dir.join(file)).unwrap().to_luma8();
-        let (w, h) = img.dimensions();
-        det.detect(
-            &GrayView::new(img.as_raw(), w as usize, h as usize).unwrap(),
-            &mut out,
-        );
+        detect_frame(&mut det, file, &mut out);
         let mut got: Vec<usize> = out.iter().map(|d| d.index).collect();
         got.sort_unstable();
         let mut want = ids.to_vec();
@@ -69,17 +78,10 @@ fn duckietown_frames_read_every_apriltag3_id_and_no_other() {
 /// dark as their ink are missed (52 of 56).
 #[test]
 fn the_default_detector_reads_52_of_the_56_tags_and_no_wrong_id() {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/realdata/duckietown");
-    let dict = dictionary_by_name("tag36h11").unwrap().clone();
-    let mut det = Detector::with_dictionary(DetectorConfig::default(), dict);
+    let mut det = tag36h11_detector(false);
     let (mut read, mut out) = (0, Vec::new());
     for (file, ids) in APRILTAG3 {
-        let img = image::open(dir.join(file)).unwrap().to_luma8();
-        let (w, h) = img.dimensions();
-        det.detect(
-            &GrayView::new(img.as_raw(), w as usize, h as usize).unwrap(),
-            &mut out,
-        );
+        detect_frame(&mut det, file, &mut out);
         for d in &out {
             assert!(ids.contains(&d.index), "{file}: id {} read", d.index);
         }
@@ -138,25 +140,12 @@ fn duckietown_poses_match_opencv_on_our_corners() {
     assert_eq!(cases.len(), cv_cases.len());
 
     // The recorded corners are today's detections.
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/realdata/duckietown");
-    let dict = dictionary_by_name("tag36h11").unwrap().clone();
-    let mut det = Detector::with_dictionary(
-        DetectorConfig {
-            // The last four tags touch something as dark as their ink.
-            boundary_clusters: true,
-            ..DetectorConfig::default()
-        },
-        dict,
-    );
+    // The last four tags touch something as dark as their ink.
+    let mut det = tag36h11_detector(true);
     let mut out = Vec::new();
     let mut read = 0;
     for (file, _) in APRILTAG3 {
-        let img = image::open(dir.join(file)).unwrap().to_luma8();
-        let (w, h) = img.dimensions();
-        det.detect(
-            &GrayView::new(img.as_raw(), w as usize, h as usize).unwrap(),
-            &mut out,
-        );
+        detect_frame(&mut det, file, &mut out);
         for d in &out {
             let name = format!("{file}:{}", d.index);
             let case = cases
