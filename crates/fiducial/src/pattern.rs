@@ -48,8 +48,10 @@ use crate::cross_ratio::CrossRatioFrame;
 use crate::family::MarkerFamily;
 use crate::image::GrayView;
 use crate::refine::{
-    Line, PROFILE, RefineConfig, STEP, edge_in_profile, fit_line, intersect, sample_profile,
+    Line, PROFILE, RefineConfig, STEP, SideFrame, edge_in_profile, fit_line, intersect,
+    sample_profile,
 };
+use crate::sides::normal_cdf;
 
 /// Largest marker, border included, in cells (8 x 8 data cells).
 const MAX_CELLS: usize = 10;
@@ -90,34 +92,17 @@ const MAX_STATIONS: usize = 32;
 /// as much time again as the plain refinement.
 const MAX_CELL_PX: f64 = 8.0;
 
-/// The standard normal distribution function (Abramowitz and Stegun 7.1.26, error under
-/// 1.5e-7): the reference that [`phi`]'s table is built from.
-fn phi_exact(x: f64) -> f64 {
-    let z = x.abs() * std::f64::consts::FRAC_1_SQRT_2;
-    let t = 1.0 / (1.0 + 0.327_591_1 * z);
-    let poly = t
-        * (0.254_829_592
-            + t * (-0.284_496_736
-                + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
-    let erfc = poly * (-z * z).exp();
-    if x >= 0.0 {
-        1.0 - 0.5 * erfc
-    } else {
-        0.5 * erfc
-    }
-}
-
 /// Range and resolution of [`phi`]'s table.
 const PHI_RANGE: f64 = 8.0;
 const PHI_STEPS: usize = 4096;
 
-/// [`phi_exact`] at `PHI_STEPS + 1` points over `[-PHI_RANGE, PHI_RANGE]`.
+/// [`normal_cdf`] at `PHI_STEPS + 1` points over `[-PHI_RANGE, PHI_RANGE]`.
 fn phi_table() -> &'static [f64; PHI_STEPS + 1] {
     static TABLE: std::sync::OnceLock<[f64; PHI_STEPS + 1]> = std::sync::OnceLock::new();
     TABLE.get_or_init(|| {
         let mut t = [0.0; PHI_STEPS + 1];
         for (k, v) in t.iter_mut().enumerate() {
-            *v = phi_exact(-PHI_RANGE + 2.0 * PHI_RANGE * k as f64 / PHI_STEPS as f64);
+            *v = normal_cdf(-PHI_RANGE + 2.0 * PHI_RANGE * k as f64 / PHI_STEPS as f64);
         }
         t
     })
@@ -515,19 +500,15 @@ impl PatternRefiner {
         ch: f64,
         cfg: &RefineConfig,
     ) -> Option<SideGeom> {
-        let (a, b) = (corners[side], corners[(side + 1) % 4]);
-        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-        let len = dx.hypot(dy);
-        if len.is_nan() || len <= 2.0 {
-            return None;
-        }
-        let t = [dx / len, dy / len];
-        let n = [t[1], -t[0]]; // outward
-        let margin = (cfg.corner_margin_rel * len).max(cfg.corner_margin_px);
-        let usable = len - 2.0 * margin;
-        if usable <= 0.0 {
-            return None;
-        }
+        let a = corners[side];
+        let frame_of_side = SideFrame::new(a, corners[(side + 1) % 4], cfg)?;
+        let SideFrame {
+            len,
+            t,
+            n,
+            margin,
+            usable,
+        } = frame_of_side;
         let count = ((usable / cfg.station_spacing.max(0.5)) as usize + 1)
             .clamp(2, cfg.max_stations.clamp(2, MAX_STATIONS));
 
@@ -538,11 +519,7 @@ impl PatternRefiner {
         } else {
             (cw, ch)
         };
-        let cap = cfg
-            .max_half_profile
-            .min(cfg.max_half_profile_cells * across)
-            .max(1.5);
-        let half = (0.1 * len).clamp(1.5, cap);
+        let half = frame_of_side.half_profile(across, cfg);
         let k_max = ((2.0 * half / STEP).round() as usize).min(PROFILE - 1);
         // The border's local width across the side at its two ends (perspective changes it),
         // from the cell grid: the distance, along the outward normal, to the grid line one
@@ -802,7 +779,7 @@ mod tests {
         let mut worst: f64 = 0.0;
         for k in -10_000..=10_000 {
             let x = k as f64 * 0.001;
-            worst = worst.max((phi(x) - phi_exact(x)).abs());
+            worst = worst.max((phi(x) - normal_cdf(x)).abs());
         }
         assert!(worst < 1e-6, "{worst}");
         assert_eq!(phi(f64::NAN), 0.0);

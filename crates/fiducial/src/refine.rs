@@ -397,10 +397,21 @@ struct Stations {
     k_max: usize,
 }
 
-impl Stations {
-    /// Stations along the side `a -> b` for refinement pass `pass`, with `cell` the estimated
-    /// border-cell width across it; `None` for a side too short to have any.
-    fn new(a: [f64; 2], b: [f64; 2], pass: usize, cell: f64, cfg: &RefineConfig) -> Option<Self> {
+/// A side `a -> b` as its edge profiles see it (the plain refinement's and
+/// [`crate::pattern`]'s): its length, unit tangent and outward normal, the margin kept from
+/// each corner, and the length left between the margins.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SideFrame {
+    pub(crate) len: f64,
+    pub(crate) t: [f64; 2],
+    pub(crate) n: [f64; 2],
+    pub(crate) margin: f64,
+    pub(crate) usable: f64,
+}
+
+impl SideFrame {
+    /// `None` for a side too short to have stations between its margins.
+    pub(crate) fn new(a: [f64; 2], b: [f64; 2], cfg: &RefineConfig) -> Option<Self> {
         let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
         let len = (dx * dx + dy * dy).sqrt();
         if len.is_nan() || len <= 2.0 {
@@ -413,6 +424,39 @@ impl Stations {
         if usable <= 0.0 {
             return None;
         }
+        Some(Self {
+            len,
+            t,
+            n,
+            margin,
+            usable,
+        })
+    }
+
+    /// Half-length of a refining profile across a border `cell` pixels wide: wide enough
+    /// for blur, short enough to stay inside the border cell on small markers (`min`
+    /// ignores a NaN cell width, `max` a NaN cap).
+    pub(crate) fn half_profile(&self, cell: f64, cfg: &RefineConfig) -> f64 {
+        let cap = cfg
+            .max_half_profile
+            .min(cfg.max_half_profile_cells * cell)
+            .max(1.5);
+        (0.1 * self.len).clamp(1.5, cap)
+    }
+}
+
+impl Stations {
+    /// Stations along the side `a -> b` for refinement pass `pass`, with `cell` the estimated
+    /// border-cell width across it; `None` for a side too short to have any.
+    fn new(a: [f64; 2], b: [f64; 2], pass: usize, cell: f64, cfg: &RefineConfig) -> Option<Self> {
+        let side = SideFrame::new(a, b, cfg)?;
+        let SideFrame {
+            len,
+            t,
+            n,
+            margin,
+            usable,
+        } = side;
         // The first pass only has to centre the second: a few stations suffice.
         let cap = if pass == 0 {
             8
@@ -421,16 +465,11 @@ impl Stations {
         };
         let count = ((usable / cfg.station_spacing.max(0.5)) as usize + 1).clamp(2, cap);
         let spacing = usable / (count - 1) as f64;
-        // Half-width of the profile: wide enough for blur, short enough to stay inside the
-        // border cell on small markers (`min` ignores a NaN cell width, `max` a NaN cap).
+        // Half-width of the profile: the first pass only has to find the edge.
         let half = if pass == 0 {
             (0.12 * len).clamp(1.5, 3.5)
         } else {
-            let cap = cfg
-                .max_half_profile
-                .min(cfg.max_half_profile_cells * cell)
-                .max(1.5);
-            (0.1 * len).clamp(1.5, cap)
+            side.half_profile(cell, cfg)
         };
         let k_max = ((2.0 * half / STEP).round() as usize).min(PROFILE - 1);
         Some(Self {

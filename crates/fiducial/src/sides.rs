@@ -566,8 +566,8 @@ fn darkest(prof: &[f64]) -> (usize, f64) {
 const CORNER_SAMPLES: [f64; 3] = [0.35, 0.5, 0.65];
 
 /// The standard normal distribution function (Abramowitz and Stegun 26.2.17, error under
-/// 7.5e-8).
-fn normal_cdf(x: f64) -> f64 {
+/// 7.5e-8); also the reference of [`crate::pattern`]'s interpolated table.
+pub(crate) fn normal_cdf(x: f64) -> f64 {
     if x.is_nan() {
         return f64::NAN;
     }
