@@ -217,7 +217,9 @@ const MIN_CUT_PX: f64 = 2.0;
 const MIN_CORNER_CUT_PX: f64 = 5.0;
 /// How much further than the cut's depth a used face's corner may be from the truth: a face
 /// the check lets through is off by no more than what the board hides, plus the noise. In
-/// the same 1,000 cases the worst was 0.33 px beyond the depth.
+/// the same 1,000 cases the worst was 0.33 px beyond the depth; in 2,000 cases of the
+/// corner-cut property (292 cut faces used, cuts 0.4-3.1 px deep) 0.09 px, and CI seed
+/// 4abbb103 (a corner cut 0.70 px deep along 29 % of one side, nearly parallel to it) 0.41 px.
 const MAX_ERR_BEYOND_CUT_PX: f64 = 1.0;
 
 /// Paints a light board over `pixels` (`width` wide): everything beyond the line through
@@ -394,7 +396,10 @@ proptest! {
     /// A light board cuts one corner off one readable face: its edge crosses the two sides
     /// that meet at that corner 5-40 % of the way along them. The face is never used if the
     /// corner lies [`MIN_CORNER_CUT_PX`] or more beyond the board's edge; a face cut less
-    /// deep may be used, its corners no further from the truth than the cut is deep.
+    /// deep may be used, its corners at most [`MAX_ERR_BEYOND_CUT_PX`] further from the
+    /// truth than the cut is deep (as in the painted-board property: this one asked for no
+    /// further than the cut or 1 px, whichever is more, and CI seed 4abbb103 found a corner
+    /// 1.11 px off under a cut 0.70 px deep).
     #[test]
     fn a_face_with_a_corner_cut_off_is_dropped_or_no_further_off_than_the_cut(
         spec in two_faced(),
@@ -426,7 +431,7 @@ proptest! {
                 m.faces, m.rejections
             );
             prop_assert!(
-                err <= deepest.max(MAX_ERR_BEYOND_CUT_PX),
+                err <= deepest + MAX_ERR_BEYOND_CUT_PX,
                 "face {face} cut {deepest:.2} px deep used with a corner {err:.2} px off"
             );
         }
