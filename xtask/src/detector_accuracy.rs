@@ -1,5 +1,7 @@
 //! `cargo xtask detector-accuracy [--quick]`: measures the marker detector on synthetic scenes
-//! with exact ground truth and writes `docs/detector-accuracy.md`.
+//! with exact ground truth and writes `docs/detector-accuracy.md`. `--motion-blur` prints
+//! only the motion-blur rows; `--sizes` prints only the own family against tag36h11 by
+//! marker size (200 scenes, uniform light and 3:1), the check of a corner-refinement change.
 //!
 //! Scenes come from `marker_testkit`, rendered by `synthcam` (seeded, so the file is reproducible): 640x480 frames
 //! with 8 real markers of 20-120 px at random perspective, blur sigma 1 and noise sigma 3
@@ -107,7 +109,7 @@ fn foreign_marker<R: Rng + ?Sized>(dictionary: &Dictionary, rng: &mut R) -> Cell
     }
 }
 
-const USAGE: &str = "usage: cargo xtask detector-accuracy [--quick | --motion-blur]";
+const USAGE: &str = "usage: cargo xtask detector-accuracy [--quick | --motion-blur | --sizes]";
 
 fn target() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -120,10 +122,14 @@ pub fn run(args: &[String]) -> crate::Result {
         [] => (false, false),
         [flag] if flag == "--quick" => (true, false),
         [flag] if flag == "--motion-blur" => (false, true),
+        [flag] if flag == "--sizes" => (false, false),
         _ => return Err(USAGE.into()),
     };
     if cfg!(debug_assertions) && std::env::var_os("XTASK_DETECTOR_ACCURACY_RELEASE").is_none() {
         return rerun_in_release(args);
+    }
+    if args.first().is_some_and(|a| a == "--sizes") {
+        return size_tables(200);
     }
     if motion_only {
         // Only the motion-blur rows, printed (the document is not written).
@@ -427,6 +433,91 @@ fn recall_curves(doc: &mut String, all: &[CellPattern], per: usize) -> crate::Re
         }
         writeln!(doc)?;
     }
+    Ok(())
+}
+
+/// The rows of the own-against-tag36h11 table by marker size: count and corner RMS with one
+/// standard error (RMS / sqrt(2 x corners)) per bin.
+fn size_rows(doc: &mut String, own: &Tally, tag_tally: &Tally) -> crate::Result {
+    for i in 0..6 {
+        let (oe, on) = own.by_size[i];
+        let (te, tn) = tag_tally.by_size[i];
+        if on + tn > 0 {
+            let rms = |e: f64, n: usize| (e / (4 * n.max(1)) as f64).sqrt();
+            let se = |e: f64, n: usize| rms(e, n) / ((8 * n.max(1)) as f64).sqrt();
+            writeln!(
+                doc,
+                "| {}-{} | {on} | {:.4} +- {:.4} | {tn} | {:.4} +- {:.4} |",
+                20 + 20 * i,
+                40 + 20 * i,
+                rms(oe, on),
+                se(oe, on),
+                rms(te, tn),
+                se(te, tn)
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// tag36h11 markers read by a tag36h11 detector on `scenes` scenes of `cfg` seeded
+/// `seed0 + i` (the seeds of the own family's scenes, codes drawn from another list).
+fn tag36h11_tally(scenes: usize, cfg: &SceneConfig, seed0: u64) -> crate::Result<Tally> {
+    let tag = fiducial::dictionary_by_name("tag36h11")?.clone();
+    let n = tag.family().rows() as usize;
+    let tag_all = CellPattern::from_codes(n, n, tag.codes().iter().copied());
+    Ok((0..scenes as u64)
+        .into_par_iter()
+        .map_init(
+            || Detector::with_dictionary(DetectorConfig::default(), tag.clone()),
+            |det, seed| {
+                let scene =
+                    marker_scene(cfg, &tag_all, &mut ChaCha8Rng::seed_from_u64(seed0 + seed))
+                        .map_err(|e| e.to_string())?;
+                let mut t = Tally::default();
+                t.add_with(&scene, det).map_err(|e| e.to_string())?;
+                Ok::<_, String>(t)
+            },
+        )
+        .try_reduce(Tally::default, |a, b| Ok(a.merge(b)))?)
+}
+
+/// `--sizes`: the own family against tag36h11 by marker size, `scenes` scenes each, under
+/// uniform light (the accuracy scenes' seeds) and under a 3:1 light ratio (the lighting
+/// rows' seeds), printed; a quick check of a corner-refinement change.
+fn size_tables(scenes: usize) -> crate::Result {
+    let all = entries(Dictionary::paper());
+    let mut doc = String::new();
+    for (label, cfg, seed0) in [
+        ("uniform light", SceneConfig::default(), 0),
+        (
+            "lighting 3:1",
+            SceneConfig {
+                lighting: 3.0,
+                ..SceneConfig::default()
+            },
+            50_000,
+        ),
+    ] {
+        eprintln!("detector-accuracy: sizes, {label}");
+        let own = par_tallies(scenes, &[DetectorConfig::default()], |seed| {
+            marker_scene(&cfg, &all, &mut ChaCha8Rng::seed_from_u64(seed0 + seed))
+        })?
+        .pop()
+        .unwrap_or_default();
+        let tag = tag36h11_tally(scenes, &cfg, seed0)?;
+        writeln!(
+            doc,
+            "{label}, {scenes} scenes: own RMS {:.4} (recall {:.2} %), tag36h11 RMS {:.4} (recall {:.2} %)\n\n| side (px) | own markers | own RMS (px) | tag36h11 markers | tag36h11 RMS (px) |\n| --- | --- | --- | --- | --- |",
+            own.rms(),
+            own.recall(),
+            tag.rms(),
+            tag.recall()
+        )?;
+        size_rows(&mut doc, &own, &tag)?;
+        writeln!(doc)?;
+    }
+    print!("{doc}");
     Ok(())
 }
 
@@ -780,23 +871,7 @@ fn family_rows(
     // tag36h11 against our own family, by marker size: on the own accuracy scenes' seeds,
     // count and settings (the 50 scenes of the family row leave 12-60 markers in the
     // larger size bins, where the RMS is uncertain by 5-10 %).
-    let tag = fiducial::dictionary_by_name("tag36h11")?.clone();
-    let n = tag.family().rows() as usize;
-    let tag_all = CellPattern::from_codes(n, n, tag.codes().iter().copied());
-    let base = SceneConfig::default();
-    let tag_tally = (0..own.scenes as u64)
-        .into_par_iter()
-        .map_init(
-            || Detector::with_dictionary(DetectorConfig::default(), tag.clone()),
-            |det, seed| {
-                let scene = marker_scene(&base, &tag_all, &mut ChaCha8Rng::seed_from_u64(seed))
-                    .map_err(|e| e.to_string())?;
-                let mut t = Tally::default();
-                t.add_with(&scene, det).map_err(|e| e.to_string())?;
-                Ok::<_, String>(t)
-            },
-        )
-        .try_reduce(Tally::default, |a, b| Ok(a.merge(b)))?;
+    let tag_tally = tag36h11_tally(own.scenes, &SceneConfig::default(), 0)?;
     writeln!(
         doc,
         "
@@ -808,23 +883,6 @@ tag36h11 against our own family by marker size (longer side): the {} accuracy \
          markers | tag36h11 RMS (px) |\n| --- | --- | --- | --- | --- |",
         own.scenes, tag_tally.scenes
     )?;
-    for i in 0..6 {
-        let (oe, on) = own.by_size[i];
-        let (te, tn) = tag_tally.by_size[i];
-        if on + tn > 0 {
-            let rms = |e: f64, n: usize| (e / (4 * n.max(1)) as f64).sqrt();
-            let se = |e: f64, n: usize| rms(e, n) / ((8 * n.max(1)) as f64).sqrt();
-            writeln!(
-                doc,
-                "| {}-{} | {on} | {:.4} +- {:.4} | {tn} | {:.4} +- {:.4} |",
-                20 + 20 * i,
-                40 + 20 * i,
-                rms(oe, on),
-                se(oe, on),
-                rms(te, tn),
-                se(te, tn)
-            )?;
-        }
-    }
+    size_rows(doc, own, &tag_tally)?;
     Ok(())
 }

@@ -28,7 +28,8 @@ commands:
   bench-report     run all criterion benchmarks and write docs/performance.md
                    (--quick: short measurements; --no-run: only rebuild the table)
   detector-accuracy  measure the marker detector on synthetic scenes and write
-                   docs/detector-accuracy.md (--quick: fewer scenes)
+                   docs/detector-accuracy.md (--quick: fewer scenes; --motion-blur,
+                   --sizes: print only those tables)
   dictionary       regenerate crates/fiducial/data/dict-4x5-d6.txt (--check: only compare)
   dictionaries     regenerate the standard families' tables (crates/fiducial/data/families/)
                    and fixtures/markers/ from OpenCV in target/py-venv (--check: only compare)
