@@ -341,7 +341,6 @@ impl Detector {
                     best = Some(d);
                 }
             }
-            let plain = best.is_some();
             // Not an entry as sampled: read it as a motion-blurred marker (issue #16).
             let best = best.or_else(|| {
                 (self.config.motion_blur && marker_like)
@@ -366,7 +365,7 @@ impl Detector {
                     continue;
                 }
             }
-            if plain && self.config.refine.with_pattern {
+            if self.config.refine.with_pattern {
                 let family = self.dictionaries[d.dictionary].family();
                 if let Some(c) = self.pattern.refine(
                     img,

@@ -43,7 +43,6 @@ pub struct RefineConfig {
     /// (default on): levels and blur fitted over all of its cells, edges corrected for the
     /// blur of their inner neighbours and of the adjacent sides. On the accuracy scenes it
     /// halves the corner error of 20-40 px markers (`crate::pattern` explains the model).
-    /// Motion-blurred readings are never refined this way.
     pub with_pattern: bool,
 }
 

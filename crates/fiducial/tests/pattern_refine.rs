@@ -1,7 +1,7 @@
 //! The decoded-pattern refinement (`RefineConfig::with_pattern`, issue #13): on small
 //! markers it must beat the plain refinement clearly, for our family and for tag36h11, on
 //! scenes it was not tuned on (the accuracy scenes and the documented figures use seeds
-//! 50,000 on; these use 7,000 on), under uniform light and under a 3:1 gradient.
+//! 0-199 and 50,000 on; these use 7,000 on), under uniform light and under a 3:1 gradient.
 
 use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, dictionary_by_name};
 use marker_testkit::{SceneConfig, marker_scene};
@@ -77,7 +77,13 @@ fn the_pattern_step_shrinks_small_markers_corner_error_for_tag36h11() {
     check("tag36h11", tag, 1.0, 0.7);
 }
 
+/// Under a 3:1 light gradient most small markers' profiles reach beyond their one-cell quiet
+/// zone, where the gradient read from opposite sides is confirmed by the level along the
+/// sides between. Before, such markers kept their plain corners and the step did little
+/// (0.96 of the plain RMS for our family on these seeds); now 0.77, and 0.73 for tag36h11.
 #[test]
-fn under_a_light_gradient_the_pattern_step_does_no_harm() {
-    check("own", Dictionary::paper(), 3.0, 1.0);
+fn under_a_light_gradient_the_pattern_step_shrinks_small_markers_corner_error() {
+    check("own", Dictionary::paper(), 3.0, 0.85);
+    let tag = dictionary_by_name("tag36h11").expect("a standard family");
+    check("tag36h11", tag, 3.0, 0.85);
 }
