@@ -118,6 +118,15 @@ const RATIOS: &[(&str, &str, f64, &str)] = &[
          they may cost a fifth of the frame at most",
     ),
     (
+        "fiducial/detect_clutter_640x480",
+        "fiducial/detect_640x480",
+        1.5,
+        "a marker-free clutter frame (black-bordered squares of every grid size) vs the marker \
+         scene (#12): clutter may cost half a marker scene again at most. It was 1.04 on 11-23 \
+         (701 us against 672 us) and 7.2 on 11-24, when the motion-blurred second reading of \
+         marker-like quads (#16) came in",
+    ),
+    (
         "fiducial/detect_640x480_tag36h11",
         "fiducial/detect_640x480",
         1.2,
