@@ -118,31 +118,39 @@ fn target() -> PathBuf {
         .join("docs/detector-accuracy.md")
 }
 
+/// What `run` was asked for.
+enum Mode {
+    /// The document (`quick`: fewer scenes).
+    Document { quick: bool },
+    /// Only the motion-blur rows, printed.
+    MotionBlur,
+    /// Only the by-size table, printed, from this first seed.
+    Sizes(u64),
+}
+
 pub fn run(args: &[String]) -> crate::Result {
-    let (quick, motion_only) = match args {
-        [] => (false, false),
-        [flag] if flag == "--quick" => (true, false),
-        [flag] if flag == "--motion-blur" => (false, true),
-        [flag] | [flag, _] if flag == "--sizes" => (false, false),
+    let mode = match args {
+        [] => Mode::Document { quick: false },
+        [flag] if flag == "--quick" => Mode::Document { quick: true },
+        [flag] if flag == "--motion-blur" => Mode::MotionBlur,
+        [flag] if flag == "--sizes" => Mode::Sizes(0),
+        [flag, first] if flag == "--sizes" => Mode::Sizes(first.parse().map_err(|_| USAGE)?),
         _ => return Err(USAGE.into()),
     };
     if cfg!(debug_assertions) && std::env::var_os("XTASK_DETECTOR_ACCURACY_RELEASE").is_none() {
         return rerun_in_release(args);
     }
-    if args.first().is_some_and(|a| a == "--sizes") {
-        let first = match args.get(1) {
-            Some(v) => v.parse().map_err(|_| USAGE)?,
-            None => 0,
-        };
-        return size_tables(200, first);
-    }
-    if motion_only {
-        // Only the motion-blur rows, printed (the document is not written).
-        let mut doc = String::new();
-        motion_blur_rows(&mut doc, &entries(Dictionary::paper()), 10)?;
-        print!("{doc}");
-        return Ok(());
-    }
+    let quick = match mode {
+        Mode::Document { quick } => quick,
+        Mode::Sizes(first) => return size_tables(200, first),
+        Mode::MotionBlur => {
+            // Only the motion-blur rows, printed (the document is not written).
+            let mut doc = String::new();
+            motion_blur_rows(&mut doc, &entries(Dictionary::paper()), 10)?;
+            print!("{doc}");
+            return Ok(());
+        }
+    };
     let n = |full: usize, q: usize| if quick { q } else { full };
     let dict = Dictionary::paper();
     let all = entries(dict);
@@ -471,20 +479,12 @@ fn tag36h11_tally(scenes: usize, cfg: &SceneConfig, seed0: u64) -> crate::Result
     let tag = fiducial::dictionary_by_name("tag36h11")?.clone();
     let n = tag.family().rows() as usize;
     let tag_all = CellPattern::from_codes(n, n, tag.codes().iter().copied());
-    Ok((0..scenes as u64)
-        .into_par_iter()
-        .map_init(
-            || Detector::with_dictionary(DetectorConfig::default(), tag.clone()),
-            |det, seed| {
-                let scene =
-                    marker_scene(cfg, &tag_all, &mut ChaCha8Rng::seed_from_u64(seed0 + seed))
-                        .map_err(|e| e.to_string())?;
-                let mut t = Tally::default();
-                t.add_with(&scene, det).map_err(|e| e.to_string())?;
-                Ok::<_, String>(t)
-            },
-        )
-        .try_reduce(Tally::default, |a, b| Ok(a.merge(b)))?)
+    let detector = Detector::with_dictionary(DetectorConfig::default(), tag);
+    Ok(par_tallies_with(scenes, &[detector], |seed| {
+        marker_scene(cfg, &tag_all, &mut ChaCha8Rng::seed_from_u64(seed0 + seed))
+    })?
+    .pop()
+    .unwrap_or_default())
 }
 
 /// `--sizes [FIRST_SEED]`: the own family against tag36h11 by marker size, `scenes` scenes
@@ -624,24 +624,31 @@ fn variants() -> Vec<(String, DetectorConfig)> {
     ]
 }
 
-/// Tallies of every configuration of `configs` over the scenes `scene(seed)` for seeds
-/// `0..scenes` (scenes rendered and read in parallel; each worker has its own detectors).
+/// Tallies of every configuration of `configs` (our own dictionary) over the scenes
+/// `scene(seed)` for seeds `0..scenes`: [`par_tallies_with`] their detectors.
 fn par_tallies(
     scenes: usize,
     configs: &[DetectorConfig],
     scene: impl Fn(u64) -> Result<MarkerScene, marker_testkit::TestkitError> + Sync,
 ) -> crate::Result<Vec<Tally>> {
-    let n = configs.len();
+    let detectors: Vec<Detector> = configs.iter().map(|c| Detector::new(*c)).collect();
+    par_tallies_with(scenes, &detectors, scene)
+}
+
+/// Tallies of every detector of `detectors` over the scenes `scene(seed)` for seeds
+/// `0..scenes` (scenes rendered and read in parallel; each worker reads with its own copies
+/// of the detectors).
+fn par_tallies_with(
+    scenes: usize,
+    detectors: &[Detector],
+    scene: impl Fn(u64) -> Result<MarkerScene, marker_testkit::TestkitError> + Sync,
+) -> crate::Result<Vec<Tally>> {
+    let n = detectors.len();
     let empty = || (0..n).map(|_| Tally::default()).collect::<Vec<_>>();
     (0..scenes as u64)
         .into_par_iter()
         .map_init(
-            || {
-                configs
-                    .iter()
-                    .map(|c| Detector::new(*c))
-                    .collect::<Vec<_>>()
-            },
+            || detectors.to_vec(),
             |dets, seed| {
                 let scene = scene(seed).map_err(|e| e.to_string())?;
                 let mut t = empty();

@@ -610,6 +610,8 @@ impl PatternRefiner {
     /// (per half side, in the side's clockwise direction).
     fn sample(&mut self, img: &GrayView<'_>, g: &SideGeom) -> (f64, f64) {
         let mut maxs = [0.0f64; MAX_STATIONS];
+        // Sums of the least-squares line of the maxima along the side (u from -1 to 1).
+        let (mut s1, mut su, mut suu, mut sv, mut suv) = (0.0, 0.0, 0.0, 0.0, 0.0);
         for (s, mx) in maxs.iter_mut().enumerate().take(g.count) {
             let d = g.margin + s as f64 * g.spacing;
             let (px, py) = (g.a[0] + d * g.t[0], g.a[1] + d * g.t[1]);
@@ -622,17 +624,14 @@ impl PatternRefiner {
             );
             *mx = prof[..=g.k_max].iter().copied().fold(f64::MIN, f64::max);
             self.profiles.push(prof);
-        }
-        // Relative slope of the maxima along the side, per half side (u from -1 to 1).
-        let (mut s1, mut su, mut suu, mut sv, mut suv) = (0.0, 0.0, 0.0, 0.0, 0.0);
-        for (s, &v) in maxs.iter().enumerate().take(g.count) {
-            let u = -1.0 + 2.0 * (g.margin + s as f64 * g.spacing) / g.len;
+            let (u, v) = (-1.0 + 2.0 * d / g.len, *mx);
             s1 += 1.0;
             su += u;
             suu += u * u;
             sv += v;
             suv += u * v;
         }
+        // Relative slope of the maxima along the side, per half side.
         let den = s1 * suu - su * su;
         let slope = if den > 0.0 && sv > 0.0 {
             (s1 * suv - su * sv) / den / (sv / s1)

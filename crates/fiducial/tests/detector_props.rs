@@ -27,6 +27,11 @@ fn errors(found: &fiducial::Corners, truth: &[[f64; 2]; 4]) -> (f64, f64) {
         .fold((f64::MAX, f64::MAX), |a, b| if b.0 < a.0 { b } else { a })
 }
 
+/// Each corner's error in the marker's own order (no cyclic matching).
+fn ordered_errors(found: &fiducial::Corners, truth: &[[f64; 2]; 4]) -> [f64; 4] {
+    std::array::from_fn(|i| (found[i].x - truth[i][0]).hypot(found[i].y - truth[i][1]))
+}
+
 /// Largest corner error of the best cyclic matching.
 fn corner_error(found: &fiducial::Corners, truth: &[[f64; 2]; 4]) -> f64 {
     errors(found, truth).1
@@ -152,9 +157,7 @@ proptest! {
         prop_assert_eq!(d.index, index % dict.len());
         prop_assert_eq!(Some(d.code), dict.code(d.index));
         // Corners in the marker's own order: no cyclic matching here.
-        let e: Vec<f64> = (0..4)
-            .map(|i| (d.corners[i].x - truth[i][0]).hypot(d.corners[i].y - truth[i][1]))
-            .collect();
+        let e = ordered_errors(&d.corners, &truth);
         prop_assert!(e.iter().all(|&v| v <= 0.1), "corner errors {:?}", e);
     }
 
@@ -325,8 +328,8 @@ fn unblurred_edges_stay_within_an_eighth_of_a_pixel() {
             det.detect(&img, &mut found);
             assert_eq!(found.len(), 1, "{side} px: markers read {found:?}");
             let d = found[0];
-            let e = (0..4)
-                .map(|i| (d.corners[i].x - truth[i][0]).hypot(d.corners[i].y - truth[i][1]))
+            let e = ordered_errors(&d.corners, &truth)
+                .into_iter()
                 .fold(0.0, f64::max);
             if e > worst.0 {
                 worst = (e, side);
