@@ -28,7 +28,7 @@ use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, dictionary_by_nam
 use formation_sim::reproduce::paper_filter_config;
 use formation_sim::scenario::{ScenarioConfig, simulate};
 use formation_tracker::filter::FormationFilter;
-use marker_testkit::{Canvas, CellPattern, Effects};
+use marker_testkit::{Canvas, CellPattern, Effects, motion_blur};
 use nalgebra::{Point2, Vector3};
 use pose::{Intrinsics, Pose, PoseSolver, marker_corners};
 use rand::{RngExt, SeedableRng};
@@ -266,17 +266,25 @@ struct Condition {
     noise: f64,
     lighting: f64,
     clutter: bool,
+    /// Longest marker side, px (the shortest is 20 px).
+    max_side: f64,
+    /// Length of a box motion blur applied after rendering, px (0: none), in a random
+    /// direction per scene, the same for every family.
+    motion: f64,
 }
 
-/// The conditions at 640x480; the last one ("combined") is also the one timed at every
-/// resolution.
-const CONDITIONS: [Condition; 6] = [
+/// The conditions at 640x480; "combined" ([`COMBINED`]) is also the one timed at every
+/// resolution. The motion-blur conditions are issue #16's scene set: markers of 20-70 px,
+/// blur 1, noise 3, then a box motion blur of 5 or 9 px.
+const CONDITIONS: [Condition; 8] = [
     Condition {
         name: "base",
         blur: 1.0,
         noise: 3.0,
         lighting: 1.0,
         clutter: false,
+        max_side: 120.0,
+        motion: 0.0,
     },
     Condition {
         name: "lighting 4:1",
@@ -284,6 +292,8 @@ const CONDITIONS: [Condition; 6] = [
         noise: 3.0,
         lighting: 4.0,
         clutter: false,
+        max_side: 120.0,
+        motion: 0.0,
     },
     Condition {
         name: "blur 2",
@@ -291,6 +301,8 @@ const CONDITIONS: [Condition; 6] = [
         noise: 3.0,
         lighting: 1.0,
         clutter: false,
+        max_side: 120.0,
+        motion: 0.0,
     },
     Condition {
         name: "noise 8",
@@ -298,6 +310,8 @@ const CONDITIONS: [Condition; 6] = [
         noise: 8.0,
         lighting: 1.0,
         clutter: false,
+        max_side: 120.0,
+        motion: 0.0,
     },
     Condition {
         name: "clutter",
@@ -305,6 +319,8 @@ const CONDITIONS: [Condition; 6] = [
         noise: 3.0,
         lighting: 1.0,
         clutter: true,
+        max_side: 120.0,
+        motion: 0.0,
     },
     Condition {
         name: "combined",
@@ -312,8 +328,36 @@ const CONDITIONS: [Condition; 6] = [
         noise: 3.0,
         lighting: 4.0,
         clutter: true,
+        max_side: 120.0,
+        motion: 0.0,
+    },
+    Condition {
+        name: "motion 5",
+        blur: 1.0,
+        noise: 3.0,
+        lighting: 1.0,
+        clutter: false,
+        max_side: 70.0,
+        motion: 5.0,
+    },
+    Condition {
+        name: "motion 9",
+        blur: 1.0,
+        noise: 3.0,
+        lighting: 1.0,
+        clutter: false,
+        max_side: 70.0,
+        motion: 9.0,
     },
 ];
+
+/// Scenes of each motion-blur condition per scene of the others: recall there is far from
+/// 100 %, and the lead over the peers that issue #16 asks for (20 % at 9 px) should not
+/// rest on a few dozen markers.
+const MOTION_SCENES: usize = 3;
+
+/// The condition timed at every resolution: lighting 4:1 and clutter.
+const COMBINED: Condition = CONDITIONS[5];
 
 /// Black and white grey levels of the markers (before lighting).
 const BLACK: f64 = 30.0;
@@ -355,15 +399,15 @@ impl Warp {
     }
 }
 
-/// `n` non-overlapping warps of sides 20-120 px in a `w x h` frame.
-fn warps(w: usize, h: usize, n: usize, rng: &mut ChaCha8Rng) -> Vec<Warp> {
+/// `n` non-overlapping warps of sides 20 to `max_side` px in a `w x h` frame.
+fn warps(w: usize, h: usize, n: usize, max_side: f64, rng: &mut ChaCha8Rng) -> Vec<Warp> {
     let mut out: Vec<Warp> = Vec::new();
     let (wf, hf) = (w as f64, h as f64);
     for _ in 0..20_000 {
         if out.len() == n {
             break;
         }
-        let side = rng.random_range(20.0..=120.0);
+        let side = rng.random_range(20.0..=max_side);
         let mut warp = Warp {
             centre: [0.0, 0.0],
             side,
@@ -492,13 +536,18 @@ fn render_frames(s: &Settings, work: &Path) -> crate::Result<Vec<Frame>> {
         .collect::<crate::Result<_>>()?;
     let mut jobs = Vec::new();
     for (ci, cond) in CONDITIONS.iter().enumerate() {
-        for k in 0..s.scenes {
+        let scenes = if cond.motion > 0.0 {
+            MOTION_SCENES * s.scenes
+        } else {
+            s.scenes
+        };
+        for k in 0..scenes {
             jobs.push((640, 480, *cond, (100 * ci + k) as u64));
         }
     }
     for &(w, h) in &RESOLUTIONS[1..] {
         for k in 0..s.big_scenes {
-            jobs.push((w, h, CONDITIONS[5], (10_000 * w + k) as u64));
+            jobs.push((w, h, COMBINED, (10_000 * w + k) as u64));
         }
     }
     // Scenes in parallel (rendering only; nothing is timed here).
@@ -527,9 +576,10 @@ fn render_job(
 ) -> crate::Result<Vec<Frame>> {
     let mut rng = ChaCha8Rng::seed_from_u64(1_000_000 + seed);
     let markers = 8 * (w * h / (640 * 480)).clamp(1, 4);
-    let ws = warps(w, h, markers, &mut rng);
+    let ws = warps(w, h, markers, cond.max_side, &mut rng);
     let clutter_seed: u64 = rng.random();
     let noise_seed: u64 = rng.random();
+    let motion_angle = rng.random_range(0.0..std::f64::consts::PI);
     let mut out = Vec::new();
     for (family, all) in patterns {
         let mut pick = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed ^ family.key().len() as u64);
@@ -556,13 +606,16 @@ fn render_job(
             canvas.draw_pattern(&all[id], &q, BLACK, WHITE);
             truth.push((id, q.map(|[x, y]| Point2::new(x, y))));
         }
-        let pixels = canvas.render(&Effects {
+        let mut pixels = canvas.render(&Effects {
             lighting: cond.lighting,
             blur: cond.blur,
             noise: cond.noise,
             seed: noise_seed,
             supersampling: if w > 640 { 3 } else { 8 },
         })?;
+        if cond.motion > 0.0 {
+            pixels = motion_blur(&pixels, w, h, cond.motion, motion_angle)?;
+        }
         let path = work.join("frames").join(format!(
             "{}x{}-{}-{seed}-{}.png",
             w,
@@ -924,7 +977,10 @@ fn detection_section(
          linearly from 1 to 1/4 across the frame; *blur 2* blur sigma 2 px; *noise 8* noise \
          sigma 8; *clutter* a textured background with rectangles, strokes and checker \
          patches (kept clear of the markers and their quiet zones); *combined* lighting 4:1 \
-         and clutter together. The larger frames are of the combined condition (24, 32 and \
+         and clutter together; *motion 5* and *motion 9* (issue #16's scene set) markers \
+         of 20-70 px only, base blur and noise, then a box motion blur of 5 or 9 px in a \
+         random direction per scene (the same for every family; centred, so the true \
+         corners do not move). The larger frames are of the combined condition (24, 32 and \
          32 markers at 1280x720, 1920x1080, 3840x2160, with clutter in proportion to the \
          area; 3 x 3 samples per pixel).\n"
     )?;
@@ -1089,7 +1145,9 @@ fn detection_section(
          markers: **{:.1}x** faster at 640x480 ({:.3} ms against {:.3} ms), **{:.1}x** at \
          3840x2160 ({:.2} ms against {:.2} ms) by the median wall times; **{:.1}x** and \
          **{:.1}x** in thread CPU time. Guided (region-of-interest) detection is not \
-         in these tables: `fiducial` exposed no guided mode when they were generated.\n",
+         in these tables, whose frames have no tracker to predict regions: it is timed by \
+         criterion on the demo scene (`formation-sim/detect_guided_*` in \
+         [performance.md](performance.md)).\n",
         headline.aruco_640,
         headline.ours_640_ms,
         med[aruco][0],
@@ -1803,7 +1861,8 @@ fn header(
     }
     writeln!(
         doc,
-        "\nScene counts: {} scenes per condition at 640x480, {} per larger size; {} timed \
+        "\nScene counts: {} scenes per condition at 640x480 ({} of each motion-blur \
+         condition), {} per larger size; {} timed \
          repetitions per frame after one warm-up; {} pose cases per noise level; filter seeds \
          1..{}. One-minute load average (`/proc/loadavg`) at the start and at the end of \
          the run: {} and {} on {} cores. A load above the core count means the timed code \
@@ -1811,6 +1870,7 @@ fn header(
          and ours and the peers, timed at different moments of the run, may have met \
          different loads: read the ratios as indicative to within tens of percent.\n",
         s.scenes,
+        MOTION_SCENES * s.scenes,
         s.big_scenes,
         s.reps,
         s.pose_cases,
@@ -2049,11 +2109,17 @@ mod tests {
 
     #[test]
     fn warps_fit_the_frame_without_overlap() {
-        let mut rng = ChaCha8Rng::seed_from_u64(3);
-        let ws = warps(640, 480, 8, &mut rng);
+        for max_side in [70.0, 120.0] {
+            let mut rng = ChaCha8Rng::seed_from_u64(3);
+            let ws = warps(640, 480, 8, max_side, &mut rng);
+            check_warps(&ws, max_side);
+        }
+    }
+
+    fn check_warps(ws: &[Warp], max_side: f64) {
         assert_eq!(ws.len(), 8);
         for (i, a) in ws.iter().enumerate() {
-            assert!((20.0..=120.0).contains(&a.side));
+            assert!((20.0..=max_side).contains(&a.side));
             for p in a.quad(6.0 / 7.0) {
                 assert!(p[0] > 0.0 && p[1] > 0.0 && p[0] < 639.0 && p[1] < 479.0);
             }

@@ -109,8 +109,7 @@ fn foreign_marker<R: Rng + ?Sized>(dictionary: &Dictionary, rng: &mut R) -> Cell
     }
 }
 
-const USAGE: &str =
-    "usage: cargo xtask detector-accuracy [--quick | --motion-blur | --sizes [FIRST_SEED]]";
+const USAGE: &str = "usage: cargo xtask detector-accuracy [--quick | --motion-blur [FIRST_SEED [SCENES]] | --sizes [FIRST_SEED]]";
 
 fn target() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -122,8 +121,8 @@ fn target() -> PathBuf {
 enum Mode {
     /// The document (`quick`: fewer scenes).
     Document { quick: bool },
-    /// Only the motion-blur rows, printed.
-    MotionBlur,
+    /// Only the motion-blur rows, printed: first seed, scenes per row.
+    MotionBlur(u64, usize),
     /// Only the by-size table, printed, from this first seed.
     Sizes(u64),
 }
@@ -132,7 +131,14 @@ pub fn run(args: &[String]) -> crate::Result {
     let mode = match args {
         [] => Mode::Document { quick: false },
         [flag] if flag == "--quick" => Mode::Document { quick: true },
-        [flag] if flag == "--motion-blur" => Mode::MotionBlur,
+        [flag] if flag == "--motion-blur" => Mode::MotionBlur(MOTION_BLUR_SEED, 10),
+        [flag, first] if flag == "--motion-blur" => {
+            Mode::MotionBlur(first.parse().map_err(|_| USAGE)?, 10)
+        }
+        [flag, first, scenes] if flag == "--motion-blur" => Mode::MotionBlur(
+            first.parse().map_err(|_| USAGE)?,
+            scenes.parse().map_err(|_| USAGE)?,
+        ),
         [flag] if flag == "--sizes" => Mode::Sizes(0),
         [flag, first] if flag == "--sizes" => Mode::Sizes(first.parse().map_err(|_| USAGE)?),
         _ => return Err(USAGE.into()),
@@ -143,10 +149,10 @@ pub fn run(args: &[String]) -> crate::Result {
     let quick = match mode {
         Mode::Document { quick } => quick,
         Mode::Sizes(first) => return size_tables(200, first),
-        Mode::MotionBlur => {
+        Mode::MotionBlur(first, scenes) => {
             // Only the motion-blur rows, printed (the document is not written).
             let mut doc = String::new();
-            motion_blur_rows(&mut doc, &entries(Dictionary::paper()), 10)?;
+            motion_blur_rows(&mut doc, &entries(Dictionary::paper()), first, scenes)?;
             print!("{doc}");
             return Ok(());
         }
@@ -160,7 +166,7 @@ pub fn run(args: &[String]) -> crate::Result {
     let clutter_reads = false_reads(&mut doc, dict, &by_errors, &clutter, n(100, 10))?;
     recall_curves(&mut doc, &all, n(50, 8))?;
     family_rows(&mut doc, &by_errors[0].2, n(50, 4), &clutter)?;
-    motion_blur_rows(&mut doc, &all, n(10, 3))?;
+    motion_blur_rows(&mut doc, &all, MOTION_BLUR_SEED, n(10, 3))?;
     writeln!(
         doc,
         "Otsu on the accuracy scenes: recall {:.2} %, corner RMS {:.4} px, wrong codes {}.",
@@ -527,13 +533,22 @@ fn size_tables(scenes: usize, first: u64) -> crate::Result {
     Ok(())
 }
 
+/// First seed of the document's motion-blur scenes.
+const MOTION_BLUR_SEED: u64 = 70_000;
+
 /// Motion blur lengths of the motion-blur rows, pixels.
 const MOTION_BLUR_LENGTHS: [f64; 4] = [3.0, 5.0, 9.0, 13.0];
 
 /// The motion-blur rows (issue #16): `per` scenes per length of eight markers with borders
 /// of 20-70 px, blur sigma 1 and noise sigma 3, then a box motion blur of that length in a
 /// random direction per scene (`marker_testkit::motion_blur`), read by the default detector.
-fn motion_blur_rows(doc: &mut String, all: &[CellPattern], per: usize) -> crate::Result {
+/// Scenes are seeded from `first_seed`.
+fn motion_blur_rows(
+    doc: &mut String,
+    all: &[CellPattern],
+    first_seed: u64,
+    per: usize,
+) -> crate::Result {
     eprintln!("detector-accuracy: motion blur");
     writeln!(doc, "\n## Motion blur\n")?;
     writeln!(
@@ -567,7 +582,7 @@ fn motion_blur_rows(doc: &mut String, all: &[CellPattern], per: usize) -> crate:
     for length in MOTION_BLUR_LENGTHS {
         let (mut t, mut b) = (Tally::default(), Tally::default());
         for seed in 0..per as u64 {
-            let mut rng = ChaCha8Rng::seed_from_u64(70_000 + seed);
+            let mut rng = ChaCha8Rng::seed_from_u64(first_seed + seed);
             let mut scene = marker_scene(&base, all, &mut rng)?;
             let angle = rng.random_range(0.0..std::f64::consts::PI);
             scene.pixels = motion_blur(&scene.pixels, scene.width, scene.height, length, angle)?;
