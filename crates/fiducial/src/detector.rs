@@ -424,8 +424,10 @@ impl Detector {
 
     /// Markers in `regions` of `img` only (tracking-guided detection): every stage runs on
     /// each region alone, through a view of `img` (no copy), and corners come back in
-    /// `img`'s coordinates. Regions are cut to the frame and overlapping ones merged first
-    /// ([`merge_overlapping`]); a marker read in two regions is reported once. A marker is
+    /// `img`'s coordinates. Regions are cut to the frame, grown to the binarization's tile
+    /// grid ([`Region::aligned`]; a marker well inside then gets the corners a full-frame scan
+    /// at that scale gives it) and overlapping ones merged ([`merge_overlapping`]); a marker
+    /// read in two regions is reported once. A marker is
     /// found only if it lies wholly inside a region, `border_margin` pixels from its edge.
     /// `factor` (1 to 4) is the scale of the quad search in the regions, as in
     /// [`Detector::detect_coarse`]: a caller that knows the markers will be large (a tracker
@@ -442,10 +444,21 @@ impl Detector {
     ) -> usize {
         out.clear();
         self.regions.clear();
+        // Regions start and end on the binarization's tile grid (of the scale searched), so
+        // that inside them the tiles, their levels and the binary image are those of a
+        // full-frame scan at that scale: a marker well inside a region gets the same outline,
+        // hence the same corners, as in full-frame detection (only the region's edge tiles see
+        // fewer neighbours).
+        let grid = match self.config.threshold {
+            crate::Threshold::Adaptive { tile_size, .. } => tile_size.clamp(2, 64),
+            crate::Threshold::Otsu => 8,
+        } * factor.clamp(1, 4);
+        let (w, h) = (img.width(), img.height());
         self.regions.extend(
             regions
                 .iter()
-                .filter_map(|r| r.clamped(img.width(), img.height())),
+                .filter_map(|r| r.clamped(w, h))
+                .map(|r| r.aligned(grid, w, h)),
         );
         merge_overlapping(&mut self.regions);
         let mut examined = 0;

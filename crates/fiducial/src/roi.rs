@@ -71,6 +71,30 @@ impl Region {
         (x1 > self.x && y1 > self.y).then(|| Self::new(self.x, self.y, x1 - self.x, y1 - self.y))
     }
 
+    /// The smallest rectangle holding this one whose edges lie on a grid of `step` pixels
+    /// from the frame's origin, cut to a `width x height` frame (the frame's own right and
+    /// bottom edges count as grid lines). A `step` of 0 or 1 changes nothing.
+    pub fn aligned(&self, step: usize, width: usize, height: usize) -> Self {
+        if step <= 1 {
+            return *self;
+        }
+        let x = self.x / step * step;
+        let y = self.y / step * step;
+        let x1 = self
+            .x
+            .saturating_add(self.width)
+            .div_ceil(step)
+            .saturating_mul(step)
+            .min(width.max(self.x + self.width));
+        let y1 = self
+            .y
+            .saturating_add(self.height)
+            .div_ceil(step)
+            .saturating_mul(step)
+            .min(height.max(self.y + self.height));
+        Self::new(x, y, x1 - x, y1 - y)
+    }
+
     /// Number of pixels.
     pub fn area(&self) -> usize {
         self.width * self.height
