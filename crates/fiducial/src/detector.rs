@@ -443,6 +443,21 @@ impl Detector {
         out: &mut Vec<Decoded>,
     ) -> usize {
         out.clear();
+        self.detect_in_more_regions(img, regions, factor, out)
+    }
+
+    /// [`Detector::detect_in_regions`] without clearing `out`: the markers of `regions`
+    /// are added to those already there, a marker read twice kept once (fewer bit errors,
+    /// then higher contrast). For regions searched at different scales (e.g. a leader's
+    /// region at a coarse scale and a narrow face's box at full resolution), one call per
+    /// scale. Returns the number of quads examined.
+    pub fn detect_in_more_regions(
+        &mut self,
+        img: &GrayView<'_>,
+        regions: &[Region],
+        factor: usize,
+        out: &mut Vec<Decoded>,
+    ) -> usize {
         self.regions.clear();
         // Regions start and end on the binarization's tile grid (of the scale searched), so
         // that inside them the tiles, their levels and the binary image are those of a

@@ -7,7 +7,8 @@
 //! the periodic scan of guided mode from 1920 px wide); `detect_guided_WxH` searches only
 //! the leader's predicted region, as the pipeline computes it after three tracked frames
 //! (the rig reprojected at the predicted pose, default margins, quads searched at the
-//! scale the predicted marker size allows: 1 at 640x480, 4 at 3840x2160). The same `Detector` type
+//! scale the predicted marker size allows: 1 at 640x480, 4 at 3840x2160), plus the boxes of
+//! faces too narrow for that scale at full resolution, as the pipeline does. The same `Detector` type
 //! and defaults as `track`; one core. `formation-sim/baseline_sum_640x480` sums the 640x480
 //! frame's bytes: a fixed-work reference in the same run, for ratios on a loaded machine.
 
@@ -26,7 +27,7 @@ use unicycle::{Inputs, Pose};
 const DT: f64 = 1.0 / 30.0;
 
 /// The frame and the leader's predicted region(s).
-fn setup(width: usize, height: usize) -> (Vec<u8>, Vec<Region>, usize) {
+fn setup(width: usize, height: usize) -> (Vec<u8>, Vec<Region>, Vec<Region>, usize) {
     let camera = CameraSpec {
         width,
         height,
@@ -83,19 +84,26 @@ fn setup(width: usize, height: usize) -> (Vec<u8>, Vec<Region>, usize) {
         .collect();
     assert_eq!(predicted.len(), 1, "one leader tracked and predicted");
     let factor = predicted[0].factor(&cfg);
-    (image, vec![predicted[0].region], factor)
+    let fine = predicted[0].fine_regions(factor).collect();
+    (image, vec![predicted[0].region], fine, factor)
 }
 
 fn benches(c: &mut Criterion) {
     for (w, h) in [(640usize, 480usize), (3840, 2160)] {
-        let (pixels, regions, factor) = setup(w, h);
+        let (pixels, regions, fine, factor) = setup(w, h);
         let img = GrayView::new(&pixels, w, h).expect("valid frame");
         let mut det = Detector::new(DetectorConfig::default());
         let mut out = Vec::new();
         det.detect(&img, &mut out);
         let seen = out.len();
         assert!(seen >= 2, "{w}x{h}: only {seen} markers read");
-        det.detect_in_regions(&img, &regions, factor, &mut out);
+        let guided = |det: &mut Detector, out: &mut Vec<_>| {
+            det.detect_in_regions(&img, &regions, factor, out);
+            if !fine.is_empty() {
+                det.detect_in_more_regions(&img, &fine, 1, out);
+            }
+        };
+        guided(&mut det, &mut out);
         assert_eq!(out.len(), seen, "{w}x{h}: the region holds every marker");
         let mut group = c.benchmark_group("formation-sim");
         if w > 1000 {
@@ -115,7 +123,7 @@ fn benches(c: &mut Criterion) {
         });
         group.bench_function(format!("detect_guided_{w}x{h}"), |b| {
             b.iter(|| {
-                det.detect_in_regions(black_box(&img), &regions, factor, &mut out);
+                guided(&mut det, &mut out);
                 black_box(out.len())
             })
         });
@@ -123,7 +131,7 @@ fn benches(c: &mut Criterion) {
     }
     // A fixed-work reference measured in the same run (as in the fiducial benches), so that
     // figures taken on a loaded machine can be compared as ratios.
-    let (pixels, _, _) = setup(640, 480);
+    let (pixels, _, _, _) = setup(640, 480);
     c.bench_function("formation-sim/baseline_sum_640x480", |b| {
         b.iter(|| {
             black_box(&pixels)

@@ -29,7 +29,10 @@
 //! too ([`GuidedConfig::region_px_per_factor`], the "minimum marker size to pyramid level"
 //! idea of ArUco 3): at 3840x2160 a leader 1.5 m away shows markers about 270 px tall,
 //! whose quads are found on a 4 x 4-averaged copy of the region, then refined at full
-//! resolution.
+//! resolution. A face seen at a grazing angle is as tall but narrow, and averaged it may
+//! lose its outline: the boxes of faces narrower than the factor times
+//! [`NARROW_PX_PER_FACTOR`] are searched at full resolution as well
+//! ([`LeaderRegion::fine_regions`]).
 
 use fiducial::Region;
 use nalgebra::Point3;
@@ -63,6 +66,20 @@ pub struct GuidedConfig {
     pub region_px_per_factor: f64,
 }
 
+/// Most narrow faces of one leader kept in [`LeaderRegion::narrow`].
+pub const MAX_NARROW: usize = 4;
+
+/// Least projected width, in pixels of the scaled search, of a face searched at a coarser
+/// scale ([`LeaderRegion::fine_regions`]): a face seen at a grazing angle is as tall as the
+/// others but narrow, and averaged `f x f` its cells fall under about 3 pixels and its dark
+/// outline closes no more (on the demo at 3840x2160, factor 4, a face 40 px wide was read by
+/// the full scan and missed in the region).
+pub const NARROW_PX_PER_FACTOR: f64 = 24.0;
+
+/// Faces narrower than this (pixels, full resolution) are left to chance: no scan reads them
+/// reliably (the detector's default `min_side` is 10 px).
+const MIN_FACE_PX: f64 = 10.0;
+
 /// A leader's predicted region and how large its markers will look.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LeaderRegion {
@@ -70,9 +87,25 @@ pub struct LeaderRegion {
     pub region: Region,
     /// The tallest projected marker side (its vertical edges), pixels.
     pub marker_px: f64,
+    /// The narrowest faces turned towards the camera (at least 10 px wide): each face's own
+    /// box with a margin (as the region's, its relative part from the face's size), and its
+    /// projected width in pixels (the shorter of its
+    /// top and bottom edges). Up to [`MAX_NARROW`], narrowest first.
+    pub narrow: [Option<(Region, f64)>; MAX_NARROW],
 }
 
 impl LeaderRegion {
+    /// The boxes of the faces that a search at `factor` could miss (narrower than
+    /// `factor` times [`NARROW_PX_PER_FACTOR`]): the caller searches them at full
+    /// resolution besides the region. None at factor 1.
+    pub fn fine_regions(&self, factor: usize) -> impl Iterator<Item = Region> + '_ {
+        self.narrow
+            .iter()
+            .flatten()
+            .filter(move |(_, w)| factor > 1 && *w < factor as f64 * NARROW_PX_PER_FACTOR)
+            .map(|(r, _)| *r)
+    }
+
     /// The scale factor of the quad search in this region (see
     /// [`GuidedConfig::region_px_per_factor`]).
     pub fn factor(&self, config: &GuidedConfig) -> usize {
@@ -185,6 +218,8 @@ pub fn leader_region(
         f64::NEG_INFINITY,
     );
     let mut marker_px = 0.0f64;
+    // Narrow front faces: box (u0, v0, u1, v1) and width, narrowest first.
+    let mut narrow: [Option<([f64; 4], f64)>; MAX_NARROW] = [None; MAX_NARROW];
     for face in faces {
         let mut projected = [None; 4];
         for (slot, c) in projected.iter_mut().zip(face.corners) {
@@ -209,6 +244,28 @@ pub fn leader_region(
                 marker_px = marker_px.max((p - q).norm());
             }
         }
+        // A face turned towards the camera (its outward normal against the line of sight)
+        // and narrow in the image is kept with its own box.
+        let centre = rotation * Point3::from(face.centre) + translation;
+        let normal = rotation * nalgebra::Vector3::from(face.normal);
+        if let [Some(nw), Some(ne), Some(se), Some(sw)] = projected
+            && normal.dot(&centre.coords) < 0.0
+        {
+            let width = (ne - nw).norm().min((se - sw).norm());
+            if width >= MIN_FACE_PX {
+                let xs = [nw.x, ne.x, se.x, sw.x];
+                let ys = [nw.y, ne.y, se.y, sw.y];
+                let fold =
+                    |v: [f64; 4], f: fn(f64, f64) -> f64, init: f64| v.into_iter().fold(init, f);
+                let bounds = [
+                    fold(xs, f64::min, f64::INFINITY),
+                    fold(ys, f64::min, f64::INFINITY),
+                    fold(xs, f64::max, f64::NEG_INFINITY),
+                    fold(ys, f64::max, f64::NEG_INFINITY),
+                ];
+                keep_narrowest(&mut narrow, (bounds, width));
+            }
+        }
     }
     if !(u0.is_finite() && u1.is_finite() && v0.is_finite() && v1.is_finite()) {
         return None;
@@ -222,5 +279,38 @@ pub fn leader_region(
     let my = (0.5 * scale + config.margin_rel) * bh + config.margin_px;
     // A wildly uncertain prediction gives a huge region; cut it to the frame.
     let region = Region::from_bounds(u0 - mx, v0 - my, u1 + mx, v1 + my, size.0, size.1)?;
-    Some(LeaderRegion { region, marker_px })
+    // A narrow face's box takes the same margin, its relative part from the face's own size.
+    let narrow = narrow.map(|n| {
+        n.and_then(|([a, b, c, d], w)| {
+            let fx = config.sigmas * camera.alpha() * sb
+                + (0.5 * scale + config.margin_rel) * (c - a)
+                + config.margin_px;
+            let fy = (0.5 * scale + config.margin_rel) * (d - b) + config.margin_px;
+            Region::from_bounds(a - fx, b - fy, c + fx, d + fy, size.0, size.1).map(|r| (r, w))
+        })
+    });
+    Some(LeaderRegion {
+        region,
+        marker_px,
+        narrow,
+    })
+}
+
+/// Inserts `face` (box, width) into `narrow`, kept sorted narrowest first; the widest falls
+/// out when it is full.
+fn keep_narrowest(narrow: &mut [Option<([f64; 4], f64)>; MAX_NARROW], face: ([f64; 4], f64)) {
+    let mut item = Some(face);
+    for slot in narrow.iter_mut() {
+        match (*slot, item) {
+            (None, _) => {
+                *slot = item;
+                return;
+            }
+            (Some(s), Some(f)) if f.1 < s.1 => {
+                *slot = Some(f);
+                item = Some(s);
+            }
+            _ => {}
+        }
+    }
 }

@@ -72,7 +72,9 @@ pub enum PipelineError {
 #[serde(tag = "mode", rename_all = "snake_case")]
 pub enum Scan {
     /// The whole frame, at `1 / factor` of the resolution for finding quads (corners are
-    /// always refined at full resolution; factor 1 is a plain full scan).
+    /// always refined at full resolution; factor 1 is a plain full scan). Above factor 1
+    /// (guided mode's periodic scan), the tracked leaders' faces too narrow for that scale
+    /// are searched at full resolution as well.
     Full {
         /// Decimation factor of the quad search (1 = full resolution).
         factor: usize,
@@ -81,7 +83,9 @@ pub enum Scan {
     Guided {
         /// Decimation factor of the quad search in the regions (1 = full resolution).
         factor: usize,
-        /// Regions searched (before overlapping ones are merged).
+        /// Regions searched (before overlapping ones are merged), the leaders' and the boxes
+        /// of narrow faces searched at full resolution besides them
+        /// ([`crate::guided::LeaderRegion::fine_regions`]).
         regions: usize,
         /// Pixels in those regions, summed.
         pixels: usize,
@@ -131,6 +135,10 @@ struct Guided {
     /// Frames since the last full scan.
     since_full: u32,
     regions: Vec<Region>,
+    /// The leaders' predictions of the current frame (reused).
+    leaders: Vec<crate::guided::LeaderRegion>,
+    /// Narrow faces' boxes searched at full resolution besides coarse regions.
+    fine: Vec<Region>,
 }
 
 /// Detector, pose solver, rig and tracker for one camera stream.
@@ -186,6 +194,8 @@ impl Pipeline {
                     faces: self.rig.face_geometries()?,
                     since_full: 0,
                     regions: Vec::new(),
+                    leaders: Vec::new(),
+                    fine: Vec::new(),
                 })
             }
         };
@@ -215,14 +225,17 @@ impl Pipeline {
         let periodic = g.since_full + 1 >= g.config.full_scan_period;
         let mut lost_sight = predictions.is_empty() || predictions.iter().any(|p| p.coasting);
         g.regions.clear();
+        g.leaders.clear();
+        g.fine.clear();
         let mut region_factor = 4;
-        if !periodic && !lost_sight {
+        if !lost_sight {
             let camera = self.solver.intrinsics();
             for p in &predictions {
                 match leader_region(p, &g.faces, mount, camera, size, &g.config) {
                     Some(r) => {
                         region_factor = region_factor.min(r.factor(&g.config));
                         g.regions.push(r.region);
+                        g.leaders.push(r);
                     }
                     None => {
                         lost_sight = true;
@@ -241,18 +254,35 @@ impl Pipeline {
             };
             if factor > 1 {
                 self.detector.detect_coarse(view, factor, &mut self.decoded);
+                // The tracked leaders' faces too narrow for the coarse scan, at full
+                // resolution.
+                for r in &g.leaders {
+                    g.fine.extend(r.fine_regions(factor));
+                }
+                if !g.fine.is_empty() {
+                    self.detector
+                        .detect_in_more_regions(view, &g.fine, 1, &mut self.decoded);
+                }
             } else {
                 self.detector.detect(view, &mut self.decoded);
             }
             return Scan::Full { factor };
         }
+        // Faces too narrow for the coarse search are searched at full resolution too.
+        for r in &g.leaders {
+            g.fine.extend(r.fine_regions(region_factor));
+        }
         g.since_full += 1;
         self.detector
             .detect_in_regions(view, &g.regions, region_factor, &mut self.decoded);
+        if !g.fine.is_empty() {
+            self.detector
+                .detect_in_more_regions(view, &g.fine, 1, &mut self.decoded);
+        }
         Scan::Guided {
             factor: region_factor,
-            regions: g.regions.len(),
-            pixels: g.regions.iter().map(Region::area).sum(),
+            regions: g.regions.len() + g.fine.len(),
+            pixels: g.regions.iter().chain(&g.fine).map(Region::area).sum(),
         }
     }
 
