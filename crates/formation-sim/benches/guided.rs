@@ -13,79 +13,20 @@
 //! frame's bytes: a fixed-work reference in the same run, for ratios on a loaded machine.
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Region};
-use formation_sim::scene::{self, CameraSpec, RenderSpec, RobotSpec, SceneSpec};
-use formation_tracker::guided::{GuidedConfig, leader_region};
-use formation_tracker::mount::CameraMount;
-use formation_tracker::pipeline::Pipeline;
-use formation_tracker::rig::RigModel;
-use formation_tracker::robots::RobotConfig;
-use formation_tracker::tracker::{Tracker, TrackerConfig};
+use fiducial::{Detector, DetectorConfig, GrayView, Region};
+use formation_tracker::guided::GuidedConfig;
 use std::hint::black_box;
-use unicycle::{Inputs, Pose};
 
-const DT: f64 = 1.0 / 30.0;
+#[path = "../tests/guided_support/mod.rs"]
+mod guided_support;
 
-/// The frame and the leader's predicted region(s).
+/// The frame (robot 1 1.5 m ahead, 0.25 m to the left, as at the demo's start) and the
+/// leader's predicted region(s) and their scale.
 fn setup(width: usize, height: usize) -> (Vec<u8>, Vec<Region>, Vec<Region>, usize) {
-    let camera = CameraSpec {
-        width,
-        height,
-        hfov_deg: 60.0,
-    };
-    let mount = CameraMount::default();
-    let rig = RigModel::reference();
-    let dict = Dictionary::paper();
-    let spec = SceneSpec {
-        name: String::new(),
-        camera_robot: Pose::new(0.0, 0.0, 0.0),
-        mount,
-        camera,
-        render: RenderSpec {
-            supersampling: 1,
-            noise_sigma: 3.0,
-            blur_sigma: 1.0,
-            seed: 1,
-        },
-        robots: vec![RobotSpec {
-            robot: 1,
-            x: 1.5,
-            y: 0.25,
-            theta: 0.0,
-        }],
-    };
-    let image = scene::render_scene(&spec, &rig, dict)
-        .expect("the demo scene renders")
-        .image
-        .into_raw();
-    let k = pose::Intrinsics::from_hfov(60f64.to_radians(), width as u32, height as u32)
-        .expect("valid camera");
-    let mut pipeline = Pipeline::new(
-        Detector::with_dictionary(DetectorConfig::default(), dict.clone()),
-        pose::PoseSolver::new(k),
-        (width as u32, height as u32),
-        rig.clone(),
-        RobotConfig::default(),
-        Tracker::new(TrackerConfig::reference(mount.offset, DT)).expect("reference tracker"),
-    );
-    let still = Inputs::new(0.0, 0.0);
-    for i in 0..3 {
-        pipeline
-            .process(&image, width, height, i as f64 * DT, still, mount)
-            .expect("the frame is processed");
-    }
-    let faces = rig.face_geometries().expect("reference rig");
-    let cfg = GuidedConfig::default();
-    let predicted: Vec<_> = pipeline
-        .tracker()
-        .predict(3.0 * DT, still)
-        .iter()
-        .filter_map(|p| leader_region(p, &faces, &mount, &k, (width, height), &cfg))
-        .collect();
-    assert_eq!(predicted.len(), 1, "one leader tracked and predicted");
-    let factor = predicted[0].factor(&cfg);
-    let fine = predicted[0].fine_regions(factor).collect();
-    (image, vec![predicted[0].region], fine, factor)
+    let (image, predicted) = guided_support::leader_frame(width, height, 1.5, 0.25, 0.0);
+    let factor = predicted.factor(&GuidedConfig::default());
+    let fine = predicted.fine_regions(factor).collect();
+    (image, vec![predicted.region], fine, factor)
 }
 
 fn benches(c: &mut Criterion) {

@@ -4,88 +4,18 @@
 //! faces' boxes at full resolution as well ([`LeaderRegion::fine_regions`]).
 #![allow(clippy::unwrap_used)] // Tests may unwrap (house rules).
 
-use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Region};
-use formation_sim::scene::{self, CameraSpec, RenderSpec, RobotSpec, SceneSpec};
-use formation_tracker::guided::{GuidedConfig, LeaderRegion, leader_region};
-use formation_tracker::mount::CameraMount;
-use formation_tracker::pipeline::Pipeline;
-use formation_tracker::rig::RigModel;
-use formation_tracker::robots::RobotConfig;
-use formation_tracker::tracker::{Tracker, TrackerConfig};
-use unicycle::{Inputs, Pose};
+use fiducial::{Detector, DetectorConfig, GrayView, Region};
+use formation_tracker::guided::GuidedConfig;
 
-const DT: f64 = 1.0 / 30.0;
-
-/// A 3840x2160 frame of robot 1 at `(x, y, theta)` seen by robot 2's camera, and the
-/// leader's predicted region after three tracked frames.
-fn frame(x: f64, y: f64, theta: f64) -> (Vec<u8>, LeaderRegion) {
-    let (width, height) = (3840usize, 2160usize);
-    let camera = CameraSpec {
-        width,
-        height,
-        hfov_deg: 60.0,
-    };
-    let mount = CameraMount::default();
-    let rig = RigModel::reference();
-    let dict = Dictionary::paper();
-    let spec = SceneSpec {
-        name: String::new(),
-        camera_robot: Pose::new(0.0, 0.0, 0.0),
-        mount,
-        camera,
-        render: RenderSpec {
-            supersampling: 1,
-            noise_sigma: 3.0,
-            blur_sigma: 1.0,
-            seed: 1,
-        },
-        robots: vec![RobotSpec {
-            robot: 1,
-            x,
-            y,
-            theta,
-        }],
-    };
-    let image = scene::render_scene(&spec, &rig, dict)
-        .unwrap()
-        .image
-        .into_raw();
-    let k = pose::Intrinsics::from_hfov(60f64.to_radians(), width as u32, height as u32).unwrap();
-    let mut pipeline = Pipeline::new(
-        Detector::with_dictionary(DetectorConfig::default(), dict.clone()),
-        pose::PoseSolver::new(k),
-        (width as u32, height as u32),
-        rig.clone(),
-        RobotConfig::default(),
-        Tracker::new(TrackerConfig::reference(mount.offset, DT)).unwrap(),
-    );
-    let still = Inputs::new(0.0, 0.0);
-    for i in 0..3 {
-        pipeline
-            .process(&image, width, height, i as f64 * DT, still, mount)
-            .unwrap();
-    }
-    let faces = rig.face_geometries().unwrap();
-    let predicted = pipeline.tracker().predict(3.0 * DT, still);
-    assert_eq!(predicted.len(), 1);
-    let r = leader_region(
-        &predicted[0],
-        &faces,
-        &mount,
-        &k,
-        (width, height),
-        &GuidedConfig::default(),
-    )
-    .unwrap();
-    (image, r)
-}
+#[path = "guided_support/mod.rs"]
+mod guided_support;
 
 #[test]
 fn a_grazing_face_is_read_in_guided_mode() {
     // Robot 1 turned 0.5 rad, 1.5 m ahead: four faces turn towards the camera, one of them
     // about 40 px wide at 3840x2160; the faces are about 270 px tall, so the region is
     // searched at factor 4.
-    let (pixels, r) = frame(1.5, 0.25, 0.5);
+    let (pixels, r) = guided_support::leader_frame(3840, 2160, 1.5, 0.25, 0.5);
     let img = GrayView::new(&pixels, 3840, 2160).unwrap();
     let config = GuidedConfig::default();
     let factor = r.factor(&config);
