@@ -254,3 +254,19 @@ fn the_seeds_are_accepted() {
         assert_eq!((img.width, img.height, img.data.len()), (24, 16, 24 * 16));
     }
 }
+
+/// Runs on several threads at once each get their own scratch file: they used to share four
+/// (the run number modulo 4), so a seed run could read a file another thread was rewriting or
+/// had just removed, and `the_seeds_are_accepted` failed on a clean-clone CI run (0 frames read).
+#[test]
+fn concurrent_runs_do_not_share_a_file() {
+    std::thread::scope(|s| {
+        for _ in 0..8 {
+            s.spawn(|| {
+                for _ in 0..6 {
+                    assert_eq!(fuzz_body::bag::run(BAG), 2, "both frames of the seed bag");
+                }
+            });
+        }
+    });
+}

@@ -12,13 +12,14 @@ use formation_tracker_cli::bag::Bag;
 /// frames are refused before decoding, which keeps each run short).
 const MAX_SIDE: usize = 1024;
 
-/// A file of this process's own for each run (runs may share a process).
+/// A file of its own for each run: runs may share a process, and tests run them on several
+/// threads at once (each run removes its file when done, so the names are not reused).
 fn scratch(data: &[u8]) -> Option<std::path::PathBuf> {
     static RUN: AtomicU64 = AtomicU64::new(0);
     let path = std::env::temp_dir().join(format!(
         "formation-bag-fuzz-{}-{}.mcap",
         std::process::id(),
-        RUN.fetch_add(1, Ordering::Relaxed) % 4
+        RUN.fetch_add(1, Ordering::Relaxed)
     ));
     let mut f = std::fs::File::create(&path).ok()?;
     f.write_all(data).ok()?;
