@@ -82,7 +82,8 @@ const TARGETS: &[Target] = &[
     Target {
         id: "fiducial/detect_1920x1080_rayon",
         target_ns: None,
-        note: "`Detector::detect_parallel` on rayon's pool (2 cores): binarization in bands; \
+        note: "`Detector::detect_parallel` on rayon's pool (2 cores): binarization in bands, \
+               components and decoding in runs; \
                see the ratio below (#12)",
     },
     Target {

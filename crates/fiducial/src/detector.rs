@@ -180,14 +180,11 @@ pub struct Detector {
     dictionaries: Vec<Dictionary>,
     /// For each dictionary, the first dictionary in the list read with the same grid.
     grid_of: Vec<usize>,
-    /// Per dictionary, the reading of the current quad (valid where `grid_of[i] == i`).
-    readings: Vec<Option<(u8, CellReading)>>,
     binarizer: Binarizer,
     bin: Vec<u8>,
     labeller: Labeller,
     contour: Vec<[i32; 2]>,
     refiner: Refiner,
-    pattern: crate::pattern::PatternRefiner,
     quads: Vec<Quad>,
     /// Boxes of large components that gave no quad, re-cut by [`Splitter`].
     retry: Vec<Rect>,
@@ -205,8 +202,10 @@ pub struct Detector {
     bands: usize,
     /// Per-thread scratch of [`Detector::detect_parallel`].
     workers: Vec<crate::parallel::Worker>,
-    /// Scratch of the motion-blurred reading ([`DetectorConfig::motion_blur`]).
-    blur: crate::blur::BlurScratch,
+    /// Scratch of decoding on the calling thread.
+    decoding: Decoding,
+    /// Per-thread scratch of decoding in [`Detector::detect_parallel`].
+    decoders: Vec<crate::parallel::Decoder>,
 }
 
 impl Default for Detector {
@@ -251,7 +250,8 @@ impl Detector {
             .collect();
         Self {
             config,
-            readings: vec![None; dictionaries.len()],
+            decoding: Decoding::new(dictionaries.len()),
+            decoders: Vec::new(),
             grid_of,
             dictionaries,
             binarizer: Binarizer::default(),
@@ -259,7 +259,6 @@ impl Detector {
             labeller: Labeller::default(),
             contour: Vec::new(),
             refiner: Refiner::default(),
-            pattern: crate::pattern::PatternRefiner::default(),
             quads: Vec::new(),
             retry: Vec::new(),
             splitter: Splitter::default(),
@@ -269,7 +268,6 @@ impl Detector {
             region_out: Vec::new(),
             bands: 1,
             workers: Vec::new(),
-            blur: crate::blur::BlurScratch::default(),
         }
     }
 
@@ -294,8 +292,8 @@ impl Detector {
     }
 
     /// [`Detector::detect`] with binarization (the stage that reads every pixel) cut into
-    /// horizontal bands, and the components' tracing, quad fit and refinement cut into runs
-    /// (the crate's `parallel` module), run on the threads of the current rayon pool (crate feature
+    /// horizontal bands, and the components' tracing, quad fit and refinement, and the
+    /// quads' decoding, cut into runs (the crate's `parallel` module), run on the threads of the current rayon pool (crate feature
     /// `parallel`; without it, this is [`Detector::detect`]). The output is identical
     /// to [`Detector::detect`]'s (a test checks it). Frames under a megapixel are detected on
     /// the calling thread alone, where the threads' start-up costs more than they save;
@@ -317,73 +315,28 @@ impl Detector {
     /// one with fewer bit errors, then higher contrast). Returns the number of quads examined.
     pub fn decode_quads(&mut self, img: &GrayView<'_>, out: &mut Vec<Decoded>) -> usize {
         out.clear();
-        self.blur.solved_quads = 0;
-        let params = &self.config.decode;
-        for q in &self.quads {
-            let mut best: Option<Decoded> = None;
-            // Whether some grid read as a marker's (contrast, and a dark border or nearly):
-            // only such a quad is worth the motion-blurred reading.
-            let mut marker_like = false;
-            for (i, dict) in self.dictionaries.iter().enumerate() {
-                let g = self.grid_of[i];
-                if g == i {
-                    let r = read_oriented(
-                        img,
-                        &q.corners,
-                        dict.family(),
-                        WhiteReference::of(dict),
-                        params,
-                    );
-                    marker_like |= matches!(r, Ok(_) | Err(Rejection::BorderNotDark { .. }));
-                    self.readings[i] = r.ok();
-                }
-                let Some((s, reading)) = &self.readings[g] else {
-                    continue;
-                };
-                if let Some(mut d) = match_reading(&q.corners, *s, reading, dict, params)
-                    && best.is_none_or(|b| d.distance < b.distance)
-                {
-                    d.dictionary = i;
-                    best = Some(d);
+        self.decoding.blur.solved_quads = 0;
+        let ctx = DecodeContext {
+            config: &self.config,
+            dictionaries: &self.dictionaries,
+            grid_of: &self.grid_of,
+        };
+        if self.bands > 1 && self.quads.len() > 1 {
+            crate::parallel::decode_all(
+                img,
+                &ctx,
+                &self.quads,
+                self.bands,
+                &mut self.decoders,
+                &mut self.decoding,
+                out,
+            );
+        } else {
+            for q in &self.quads {
+                if let Some(d) = ctx.decode(img, q, &mut self.decoding) {
+                    push_unique(out, d);
                 }
             }
-            // Not an entry as sampled: read it as a motion-blurred marker (issue #16).
-            let best = best.or_else(|| {
-                (self.config.motion_blur && marker_like)
-                    .then(|| {
-                        crate::blur::decode_blurred(
-                            img,
-                            &q.corners,
-                            &self.dictionaries,
-                            params,
-                            &mut self.blur,
-                        )
-                    })
-                    .flatten()
-            });
-            let Some(mut d) = best else {
-                continue;
-            };
-            // A side along an occluder, not the border (issue #16).
-            if let Some(check) = &self.config.side_check {
-                let family = self.dictionaries[d.dictionary].family();
-                if side_offsets(img, &d, family, check).is_some_and(|o| !o.consistent()) {
-                    continue;
-                }
-            }
-            if self.config.refine.with_pattern {
-                let family = self.dictionaries[d.dictionary].family();
-                if let Some(c) = self.pattern.refine(
-                    img,
-                    &d.corners.map(|p| [p.x, p.y]),
-                    family,
-                    d.code,
-                    &self.config.refine,
-                ) {
-                    d.corners = c.map(|[x, y]| Point2::new(x, y));
-                }
-            }
-            push_unique(out, d);
         }
         self.quads.len()
     }
@@ -395,7 +348,7 @@ impl Detector {
     /// scene that keeps this high (clutter with marker-like squares, heavy motion blur)
     /// is where turning the option off saves time.
     pub fn blurred_reads(&self) -> usize {
-        self.blur.solved_quads
+        self.decoding.blur.solved_quads
     }
 
     /// The quads found by the last [`Detector::find_quads`] call.
@@ -840,9 +793,118 @@ impl Scan<'_, '_> {
     }
 }
 
+/// Scratch of decoding one quad at a time, owned by the detector (one per thread in
+/// [`Detector::detect_parallel`]).
+#[derive(Debug, Clone)]
+pub(crate) struct Decoding {
+    /// Per dictionary, the reading of the current quad (valid where `grid_of[i] == i`).
+    readings: Vec<Option<(u8, CellReading)>>,
+    pattern: crate::pattern::PatternRefiner,
+    /// Scratch of the motion-blurred reading ([`DetectorConfig::motion_blur`]).
+    pub(crate) blur: crate::blur::BlurScratch,
+}
+
+impl Decoding {
+    /// Scratch for `dictionaries` dictionaries.
+    pub(crate) fn new(dictionaries: usize) -> Self {
+        Self {
+            readings: vec![None; dictionaries],
+            pattern: crate::pattern::PatternRefiner::default(),
+            blur: crate::blur::BlurScratch::default(),
+        }
+    }
+}
+
+/// What decoding a quad reads from the detector (shared by its threads).
+pub(crate) struct DecodeContext<'a> {
+    config: &'a DetectorConfig,
+    dictionaries: &'a [Dictionary],
+    grid_of: &'a [usize],
+}
+
+impl DecodeContext<'_> {
+    /// The number of dictionaries.
+    pub(crate) fn dictionaries(&self) -> usize {
+        self.dictionaries.len()
+    }
+
+    /// Reads quad `q` of `img`: the decoded marker with its corners refined against its
+    /// pattern, or `None` when it is not a marker (or a side of it runs along an occluder).
+    pub(crate) fn decode(
+        &self,
+        img: &GrayView<'_>,
+        q: &Quad,
+        scratch: &mut Decoding,
+    ) -> Option<Decoded> {
+        let params = &self.config.decode;
+        let mut best: Option<Decoded> = None;
+        // Whether some grid read as a marker's (contrast, and a dark border or nearly):
+        // only such a quad is worth the motion-blurred reading.
+        let mut marker_like = false;
+        for (i, dict) in self.dictionaries.iter().enumerate() {
+            let g = self.grid_of[i];
+            if g == i {
+                let r = read_oriented(
+                    img,
+                    &q.corners,
+                    dict.family(),
+                    WhiteReference::of(dict),
+                    params,
+                );
+                marker_like |= matches!(r, Ok(_) | Err(Rejection::BorderNotDark { .. }));
+                scratch.readings[i] = r.ok();
+            }
+            let Some((s, reading)) = &scratch.readings[g] else {
+                continue;
+            };
+            if let Some(mut d) = match_reading(&q.corners, *s, reading, dict, params)
+                && best.is_none_or(|b| d.distance < b.distance)
+            {
+                d.dictionary = i;
+                best = Some(d);
+            }
+        }
+        // Not an entry as sampled: read it as a motion-blurred marker (issue #16).
+        let best = best.or_else(|| {
+            (self.config.motion_blur && marker_like)
+                .then(|| {
+                    crate::blur::decode_blurred(
+                        img,
+                        &q.corners,
+                        self.dictionaries,
+                        params,
+                        &mut scratch.blur,
+                    )
+                })
+                .flatten()
+        });
+        let mut d = best?;
+        // A side along an occluder, not the border (issue #16).
+        if let Some(check) = &self.config.side_check {
+            let family = self.dictionaries[d.dictionary].family();
+            if side_offsets(img, &d, family, check).is_some_and(|o| !o.consistent()) {
+                return None;
+            }
+        }
+        if self.config.refine.with_pattern {
+            let family = self.dictionaries[d.dictionary].family();
+            if let Some(c) = scratch.pattern.refine(
+                img,
+                &d.corners.map(|p| [p.x, p.y]),
+                family,
+                d.code,
+                &self.config.refine,
+            ) {
+                d.corners = c.map(|[x, y]| Point2::new(x, y));
+            }
+        }
+        Some(d)
+    }
+}
+
 /// Adds `d` to `out` unless a reading of the same marker is there (then the better of the
 /// two is kept: fewer bit errors, then higher contrast).
-fn push_unique(out: &mut Vec<Decoded>, d: Decoded) {
+pub(crate) fn push_unique(out: &mut Vec<Decoded>, d: Decoded) {
     match out
         .iter_mut()
         .find(|o| o.dictionary == d.dictionary && o.index == d.index && overlaps(o, &d))

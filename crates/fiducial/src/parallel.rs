@@ -3,10 +3,15 @@
 //! contiguous runs as there are threads, of about equal estimated work, and each run is
 //! examined (traced, fitted, refined) on its own thread with its own scratch. The runs'
 //! quads and re-cut boxes are then appended in order, so the result is exactly that of the
-//! single-threaded loop. Without the crate feature `parallel` the runs are examined in turn.
+//! single-threaded loop. Decoding is cut the same way: contiguous runs of the quads, each
+//! read on its own thread with its own scratch, the markers then merged in quad order as the
+//! single-threaded loop merges them. Without the crate feature `parallel` the runs are
+//! examined in turn.
 
 use crate::contour::Component;
-use crate::detector::{Examined, Quad, Scan};
+use crate::decode::Decoded;
+use crate::detector::{DecodeContext, Decoding, Examined, Quad, Scan, push_unique};
+use crate::image::GrayView;
 use crate::refine::Refiner;
 use crate::split::Rect;
 
@@ -83,5 +88,63 @@ pub(crate) fn examine_all(
     for w in workers.iter() {
         quads.extend_from_slice(&w.quads);
         retry.extend_from_slice(&w.retry);
+    }
+}
+
+/// One thread's decoding scratch and markers; kept by the detector between frames.
+#[derive(Debug, Clone)]
+pub(crate) struct Decoder {
+    scratch: Decoding,
+    /// The markers of its run of quads, in quad order.
+    found: Vec<Decoded>,
+    /// The run of quads (start, end) of the current frame.
+    range: (usize, usize),
+}
+
+/// Decodes `quads` on `threads` workers (contiguous runs of about equal length) and merges
+/// their markers into `out` in quad order, as [`crate::Detector::decode_quads`]'s loop does;
+/// the count of blurred readings is summed into `main`.
+pub(crate) fn decode_all(
+    img: &GrayView<'_>,
+    ctx: &DecodeContext<'_>,
+    quads: &[Quad],
+    threads: usize,
+    decoders: &mut Vec<Decoder>,
+    main: &mut Decoding,
+    out: &mut Vec<Decoded>,
+) {
+    let k = threads.clamp(1, quads.len().max(1));
+    while decoders.len() < k {
+        decoders.push(Decoder {
+            scratch: Decoding::new(ctx.dictionaries()),
+            found: Vec::new(),
+            range: (0, 0),
+        });
+    }
+    let decoders = &mut decoders[..k];
+    for (j, d) in decoders.iter_mut().enumerate() {
+        d.range = (j * quads.len() / k, (j + 1) * quads.len() / k);
+    }
+    let run = |d: &mut Decoder| {
+        d.found.clear();
+        d.scratch.blur.solved_quads = 0;
+        for q in &quads[d.range.0..d.range.1] {
+            if let Some(m) = ctx.decode(img, q, &mut d.scratch) {
+                d.found.push(m);
+            }
+        }
+    };
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        decoders.par_iter_mut().for_each(run);
+    }
+    #[cfg(not(feature = "parallel"))]
+    decoders.iter_mut().for_each(run);
+    for d in decoders.iter() {
+        main.blur.solved_quads += d.scratch.blur.solved_quads;
+        for m in &d.found {
+            push_unique(out, *m);
+        }
     }
 }

@@ -42,3 +42,45 @@ fn parallel_detection_equals_single_threaded() {
         assert_eq!(parallel, serial, "{w}x{h}, fresh detector");
     }
 }
+
+/// Decoding on threads (#12) merges the runs' markers in quad order: on a large frame of
+/// markers, clutter and motion blur (many quads, some read twice, some read as blurred)
+/// the markers and the count of blurred readings are those of the single-threaded loop.
+#[test]
+fn parallel_decoding_equals_single_threaded_on_clutter() {
+    let dict = Dictionary::paper();
+    let (w, h) = (1920, 1080);
+    let cfg = SceneConfig {
+        width: w,
+        height: h,
+        noise: 3.0,
+        min_side: 20.0,
+        max_side: 70.0,
+        ..SceneConfig::default()
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let scene = marker_scene(&cfg, &common::entries(dict), &mut rng).expect("the scene fits");
+    let clutter = marker_testkit::clutter_frame(w, h, 1.0, 3.0, common::not_markers(), &mut rng)
+        .expect("valid clutter size");
+    // The markers' scene over the clutter's left half, then a 7 px motion blur.
+    let mut px = scene.pixels.clone();
+    for y in 0..h {
+        px[y * w..y * w + w / 2].copy_from_slice(&clutter[y * w..y * w + w / 2]);
+    }
+    let px = marker_testkit::motion_blur(&px, w, h, 7.0, 0.4).expect("valid frame");
+    let img = GrayView::new(&px, w, h).expect("valid frame");
+    let mut det = Detector::new(DetectorConfig::default());
+    let (mut serial, mut parallel) = (Vec::new(), Vec::new());
+    det.detect(&img, &mut serial);
+    let quads = det.quads().len();
+    let blurred = det.blurred_reads();
+    assert!(quads > 20, "only {quads} quads");
+    assert!(
+        !serial.is_empty() && blurred > 0,
+        "{} markers, {blurred} blurred",
+        serial.len()
+    );
+    det.detect_parallel(&img, &mut parallel);
+    assert_eq!(parallel, serial);
+    assert_eq!(det.blurred_reads(), blurred);
+}
