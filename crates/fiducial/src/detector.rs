@@ -417,10 +417,7 @@ impl Detector {
         // full-frame scan at that scale: a marker well inside a region gets the same outline,
         // hence the same corners, as in full-frame detection (only the region's edge tiles see
         // fewer neighbours).
-        let grid = match self.config.threshold {
-            crate::Threshold::Adaptive { tile_size, .. } => tile_size.clamp(2, 64),
-            crate::Threshold::Otsu => 8,
-        } * factor.clamp(1, 4);
+        let grid = self.config.threshold.tile_side() * factor.clamp(1, 4);
         let (w, h) = (img.width(), img.height());
         self.regions.extend(
             regions

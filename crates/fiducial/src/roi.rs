@@ -78,20 +78,15 @@ impl Region {
         if step <= 1 {
             return *self;
         }
-        let x = self.x / step * step;
-        let y = self.y / step * step;
-        let x1 = self
-            .x
-            .saturating_add(self.width)
-            .div_ceil(step)
-            .saturating_mul(step)
-            .min(width.max(self.x + self.width));
-        let y1 = self
-            .y
-            .saturating_add(self.height)
-            .div_ceil(step)
-            .saturating_mul(step)
-            .min(height.max(self.y + self.height));
+        // One axis: the start rounded down, the end up (not past the frame's edge, nor
+        // short of the region's own end).
+        let grow = |start: usize, len: usize, limit: usize| {
+            let end = start.saturating_add(len);
+            let up = end.div_ceil(step).saturating_mul(step).min(limit.max(end));
+            (start / step * step, up)
+        };
+        let (x, x1) = grow(self.x, self.width, width);
+        let (y, y1) = grow(self.y, self.height, height);
         Self::new(x, y, x1 - x, y1 - y)
     }
 

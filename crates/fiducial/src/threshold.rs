@@ -32,6 +32,18 @@ pub enum Threshold {
     Otsu,
 }
 
+impl Threshold {
+    /// Side of the square tiles the frame is cut into, pixels: the adaptive tile size
+    /// (clamped to 2-64), and 8 for Otsu (no tiles, but bands of binarization are cut at
+    /// multiples of 8 rows).
+    pub(crate) fn tile_side(&self) -> usize {
+        match *self {
+            Threshold::Adaptive { tile_size, .. } => tile_size.clamp(2, 64),
+            Threshold::Otsu => 8,
+        }
+    }
+}
+
 impl Default for Threshold {
     fn default() -> Self {
         Threshold::Adaptive {
@@ -156,13 +168,10 @@ impl Binarizer {
         let (w, h) = (img.width(), img.height());
         // Every byte of these is written below: resize only (no clear and refill).
         out.resize(w * h, 0);
-        let (side, min_contrast) = match threshold {
-            Threshold::Adaptive {
-                tile_size,
-                min_contrast,
-            } => (tile_size.clamp(2, 64), Some(min_contrast)),
-            // Otsu has no tiles; bands are still cut at multiples of 8 rows.
-            Threshold::Otsu => (8, None),
+        let side = threshold.tile_side();
+        let min_contrast = match threshold {
+            Threshold::Adaptive { min_contrast, .. } => Some(min_contrast),
+            Threshold::Otsu => None,
         };
         let (tx, ty) = (w.div_ceil(side), h.div_ceil(side));
         let band_tiles = ty.div_ceil(bands.clamp(1, ty));

@@ -272,23 +272,18 @@ pub fn leader_region(
     }
     let [sl, _, sb] = [leader.std[0], leader.std[1], leader.std[2]];
     let scale = config.sigmas * sl / l12.max(1e-3);
-    let (bw, bh) = (u1 - u0, v1 - v0);
-    let mx = config.sigmas * camera.alpha() * sb
-        + (0.5 * scale + config.margin_rel) * bw
-        + config.margin_px;
-    let my = (0.5 * scale + config.margin_rel) * bh + config.margin_px;
-    // A wildly uncertain prediction gives a huge region; cut it to the frame.
-    let region = Region::from_bounds(u0 - mx, v0 - my, u1 + mx, v1 + my, size.0, size.1)?;
+    // The box `[u0, v0, u1, v1]` widened by the margin, cut to the frame (a wildly
+    // uncertain prediction gives a huge region).
+    let widened = |[u0, v0, u1, v1]: [f64; 4]| {
+        let mx = config.sigmas * camera.alpha() * sb
+            + (0.5 * scale + config.margin_rel) * (u1 - u0)
+            + config.margin_px;
+        let my = (0.5 * scale + config.margin_rel) * (v1 - v0) + config.margin_px;
+        Region::from_bounds(u0 - mx, v0 - my, u1 + mx, v1 + my, size.0, size.1)
+    };
+    let region = widened([u0, v0, u1, v1])?;
     // A narrow face's box takes the same margin, its relative part from the face's own size.
-    let narrow = narrow.map(|n| {
-        n.and_then(|([a, b, c, d], w)| {
-            let fx = config.sigmas * camera.alpha() * sb
-                + (0.5 * scale + config.margin_rel) * (c - a)
-                + config.margin_px;
-            let fy = (0.5 * scale + config.margin_rel) * (d - b) + config.margin_px;
-            Region::from_bounds(a - fx, b - fy, c + fx, d + fy, size.0, size.1).map(|r| (r, w))
-        })
-    });
+    let narrow = narrow.map(|n| n.and_then(|(bounds, w)| widened(bounds).map(|r| (r, w))));
     Some(LeaderRegion {
         region,
         marker_px,

@@ -141,6 +141,26 @@ struct Guided {
     fine: Vec<Region>,
 }
 
+impl Guided {
+    /// Adds to `out` the markers of the tracked leaders' faces too narrow for a search at
+    /// `factor` ([`crate::guided::LeaderRegion::fine_regions`]), searched in their boxes at
+    /// full resolution; the boxes are kept in `fine`.
+    fn search_narrow_faces(
+        &mut self,
+        factor: usize,
+        detector: &mut Detector,
+        view: &GrayView<'_>,
+        out: &mut Vec<Decoded>,
+    ) {
+        for r in &self.leaders {
+            self.fine.extend(r.fine_regions(factor));
+        }
+        if !self.fine.is_empty() {
+            detector.detect_in_more_regions(view, &self.fine, 1, out);
+        }
+    }
+}
+
 /// Detector, pose solver, rig and tracker for one camera stream.
 #[derive(Debug)]
 pub struct Pipeline {
@@ -254,31 +274,16 @@ impl Pipeline {
             };
             if factor > 1 {
                 self.detector.detect_coarse(view, factor, &mut self.decoded);
-                // The tracked leaders' faces too narrow for the coarse scan, at full
-                // resolution.
-                for r in &g.leaders {
-                    g.fine.extend(r.fine_regions(factor));
-                }
-                if !g.fine.is_empty() {
-                    self.detector
-                        .detect_in_more_regions(view, &g.fine, 1, &mut self.decoded);
-                }
+                g.search_narrow_faces(factor, &mut self.detector, view, &mut self.decoded);
             } else {
                 self.detector.detect(view, &mut self.decoded);
             }
             return Scan::Full { factor };
         }
-        // Faces too narrow for the coarse search are searched at full resolution too.
-        for r in &g.leaders {
-            g.fine.extend(r.fine_regions(region_factor));
-        }
         g.since_full += 1;
         self.detector
             .detect_in_regions(view, &g.regions, region_factor, &mut self.decoded);
-        if !g.fine.is_empty() {
-            self.detector
-                .detect_in_more_regions(view, &g.fine, 1, &mut self.decoded);
-        }
+        g.search_narrow_faces(region_factor, &mut self.detector, view, &mut self.decoded);
         Scan::Guided {
             factor: region_factor,
             regions: g.regions.len() + g.fine.len(),
