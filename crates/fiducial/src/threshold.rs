@@ -83,11 +83,8 @@ pub struct Binarizer {
     bands: Vec<Band>,
 }
 
-/// One band's work in phase 1 of [`Binarizer::binarize_parallel`]: its index, its tile rows
-/// of minima and maxima, its scratch.
-type ExtremesBand<'a> = (usize, ((&'a mut [u8], &'a mut [u8]), &'a mut Band));
-
-/// One band's work in phase 2: its index, its rows of the output, its scratch.
+/// One band's work in [`Binarizer::binarize_parallel`]: its index, its rows of the output,
+/// its scratch.
 type CutBand<'a> = (usize, (&'a mut [u8], &'a mut Band));
 
 /// The scratch rows one band of rows needs.
@@ -101,6 +98,10 @@ struct Band {
     row_max: Vec<u8>,
     /// The cut's scratch.
     cut: CutScratch,
+    /// Tile minima and maxima of the band's tile rows and one more above and below, at
+    /// their places in a whole frame's arrays (so that bands never share a tile row).
+    tile_min: Vec<u8>,
+    tile_max: Vec<u8>,
 }
 
 /// The scratch rows of the cut of one tile row.
@@ -150,10 +151,14 @@ impl Binarizer {
 
     /// [`Binarizer::binarize`] on up to `bands` threads of the current rayon pool (with the
     /// crate feature `parallel`; without it the bands run one after the other): the frame
-    /// is cut into horizontal bands of whole tile rows, each band is smoothed and reduced to
-    /// tile minima and maxima on its own thread, then each band's tile thresholds are
-    /// computed and its pixels cut on its own thread (with [`Threshold::Otsu`], one thread). Every stage reads the same pixels as
-    /// the single-threaded pass, so the output is identical to [`Binarizer::binarize`]'s.
+    /// is cut into horizontal bands of whole tile rows, and each band is binarized on its
+    /// own thread in one pass, as the whole frame is on one thread (with
+    /// [`Threshold::Otsu`], one thread). A band's first and last tile rows need the tile
+    /// extremes of the rows above and below it, so each band also computes those of its
+    /// neighbours' edge rows (one tile row more per band boundary): one pass on each
+    /// thread, not one for the extremes and one for the cut, and no thread waits for
+    /// another. Every stage reads the same pixels as the single-threaded pass, so the
+    /// output is identical to [`Binarizer::binarize`]'s.
     pub fn binarize_parallel(
         &mut self,
         img: &GrayView<'_>,
@@ -204,49 +209,41 @@ impl Binarizer {
             width: w,
             height: h,
         };
-        self.tile_min.resize(tx * ty, 0);
-        self.tile_max.resize(tx * ty, 0);
         if count == 1 {
+            self.tile_min.resize(tx * ty, 0);
+            self.tile_max.resize(tx * ty, 0);
             extremes_and_cut(
                 img,
                 &mut out[..],
                 &tiles,
+                (0, ty),
                 &mut self.tile_min,
                 &mut self.tile_max,
                 &mut self.bands[0],
             );
             return;
         }
-        // Phase 1: the tile minima and maxima, per band.
-        let extremes_band = |(b, ((mn, mx), band)): ExtremesBand<'_>| {
-            let y0 = b * band_rows;
-            extremes_rows(img, y0, (y0 + band_rows).min(h), &tiles, mn, mx, band);
-        };
-        #[cfg(feature = "parallel")]
-        {
-            use rayon::prelude::*;
-            self.tile_min
-                .par_chunks_mut(band_tiles * tx)
-                .zip(self.tile_max.par_chunks_mut(band_tiles * tx))
-                .zip(self.bands.par_iter_mut())
-                .enumerate()
-                .for_each(extremes_band);
-        }
-        #[cfg(not(feature = "parallel"))]
-        self.tile_min
-            .chunks_mut(band_tiles * tx)
-            .zip(self.tile_max.chunks_mut(band_tiles * tx))
-            .zip(self.bands.iter_mut())
-            .enumerate()
-            .for_each(extremes_band);
-        // Phase 2: each band's tile thresholds (from the tile rows above and below it too)
-        // and its cut.
-        let (tile_min, tile_max) = (&self.tile_min[..], &self.tile_max[..]);
+        // Each band on its own thread, in one pass as on one thread: the tile extremes of
+        // its tile rows (and of the row above and below it, which its neighbours compute
+        // too), and the cut of each tile row as soon as the row below it is known.
         let cut_band = |(b, (o, band)): CutBand<'_>| {
-            for (k, rows) in o.chunks_mut(side * w).enumerate() {
-                let j = b * band_tiles + k;
-                cut_tile_row(img, j, rows, &tiles, tile_min, tile_max, &mut band.cut);
-            }
+            let j0 = b * band_tiles;
+            let Band {
+                tile_min, tile_max, ..
+            } = band;
+            let (mut mins, mut maxs) = (std::mem::take(tile_min), std::mem::take(tile_max));
+            mins.resize(tx * ty, 0);
+            maxs.resize(tx * ty, 0);
+            extremes_and_cut(
+                img,
+                o,
+                &tiles,
+                (j0, (j0 + band_tiles).min(ty)),
+                &mut mins,
+                &mut maxs,
+                band,
+            );
+            (band.tile_min, band.tile_max) = (mins, maxs);
         };
         #[cfg(feature = "parallel")]
         {
@@ -354,46 +351,15 @@ fn levels_rows(
     }
 }
 
-/// The minimum and maximum box mean of each tile of the rows `y0 .. y1` (`y0` at a tile
-/// row's start, `y1` at a tile row's end or the frame's) into `mins` and `maxs` (`tx` per
-/// tile row).
-fn extremes_rows(
-    img: &GrayView<'_>,
-    y0: usize,
-    y1: usize,
-    tiles: &Tiles,
-    mins: &mut [u8],
-    maxs: &mut [u8],
-    band: &mut Band,
-) {
-    let w = img.width();
-    let Band {
-        hsum,
-        row_min,
-        row_max,
-        ..
-    } = band;
-    let mut ring = Ring::start(img, y0, hsum);
-    row_min.resize(w, 0);
-    row_max.resize(w, 0);
-    for ((y, mins), maxs) in (y0..y1)
-        .step_by(tiles.side)
-        .zip(mins.chunks_mut(tiles.tx))
-        .zip(maxs.chunks_mut(tiles.tx))
-    {
-        row_min.fill(u8::MAX);
-        row_max.fill(0);
-        ring.means(img, (y, (y + tiles.side).min(y1)), row_min, row_max);
-        tile_extremes(row_min, row_max, tiles.side, mins, maxs);
-    }
-}
-
-/// The whole adaptive binarization on one thread: each tile row's extremes, and the cut of
-/// the tile row above it as soon as they are known (its pixels are then still in cache).
+/// The adaptive binarization of tile rows `j0 .. j1` (`out` holds their pixel rows) on one
+/// thread: each tile row's extremes (from the row above `j0` to the row below `j1 - 1`, into
+/// `tile_min` and `tile_max`, whole-frame arrays), and the cut of the tile row above it as
+/// soon as they are known (its pixels are then still in cache).
 fn extremes_and_cut(
     img: &GrayView<'_>,
     out: &mut [u8],
     tiles: &Tiles,
+    (j0, j1): (usize, usize),
     tile_min: &mut [u8],
     tile_max: &mut [u8],
     band: &mut Band,
@@ -405,11 +371,14 @@ fn extremes_and_cut(
         row_min,
         row_max,
         cut,
+        ..
     } = band;
-    let mut ring = Ring::start(img, 0, hsum);
+    // The extremes needed: the band's tile rows and their neighbours in the frame.
+    let (e0, e1) = (j0.saturating_sub(1), (j1 + 1).min(tiles.ty));
+    let mut ring = Ring::start(img, e0 * side, hsum);
     row_min.resize(w, 0);
     row_max.resize(w, 0);
-    for j in 0..tiles.ty {
+    for j in e0..e1 {
         row_min.fill(u8::MAX);
         row_max.fill(0);
         let y = j * side;
@@ -422,14 +391,25 @@ fn extremes_and_cut(
             &mut tile_min[k.clone()],
             &mut tile_max[k],
         );
-        if j > 0 {
-            let rows = &mut out[(j - 1) * rows_per..j * rows_per];
+        if j > j0 {
+            let i = j - 1 - j0;
+            let rows = &mut out[i * rows_per..(i + 1) * rows_per];
             cut_tile_row(img, j - 1, rows, tiles, tile_min, tile_max, cut);
         }
     }
-    let j = tiles.ty - 1;
-    let rows = &mut out[j * rows_per..];
-    cut_tile_row(img, j, rows, tiles, tile_min, tile_max, cut);
+    if e1 == j1 {
+        // The frame's last tile row: its neighbour below is itself.
+        let i = j1 - 1 - j0;
+        cut_tile_row(
+            img,
+            j1 - 1,
+            &mut out[i * rows_per..],
+            tiles,
+            tile_min,
+            tile_max,
+            cut,
+        );
+    }
 }
 
 /// Each tile's minimum and maximum (tiles of `side` pixels, the last one cut short) from the

@@ -43,7 +43,7 @@ fn parallel_detection_equals_single_threaded() {
     }
 }
 
-/// Decoding on threads (#12) merges the runs' markers in quad order: on a large frame of
+/// Decoding on threads (#12) merges the threads' markers in quad order: on a large frame of
 /// markers, clutter and motion blur (many quads, some read twice, some read as blurred)
 /// the markers and the count of blurred readings are those of the single-threaded loop.
 #[test]
@@ -72,9 +72,9 @@ fn parallel_decoding_equals_single_threaded_on_clutter() {
     let mut det = Detector::new(DetectorConfig::default());
     let (mut serial, mut parallel) = (Vec::new(), Vec::new());
     det.detect(&img, &mut serial);
-    let quads = det.quads().len();
+    let quads = det.quads().to_vec();
     let blurred = det.blurred_reads();
-    assert!(quads > 20, "only {quads} quads");
+    assert!(quads.len() > 20, "only {} quads", quads.len());
     assert!(
         !serial.is_empty() && blurred > 0,
         "{} markers, {blurred} blurred",
@@ -83,4 +83,7 @@ fn parallel_decoding_equals_single_threaded_on_clutter() {
     det.detect_parallel(&img, &mut parallel);
     assert_eq!(parallel, serial);
     assert_eq!(det.blurred_reads(), blurred);
+    // Components are handed out largest first: their quads and re-cut boxes (whose quads
+    // follow) are merged back in component order.
+    assert_eq!(det.quads(), &quads[..], "quads differ");
 }
