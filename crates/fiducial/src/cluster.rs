@@ -64,8 +64,8 @@ pub struct Clusterer {
     class: Vec<u8>,
     parent: Vec<u32>,
     size: Vec<u32>,
-    tile_min: Vec<u8>,
-    tile_max: Vec<u8>,
+    /// Grey-level extremes of the box's tiles.
+    tiles: crate::split::BoxTiles,
     /// (cluster key, pixel index in the box) of every dark boundary pixel.
     edges: Vec<(u64, u32)>,
     contour: Vec<[i32; 2]>,
@@ -226,31 +226,12 @@ impl Clusterer {
 
     /// AprilTag's threshold of the box at `(x0, y0)`, `cw x ch`, into `self.class`.
     fn threshold(&mut self, img: &GrayView<'_>, x0: usize, y0: usize, cw: usize, ch: usize) {
-        let (tw, th) = (cw.div_ceil(TILE), ch.div_ceil(TILE));
-        self.tile_min.clear();
-        self.tile_min.resize(tw * th, u8::MAX);
-        self.tile_max.clear();
-        self.tile_max.resize(tw * th, 0);
-        for y in 0..ch {
-            let row = &img.row(y0 + y)[x0..x0 + cw];
-            let t = (y / TILE) * tw;
-            for (x, &v) in row.iter().enumerate() {
-                let i = t + x / TILE;
-                self.tile_min[i] = self.tile_min[i].min(v);
-                self.tile_max[i] = self.tile_max[i].max(v);
-            }
-        }
+        let (tw, th) = self.tiles.compute(img, x0, y0, cw, ch, TILE);
         self.class.clear();
         self.class.resize(cw * ch, UNKNOWN);
         for ty in 0..th {
             for tx in 0..tw {
-                let (mut lo, mut hi) = (u8::MAX, 0u8);
-                for ny in ty.saturating_sub(1)..(ty + 2).min(th) {
-                    for nx in tx.saturating_sub(1)..(tx + 2).min(tw) {
-                        lo = lo.min(self.tile_min[ny * tw + nx]);
-                        hi = hi.max(self.tile_max[ny * tw + nx]);
-                    }
-                }
+                let (lo, hi) = self.tiles.around(tx, ty);
                 if hi.saturating_sub(lo) < MIN_CONTRAST {
                     continue;
                 }

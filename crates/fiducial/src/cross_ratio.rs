@@ -107,6 +107,31 @@ pub struct CrossRatioFrame {
     h: [f64; 8],
 }
 
+/// A segment of marker coordinates and the frame that maps it
+/// ([`CrossRatioFrame::segment`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct FrameSegment {
+    /// Homogeneous image of the start, and the change to the end.
+    start: [f64; 3],
+    delta: [f64; 3],
+    origin: Vector2<f64>,
+    scale: f64,
+}
+
+impl FrameSegment {
+    /// The image of the point a fraction `f` of the way along; `None` where
+    /// [`CrossRatioFrame::map`] gives none (beyond the horizon, or not finite).
+    #[inline]
+    pub(crate) fn at(&self, f: f64) -> Option<Point2<f64>> {
+        let [x, y, w] = [0, 1, 2].map(|i| self.start[i] + f * self.delta[i]);
+        if w.is_nan() || w <= 1e-9 {
+            return None;
+        }
+        let p = Vector2::new(x, y) / w;
+        (p.x.is_finite() && p.y.is_finite()).then(|| Point2::from(self.origin + p * self.scale))
+    }
+}
+
 /// Heckbert's closed-form homography taking the unit square's `(0, 0), (1, 0), (1, 1),
 /// (0, 1)` to `p0..p3` (see [`CrossRatioFrame::h`]); `None` if it is degenerate.
 fn square_to_quad(p: [Vector2<f64>; 4]) -> Option<[f64; 8]> {
@@ -255,6 +280,37 @@ impl CrossRatioFrame {
         }
         let p = Vector2::new(h0 * s + h1 * t + h2, h3 * s + h4 * t + h5) / w;
         (p.x.is_finite() && p.y.is_finite()).then(|| Point2::from(self.origin + p * self.scale))
+    }
+
+    /// The segment from `(a0, b0)` to `(a1, b1)` (normalised marker coordinates, as in
+    /// [`CrossRatioFrame::map`]), whose points [`FrameSegment::at`] maps: the homography is
+    /// linear in homogeneous coordinates, so a point a fraction of the way along costs an
+    /// interpolation and a division instead of a whole [`CrossRatioFrame::map`]. `None` if
+    /// an end is not finite.
+    pub(crate) fn segment(
+        &self,
+        (a0, b0): (f64, f64),
+        (a1, b1): (f64, f64),
+    ) -> Option<FrameSegment> {
+        if !(a0.is_finite() && b0.is_finite() && a1.is_finite() && b1.is_finite()) {
+            return None;
+        }
+        let [h0, h1, h2, h3, h4, h5, h6, h7] = self.h;
+        let hom = |a: f64, b: f64| {
+            let (s, t) = (0.5 * (a + 1.0), 0.5 * (b + 1.0));
+            [
+                h0 * s + h1 * t + h2,
+                h3 * s + h4 * t + h5,
+                h6 * s + h7 * t + 1.0,
+            ]
+        };
+        let (p, q) = (hom(a0, b0), hom(a1, b1));
+        Some(FrameSegment {
+            start: p,
+            delta: [q[0] - p[0], q[1] - p[1], q[2] - p[2]],
+            origin: self.origin,
+            scale: self.scale,
+        })
     }
 
     /// [`CrossRatioFrame::map`] by the construction of the module documentation, point by

@@ -689,9 +689,24 @@ fn split_params<'a>(cfg: &DetectorConfig, limits: &'a QuadLimits) -> SplitParams
     }
 }
 
+/// Whether every corner of `inner` lies inside the outline `outer` (clockwise in the image).
+fn contains(outer: &Corners, inner: &Corners) -> bool {
+    inner.iter().all(|p| {
+        (0..4).all(|i| {
+            let (a, b) = (outer[i], outer[(i + 1) % 4]);
+            (b.x - a.x) * (p.y - a.y) - (b.y - a.y) * (p.x - a.x) > 0.0
+        })
+    })
+}
+
 /// Refines the coarse corners of a re-cut or light-cut quad on `img` and adds the quad to
 /// `quads` unless it is already there: most re-cut components are ones already found (or
-/// their parts), so those are skipped before the refinement, by the coarse corners.
+/// their parts), so those are skipped before the refinement, by the coarse corners. So
+/// is a candidate that lies wholly inside a quad already found: the darker cut splits a
+/// marker's inside into blocks of cells, which are not markers (a marker is found inside
+/// a dark outline only if it is a component of its own, which the first cut already
+/// examined). On the demo's first frame at 640x480 this saved a tenth of the detection:
+/// two such blocks, one refined for nothing and one refined and decoded for nothing.
 fn add_refined(
     quads: &mut Vec<Quad>,
     refiner: &mut Refiner,
@@ -702,7 +717,10 @@ fn add_refined(
     cells_across: f64,
 ) {
     let rough = coarse.map(|[x, y]| Point2::new(x, y));
-    if quads.iter().any(|q| same_place(&q.corners, &rough)) {
+    if quads
+        .iter()
+        .any(|q| same_place(&q.corners, &rough) || contains(&q.corners, &rough))
+    {
         return;
     }
     let Some((c, contrast)) =

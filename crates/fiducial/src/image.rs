@@ -127,6 +127,16 @@ impl<'a> GrayView<'a> {
         self.stride
     }
 
+    /// Pixels `(x, y)`, `(x + 1, y)`, `(x, y + 1)` and `(x + 1, y + 1)`: the four a bilinear
+    /// sample in that square reads. Panics unless `x + 1 < width` and `y + 1 < height`,
+    /// which callers inside the crate check first.
+    #[inline]
+    pub(crate) fn square(&self, x: usize, y: usize) -> [u8; 4] {
+        let i = y * self.stride + x;
+        let (top, bottom) = (&self.data[i..i + 2], &self.data[i + self.stride..][..2]);
+        [top[0], top[1], bottom[0], bottom[1]]
+    }
+
     /// Row `y` (exactly `width` bytes). Panics if `y >= height`, which callers inside the
     /// crate never ask for.
     #[inline]

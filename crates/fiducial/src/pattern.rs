@@ -502,7 +502,7 @@ impl PatternRefiner {
         for (vi, w) in window.iter_mut().enumerate().take(rows * n) {
             let v = (vi / n) as f64 + 0.5 + SUB[vi % n];
             *w = (
-                (v - reach).floor().max(0.0) as usize,
+                (v - reach).max(0.0) as usize,
                 ((v + reach).ceil() as usize).min(rows),
             );
         }
@@ -684,7 +684,7 @@ impl PatternRefiner {
                 return 0.0;
             }
             let mut w = 0.0;
-            let j0 = (u - 3.0 * s_along - 1.0).floor().max(0.0) as usize;
+            let j0 = (u - 3.0 * s_along - 1.0).max(0.0) as usize;
             let j1 = ((u + 3.0 * s_along + 1.0).ceil() as usize).min(cells_along);
             for j in j0..j1 {
                 if !cells.black_from_side(side, depth, j) {

@@ -526,7 +526,9 @@ fn side_to_ab(side: usize, wc: f64, hc: f64, u: f64, v: f64) -> (f64, f64) {
 
 /// `N` grey levels across a side, from `u0` to `u1` cells in from it at `v` cells along it
 /// (coordinates through `to_ab`), each the mean of bilinear samples on three parallel
-/// lines `spread` cells apart. `None` if a sample falls outside the frame.
+/// lines `spread` cells apart. `None` if a sample falls outside the frame. `to_ab` must be
+/// affine (as [`side_to_ab`] is): each line is then a segment of the frame's homography,
+/// mapped end to end ([`CrossRatioFrame::segment`]).
 fn profile<const N: usize>(
     img: &GrayView<'_>,
     frame: &CrossRatioFrame,
@@ -537,12 +539,14 @@ fn profile<const N: usize>(
     spread: f64,
 ) -> Option<[f64; N]> {
     let mut prof = [0.0f64; N];
+    // The three lines, each a segment of the frame from u0 to u1.
+    let line = |dv: f64| frame.segment(to_ab(u0, v + dv), to_ab(u1, v + dv));
+    let lines = [line(-spread)?, line(0.0)?, line(spread)?];
     for (j, p) in prof.iter_mut().enumerate() {
-        let u = u0 + (u1 - u0) * j as f64 / (N - 1) as f64;
+        let f = j as f64 / (N - 1) as f64;
         let mut sum = 0.0;
-        for dv in [-spread, 0.0, spread] {
-            let (a, b) = to_ab(u, v + dv);
-            let q = frame.map(a, b)?;
+        for l in &lines {
+            let q = l.at(f)?;
             if !inside(img, q.x, q.y) {
                 return None;
             }

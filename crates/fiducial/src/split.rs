@@ -52,13 +52,87 @@ pub struct Rect {
     pub y1: u32,
 }
 
+/// The grey-level minimum and maximum of each square tile of a box of the image (the
+/// re-cut's and boundary clustering's local thresholds), in scratch reused from box to box.
+#[derive(Debug, Default, Clone)]
+pub(crate) struct BoxTiles {
+    /// Per tile, row-major.
+    min: Vec<u8>,
+    max: Vec<u8>,
+    /// Tiles per row and per column.
+    tw: usize,
+    th: usize,
+    /// Element-wise minimum and maximum of a tile row's pixel rows.
+    row_min: Vec<u8>,
+    row_max: Vec<u8>,
+}
+
+impl BoxTiles {
+    /// The tiles (`tile` pixels square, the last of each row and column cut short) of the
+    /// box at `(x0, y0)`, `cw x ch` pixels, of `img`; returns the tiles per row and column.
+    pub(crate) fn compute(
+        &mut self,
+        img: &GrayView<'_>,
+        x0: usize,
+        y0: usize,
+        cw: usize,
+        ch: usize,
+        tile: usize,
+    ) -> (usize, usize) {
+        let (tw, th) = (cw.div_ceil(tile), ch.div_ceil(tile));
+        (self.tw, self.th) = (tw, th);
+        self.min.resize(tw * th, 0);
+        self.max.resize(tw * th, 0);
+        self.row_min.resize(cw, 0);
+        self.row_max.resize(cw, 0);
+        // Element-wise over a tile row's pixel rows first (whole rows: this vectorises),
+        // then each tile's columns.
+        for ty in 0..th {
+            let (row_min, row_max) = (&mut self.row_min[..cw], &mut self.row_max[..cw]);
+            row_min.fill(u8::MAX);
+            row_max.fill(0);
+            for y in ty * tile..((ty + 1) * tile).min(ch) {
+                let row = &img.row(y0 + y)[x0..x0 + cw];
+                for ((lo, hi), &v) in row_min.iter_mut().zip(row_max.iter_mut()).zip(row) {
+                    *lo = (*lo).min(v);
+                    *hi = (*hi).max(v);
+                }
+            }
+            let t = ty * tw;
+            let (mins, maxs) = (&mut self.min[t..t + tw], &mut self.max[t..t + tw]);
+            for (((a, b), lo), hi) in row_min
+                .chunks(tile)
+                .zip(row_max.chunks(tile))
+                .zip(mins)
+                .zip(maxs)
+            {
+                *lo = a.iter().copied().fold(u8::MAX, u8::min);
+                *hi = b.iter().copied().fold(0, u8::max);
+            }
+        }
+        (tw, th)
+    }
+
+    /// The minimum and maximum over the 3 x 3 tiles around tile `(tx, ty)` (cut to the box).
+    pub(crate) fn around(&self, tx: usize, ty: usize) -> (u8, u8) {
+        let (tw, th) = (self.tw, self.th);
+        let (mut lo, mut hi) = (u8::MAX, 0u8);
+        for ny in ty.saturating_sub(1)..(ty + 2).min(th) {
+            for nx in tx.saturating_sub(1)..(tx + 2).min(tw) {
+                lo = lo.min(self.min[ny * tw + nx]);
+                hi = hi.max(self.max[ny * tw + nx]);
+            }
+        }
+        (lo, hi)
+    }
+}
+
 /// Scratch buffers of the re-cut, reused from frame to frame.
 #[derive(Debug, Default, Clone)]
 pub struct Splitter {
     /// The re-cut binary image of one rectangle, with a light frame of one pixel.
     bin: Vec<u8>,
-    tile_min: Vec<u8>,
-    tile_max: Vec<u8>,
+    tiles: BoxTiles,
     /// Per tile: grey levels below this are cut dark.
     tile_cut: Vec<u8>,
     /// The levels of the current tile row, per pixel.
@@ -115,34 +189,15 @@ impl Splitter {
             return;
         }
         let (cw, ch) = (x1 - x0 + 1, y1 - y0 + 1);
-        // Tile statistics over the rectangle, a row at a time.
-        let (tw, th) = (cw.div_ceil(TILE), ch.div_ceil(TILE));
-        self.tile_min.clear();
-        self.tile_min.resize(tw * th, u8::MAX);
-        self.tile_max.clear();
-        self.tile_max.resize(tw * th, 0);
-        for y in 0..ch {
-            let row = &img.row(y0 + y)[x0..=x1];
-            let t = (y / TILE) * tw;
-            let (mins, maxs) = (&mut self.tile_min[t..t + tw], &mut self.tile_max[t..t + tw]);
-            for ((chunk, lo), hi) in row.chunks(TILE).zip(mins).zip(maxs) {
-                *lo = chunk.iter().fold(*lo, |a, &v| a.min(v));
-                *hi = chunk.iter().fold(*hi, |a, &v| a.max(v));
-            }
-        }
+        // Tile statistics over the rectangle.
+        let (tw, th) = self.tiles.compute(img, x0, y0, cw, ch, TILE);
         // Each tile's cut as an integer: a grey level `v` is below `lo + cut (hi - lo)`
         // exactly when it is below that value rounded up (0 where nothing is cut).
         self.tile_cut.clear();
         self.tile_cut.resize(tw * th, 0);
         for ty in 0..th {
             for tx in 0..tw {
-                let (mut lo, mut hi) = (u8::MAX, 0u8);
-                for ny in ty.saturating_sub(1)..(ty + 2).min(th) {
-                    for nx in tx.saturating_sub(1)..(tx + 2).min(tw) {
-                        lo = lo.min(self.tile_min[ny * tw + nx]);
-                        hi = hi.max(self.tile_max[ny * tw + nx]);
-                    }
-                }
+                let (lo, hi) = self.tiles.around(tx, ty);
                 if hi - lo < min_contrast {
                     continue;
                 }
