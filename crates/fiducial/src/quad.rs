@@ -79,16 +79,16 @@ impl Contour<'_> {
         let (dx, dy) = (bx - ax, by - ay);
         let len = (dx * dx + dy * dy).sqrt().max(1e-9);
         let span = (b + n - a) % n;
-        let mut best = (a, 0.0f64);
-        for k in 1..span {
-            let i = (a + k) % n;
-            let [qx, qy] = self.p(i);
+        // (offset from a, distance); the index is taken modulo once, at the end.
+        let mut best = (0, 0.0f64);
+        for (k, q) in arc(self.0, a + 1, span.saturating_sub(1)).enumerate() {
+            let (qx, qy) = (f64::from(q[0]), f64::from(q[1]));
             let d = ((qx - ax) * dy - (qy - ay) * dx).abs() / len;
             if d > best.1 {
-                best = (i, d);
+                best = (k + 1, d);
             }
         }
-        best
+        ((a + best.0) % n, best.1)
     }
 
     /// Four vertices in contour order (contour indices): the point farthest from the
@@ -284,14 +284,12 @@ fn deviations(
     tol: f64,
     inside: [f64; 2],
 ) -> Deviations {
-    let n = contour.len();
     let inner = (line[0] * inside[0] + line[1] * inside[1] - line[2]).signum();
     let mut d = Deviations {
         outward: 0,
         inward: 0,
     };
-    for k in 0..count {
-        let q = contour[(from + k) % n];
+    for q in arc(contour, from, count) {
         let e = line[0] * f64::from(q[0]) + line[1] * f64::from(q[1]) - line[2];
         if e.abs() > tol || e.is_nan() {
             if e * inner > 0.0 {
@@ -302,6 +300,21 @@ fn deviations(
         }
     }
     d
+}
+
+/// The `count` points of `contour` from index `from`, going round (`count` at most the
+/// length): two slices chained, so that no point costs a modulo.
+fn arc(contour: &[[i32; 2]], from: usize, count: usize) -> impl Iterator<Item = [i32; 2]> + '_ {
+    let from = if contour.is_empty() {
+        0
+    } else {
+        from % contour.len()
+    };
+    contour[from..]
+        .iter()
+        .chain(&contour[..from])
+        .take(count)
+        .copied()
 }
 
 /// The line `[nx, ny, c]` through two points, or `None` if they coincide.
@@ -326,7 +339,6 @@ fn fit_line(
     count: usize,
     outer: Option<(&[f64; 3], [f64; 2], f64, f64)>,
 ) -> Option<[f64; 3]> {
-    let n = contour.len();
     let keep = |q: [i32; 2]| {
         outer.is_none_or(|(l, inside, tol, band)| {
             let inner = (l[0] * inside[0] + l[1] * inside[1] - l[2]).signum();
@@ -335,8 +347,7 @@ fn fit_line(
         })
     };
     let (mut mx, mut my, mut m) = (0.0, 0.0, 0usize);
-    for k in 0..count {
-        let q = contour[(from + k) % n];
+    for q in arc(contour, from, count) {
         if keep(q) {
             mx += f64::from(q[0]);
             my += f64::from(q[1]);
@@ -349,8 +360,7 @@ fn fit_line(
     mx /= m as f64;
     my /= m as f64;
     let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
-    for k in 0..count {
-        let q = contour[(from + k) % n];
+    for q in arc(contour, from, count) {
         if !keep(q) {
             continue;
         }
