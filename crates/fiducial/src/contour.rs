@@ -43,6 +43,8 @@ pub struct Labeller {
     parent: Vec<u32>,
     /// Index into `components` for each root run, or `u32::MAX`.
     slot: Vec<u32>,
+    /// The component of each run.
+    run_component: Vec<u32>,
     components: Vec<Component>,
 }
 
@@ -103,11 +105,17 @@ impl Labeller {
         // Gather statistics per root, in order of each component's first run.
         self.slot.clear();
         self.slot.resize(self.runs.len(), u32::MAX);
+        self.run_component.clear();
         for i in 0..self.runs.len() {
             let root = self.find(i as u32) as usize;
             let run = self.runs[i];
             let len = run.x1 - run.x0;
             let s = self.slot[root];
+            self.run_component.push(if s == u32::MAX {
+                self.components.len() as u32
+            } else {
+                s
+            });
             if s == u32::MAX {
                 self.slot[root] = self.components.len() as u32;
                 self.components.push(Component {
@@ -127,6 +135,15 @@ impl Labeller {
             }
         }
         &self.components
+    }
+
+    /// The runs of the last [`Labeller::label`] call in raster order, as `(component, y,
+    /// x0, x1)` (`x1` exclusive; `component` indexes the slice that call returned).
+    pub(crate) fn runs(&self) -> impl Iterator<Item = (usize, u32, u32, u32)> + '_ {
+        self.runs
+            .iter()
+            .zip(&self.run_component)
+            .map(|(r, &c)| (c as usize, r.y, r.x0, r.x1))
     }
 
     fn find(&mut self, mut i: u32) -> u32 {

@@ -188,6 +188,10 @@ pub struct Detector {
     quads: Vec<Quad>,
     /// Boxes of large components that gave no quad, re-cut by [`Splitter`].
     retry: Vec<Rect>,
+    /// Which components of the last scan gave a box to `retry`.
+    retried: Vec<bool>,
+    /// Their dark runs, `[y, x0, x1)` in raster order: the pixels the re-cut cuts again.
+    retry_runs: Vec<[u32; 3]>,
     splitter: Splitter,
     /// Boundary clustering of the same boxes, after the re-cut.
     clusterer: Clusterer,
@@ -264,6 +268,8 @@ impl Detector {
             refiner: Refiner::default(),
             quads: Vec::new(),
             retry: Vec::new(),
+            retried: Vec::new(),
+            retry_runs: Vec::new(),
             splitter: Splitter::default(),
             clusterer: Clusterer::default(),
             small: Vec::new(),
@@ -535,6 +541,8 @@ impl Detector {
         };
         self.retry.clear();
         let components = self.labeller.label(&self.bin, w);
+        self.retried.clear();
+        self.retried.resize(components.len(), false);
         if self.bands > 1 {
             crate::parallel::examine_all(
                 &ctx,
@@ -543,16 +551,30 @@ impl Detector {
                 &mut self.workers,
                 &mut self.merge,
                 &mut self.quads,
-                &mut self.retry,
+                (&mut self.retry, &mut self.retried),
             );
         } else {
-            for c in components {
+            for (i, c) in components.iter().enumerate() {
                 match ctx.examine(c, &mut self.contour, &mut self.refiner) {
                     Examined::Quad(q) => self.quads.push(q),
-                    Examined::Retry(r) => self.retry.push(r),
+                    Examined::Retry(r) => {
+                        self.retry.push(r);
+                        self.retried[i] = true;
+                    }
                     Examined::Dropped => {}
                 }
             }
+        }
+        // The pixels the re-cut cuts again (it runs on a full-resolution scan only).
+        self.retry_runs.clear();
+        if f == 1 && !self.retry.is_empty() {
+            let retried = &self.retried;
+            self.retry_runs.extend(
+                self.labeller
+                    .runs()
+                    .filter(|r| retried[r.0])
+                    .map(|(_, y, x0, x1)| [y, x0, x1]),
+            );
         }
         // Boundary clustering (and, at full resolution, the re-cut) runs on full-resolution
         // pixels: a coarser scan's boxes are scaled up first, so that a coarse or guided scan
@@ -650,7 +672,9 @@ impl Detector {
         for &rect in &self.retry {
             if factor == 1 {
                 self.splitter
-                    .split(img, &self.bin, rect, &params, |c| add(c, cfg.min_angle_deg));
+                    .split(img, &self.retry_runs, rect, &params, |c| {
+                        add(c, cfg.min_angle_deg)
+                    });
             }
             // What the re-cut could not separate: clusters of the light/dark boundary.
             if cfg.boundary_clusters {

@@ -45,7 +45,8 @@ fn weight(c: &Component) -> u32 {
 }
 
 /// Examines `components` on `threads` workers and appends their quads to `quads` and their
-/// re-cut boxes to `retry`, in the order of the single-threaded loop. Components too small
+/// re-cut boxes to `retry` (flagging their components in `retried`), in the order of the
+/// single-threaded loop. Components too small
 /// to examine, which the loop drops first thing, are not handed out; the others go the
 /// largest first. `merged` is scratch.
 pub(crate) fn examine_all(
@@ -55,7 +56,7 @@ pub(crate) fn examine_all(
     workers: &mut Vec<Worker>,
     merged: &mut Merge,
     quads: &mut Vec<Quad>,
-    retry: &mut Vec<Rect>,
+    (retry, retried): (&mut Vec<Rect>, &mut [bool]),
 ) {
     let k = threads.max(1);
     if workers.len() < k {
@@ -98,6 +99,9 @@ pub(crate) fn examine_all(
     merged.retry.sort_unstable_by_key(|e| e.0);
     quads.extend(merged.quads.iter().map(|e| e.1));
     retry.extend(merged.retry.iter().map(|e| e.1));
+    for e in &merged.retry {
+        retried[e.0] = true;
+    }
 }
 
 /// Scratch of the index-ordered merges, kept by the detector between frames.

@@ -14,10 +14,13 @@
 //! traced and fitted exactly like the first ones. The refined corners come from the grey
 //! image, as always, so the darker cut costs no accuracy.
 //!
-//! Only components that are large enough to hold a marker and gave no quad are re-cut, each
-//! over its bounding box (over the union of the boxes when their areas add up to more than
-//! the frame). A frame in which every large component was a quad (the synthetic marker
-//! scenes) pays nothing; a cluttered frame pays about one more quad-finding pass, plus the
+//! Only components that are large enough to hold a marker and gave no quad are re-cut, and
+//! only their own pixels (the labeller's runs of them), box by box (the union of the boxes
+//! when their areas add up to more than the frame): a darker cut's components are parts of
+//! the first cut's, so a marker already found or a speck inside the box could only give
+//! parts of itself. Levels are computed only for the tiles those pixels cross. A frame in
+//! which every large component was a quad (the synthetic marker scenes) pays nothing; a
+//! cluttered frame pays about one more quad-finding pass, plus the
 //! refinement of the new quads the re-cut finds (on the clutter frames of the accuracy
 //! scenes, quad finding took about twice as long with the re-cut, measured on a loaded
 //! machine). Re-cut quads already found are dropped before the refinement.
@@ -153,29 +156,34 @@ pub struct SplitParams<'a> {
 }
 
 impl Splitter {
-    /// Re-cuts `bin` (the first binary image of `img`) inside `rect` and calls `found` with
-    /// the coarse corners (image pixel coordinates, clockwise in the image) of each
+    /// Re-cuts the pixels of `runs` (the dark runs, `[y, x0, x1)` in raster order, of the
+    /// first cut's components that gave no quad) inside `rect` and calls `found` with the
+    /// coarse corners (image pixel coordinates, clockwise in the image) of each
     /// quadrilateral traced there; the caller refines those it does not know yet.
+    ///
+    /// Only those components' pixels are cut again: the components of a darker cut are
+    /// parts of the first cut's, so the other components in the box (markers already found,
+    /// specks) could only give their own parts, which are no new markers.
     pub fn split(
         &mut self,
         img: &GrayView<'_>,
-        bin: &[u8],
+        runs: &[[u32; 3]],
         rect: Rect,
         params: &SplitParams<'_>,
         found: impl FnMut([[f64; 2]; 4]),
     ) {
-        self.cut_at(img, Some(bin), rect, params, CUT, 0, found);
+        self.cut_at(img, Some(runs), rect, params, CUT, 0, found);
     }
 
     /// Cuts `img` inside `rect` at `cut` of the way from the local minimum to the local
-    /// maximum (only pixels dark in `bin` too, when given; nothing where that neighbourhood's
-    /// max - min is below `min_contrast`) and calls `found` with the coarse corners of each
-    /// quadrilateral traced there.
+    /// maximum (only pixels of `runs` too, when given: `[y, x0, x1)` in raster order;
+    /// nothing where that neighbourhood's max - min is below `min_contrast`) and calls
+    /// `found` with the coarse corners of each quadrilateral traced there.
     #[allow(clippy::too_many_arguments)]
     pub fn cut_at(
         &mut self,
         img: &GrayView<'_>,
-        bin: Option<&[u8]>,
+        runs: Option<&[[u32; 3]]>,
         rect: Rect,
         params: &SplitParams<'_>,
         cut: f64,
@@ -195,8 +203,24 @@ impl Splitter {
         // exactly when it is below that value rounded up (0 where nothing is cut).
         self.tile_cut.clear();
         self.tile_cut.resize(tw * th, 0);
+        // With runs, only the tiles they cross need a level (elsewhere nothing is cut):
+        // `tile_cut` first marks them (1), then holds their levels.
+        if let Some(runs) = runs {
+            let start = runs.partition_point(|q| (q[0] as usize) < y0);
+            for q in runs[start..].iter().take_while(|q| q[0] as usize <= y1) {
+                let (a, b) = ((q[1] as usize).max(x0), (q[2] as usize).min(x1 + 1));
+                if a < b {
+                    let t = (q[0] as usize - y0) / TILE * tw;
+                    self.tile_cut[t + (a - x0) / TILE..=t + (b - 1 - x0) / TILE].fill(1);
+                }
+            }
+        }
         for ty in 0..th {
             for tx in 0..tw {
+                if runs.is_some() && self.tile_cut[ty * tw + tx] == 0 {
+                    continue;
+                }
+                self.tile_cut[ty * tw + tx] = 0;
                 let (lo, hi) = self.tiles.around(tx, ty);
                 if hi - lo < min_contrast {
                     continue;
@@ -212,6 +236,14 @@ impl Splitter {
         self.bin.resize(bw * bh, 0);
         self.row_cut.clear();
         self.row_cut.resize(cw, 0);
+        // With runs: those of the box's rows, in order.
+        let mut runs = runs.map(|r| {
+            let start = r.partition_point(|q| (q[0] as usize) < y0);
+            r[start..]
+                .iter()
+                .take_while(|q| q[0] as usize <= y1)
+                .peekable()
+        });
         for y in 0..ch {
             if y % TILE == 0 {
                 // Each tile's level spread over its pixels, so that the cut is one pass
@@ -223,12 +255,22 @@ impl Splitter {
             }
             let row = &img.row(y0 + y)[x0..=x1];
             let out = &mut self.bin[(y + 1) * bw + 1..(y + 1) * bw + 1 + cw];
-            match bin {
-                Some(b) => {
-                    let first = &b[(y0 + y) * w + x0..(y0 + y) * w + x0 + cw];
-                    for (((o, &v), &f), &t) in out.iter_mut().zip(row).zip(first).zip(&self.row_cut)
-                    {
-                        *o = (u8::from(f == DARK) & u8::from(v < t)) * DARK;
+            match runs.as_mut() {
+                Some(runs) => {
+                    while let Some(q) = runs.next_if(|q| q[0] as usize == y0 + y) {
+                        // The run cut to the box, in box columns.
+                        let a = (q[1] as usize).max(x0) - x0;
+                        let b = (q[2] as usize).min(x1 + 1).saturating_sub(x0);
+                        if a >= b {
+                            continue;
+                        }
+                        for ((o, &v), &t) in out[a..b]
+                            .iter_mut()
+                            .zip(&row[a..b])
+                            .zip(&self.row_cut[a..b])
+                        {
+                            *o = u8::from(v < t) * DARK;
+                        }
                     }
                 }
                 None => {
@@ -331,7 +373,7 @@ mod tests {
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(64))]
         /// The tiled, integer cut of `cut_at` is the pixel-by-pixel rule, with and without
-        /// a first binary image, at the re-cut's and the light cut's levels.
+        /// the runs of a first binary image, at the re-cut's and the light cut's levels.
         #[test]
         fn cut_matches_the_pixel_rule(
             w in 1usize..40,
@@ -355,13 +397,29 @@ mod tests {
             let img = GrayView::new(&px, w, h).unwrap();
             let limits = QuadLimits { min_side: 4.0, min_angle_deg: 20.0, line_tolerance: 1.0, line_tolerance_rel: 0.05 };
             let params = SplitParams { limits: &limits, border_margin: 1, min_side: 4 };
+            // The dark runs of `first`, as the labeller gives them.
+            let mut runs = Vec::new();
+            for y in 0..h {
+                let mut x = 0;
+                while x < w {
+                    if first[y * w + x] != DARK {
+                        x += 1;
+                        continue;
+                    }
+                    let x0 = x;
+                    while x < w && first[y * w + x] == DARK {
+                        x += 1;
+                    }
+                    runs.push([y as u32, x0 as u32, x as u32]);
+                }
+            }
             let mut s = Splitter::default();
-            let (given, cut, min_contrast) = if light {
-                (None, LIGHT_CUT, LIGHT_CUT_MIN_CONTRAST)
+            let (given, runs, cut, min_contrast) = if light {
+                (None, None, LIGHT_CUT, LIGHT_CUT_MIN_CONTRAST)
             } else {
-                (Some(first.as_slice()), CUT, 0)
+                (Some(first.as_slice()), Some(runs.as_slice()), CUT, 0)
             };
-            s.cut_at(&img, given, rect, &params, cut, min_contrast, |_| {});
+            s.cut_at(&img, runs, rect, &params, cut, min_contrast, |_| {});
             prop_assert_eq!(s.bin.clone(), reference(&px, w, given, rect, cut, min_contrast));
         }
     }
