@@ -148,8 +148,14 @@ fn area_edge(prof: &[f64], step: f64, half: f64, pos: f64, lo: f64, hi: f64) -> 
     while t0 < b - 1e-12 {
         // t0 >= 0 (the window starts inside the profile), so truncation is floor, and
         // without SSE4.1 a cast costs a fraction of `floor`'s software call.
-        let t1 = ((t0 as usize) as f64 + 1.0).min(b);
-        let d1 = dark(at(t1));
+        let k1 = t0 as usize + 1;
+        let t1 = (k1 as f64).min(b);
+        // At a sample inside the profile the interpolation is the sample itself.
+        let d1 = if t1 < b && k1 < prof.len() - 1 {
+            dark(prof[k1])
+        } else {
+            dark(at(t1))
+        };
         sum += 0.5 * (d0 + d1) * (t1 - t0);
         (t0, d0) = (t1, d1);
     }
