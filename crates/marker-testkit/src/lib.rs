@@ -54,6 +54,14 @@ pub enum TestkitError {
         /// Markers asked for.
         wanted: usize,
     },
+    /// A marker index beyond the list of entries.
+    #[error("marker index {index} is beyond the {entries} entries given")]
+    NoEntry {
+        /// The index asked for.
+        index: usize,
+        /// Entries given.
+        entries: usize,
+    },
     /// The synthetic camera refused the scene.
     #[error(transparent)]
     Render(#[from] synthcam::SynthError),
@@ -537,6 +545,29 @@ pub fn render_scene<R: Rng + ?Sized>(
     render_indexed(cfg, patterns, &[], rng)
 }
 
+/// A scene of the markers `entries[i]` for each `i` of `indices` (one per placement,
+/// cycled), each [`PlacedMarker`] recording its index, at random placements drawn from
+/// `rng`: with the markers chosen apart (another generator), two families rendered from
+/// generators in the same state get the same placements, blur and noise (a paired
+/// comparison), up to their patterns' aspect.
+pub fn marker_scene_of<R: Rng + ?Sized>(
+    cfg: &SceneConfig,
+    entries: &[CellPattern],
+    indices: &[usize],
+    rng: &mut R,
+) -> Result<MarkerScene, TestkitError> {
+    let patterns = indices
+        .iter()
+        .map(|&index| {
+            entries.get(index).cloned().ok_or(TestkitError::NoEntry {
+                index,
+                entries: entries.len(),
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    render_indexed(cfg, &patterns, indices, rng)
+}
+
 /// [`render_scene`] recording an index per pattern.
 fn render_indexed<R: Rng + ?Sized>(
     cfg: &SceneConfig,
@@ -797,6 +828,51 @@ mod tests {
     use super::*;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
+
+    /// Two families rendered from generators in the same state share the placement (the
+    /// paired comparison of `cargo xtask detector-accuracy`); an index beyond the entries is
+    /// an error, not a panic.
+    #[test]
+    fn marker_scene_of_pairs_placements_and_checks_indices() {
+        let cfg = SceneConfig {
+            markers: 1,
+            ..SceneConfig::default()
+        };
+        let own = vec![CellPattern::random_marker(
+            4,
+            5,
+            &mut ChaCha8Rng::seed_from_u64(1),
+        )];
+        let tag = vec![
+            CellPattern::random_marker(6, 6, &mut ChaCha8Rng::seed_from_u64(2)),
+            CellPattern::random_marker(6, 6, &mut ChaCha8Rng::seed_from_u64(3)),
+        ];
+        let mut paired = 0;
+        for seed in 0..20 {
+            let a =
+                marker_scene_of(&cfg, &own, &[0], &mut ChaCha8Rng::seed_from_u64(seed)).unwrap();
+            let b =
+                marker_scene_of(&cfg, &tag, &[1], &mut ChaCha8Rng::seed_from_u64(seed)).unwrap();
+            assert_eq!((a.markers[0].index, b.markers[0].index), (Some(0), Some(1)));
+            let centre = |m: &PlacedMarker| {
+                m.corners
+                    .iter()
+                    .fold(nalgebra::Vector2::zeros(), |s, p| s + p.coords)
+                    / 4.0
+            };
+            if (centre(&a.markers[0]) - centre(&b.markers[0])).norm() < 5.0 {
+                paired += 1;
+            }
+        }
+        assert!(paired >= 10, "only {paired} of 20 placements shared");
+        assert!(matches!(
+            marker_scene_of(&cfg, &own, &[1], &mut ChaCha8Rng::seed_from_u64(0)),
+            Err(TestkitError::NoEntry {
+                index: 1,
+                entries: 1
+            })
+        ));
+    }
 
     #[test]
     fn homography_maps_unit_corners() {
