@@ -83,8 +83,9 @@ const TARGETS: &[Target] = &[
         id: "fiducial/detect_1920x1080_rayon",
         target_ns: None,
         note: "`Detector::detect_parallel` on rayon's pool (2 cores), the frame as one job: \
-               binarization in bands (one pass each), components and quads handed out one \
-               at a time, largest first; see the ratio below (#12)",
+               binarization in bands (one pass each), components handed out one at a \
+               time, largest first, each quad decoded where it is found; see the ratio \
+               below (#12)",
     },
     Target {
         id: "formation-tracker/frame_pipeline_640x480",

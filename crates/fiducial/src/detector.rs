@@ -212,6 +212,12 @@ pub struct Detector {
     decoders: Vec<crate::parallel::Decoder>,
     /// Scratch of the parallel paths' index-ordered merges.
     merge: crate::parallel::Merge,
+    /// In [`Detector::detect_parallel`]: the readings of the quads the threads decoded as
+    /// they found them (the first `early.len()` quads), and how many were blurred readings;
+    /// `early_valid` while they belong to the current quads.
+    early: Vec<Option<Decoded>>,
+    early_blurred: usize,
+    early_valid: bool,
 }
 
 impl Default for Detector {
@@ -259,6 +265,9 @@ impl Detector {
             decoding: Decoding::new(dictionaries.len()),
             decoders: Vec::new(),
             merge: Default::default(),
+            early: Vec::new(),
+            early_blurred: 0,
+            early_valid: false,
             grid_of,
             dictionaries,
             binarizer: Binarizer::default(),
@@ -301,9 +310,9 @@ impl Detector {
     }
 
     /// [`Detector::detect`] with binarization (the stage that reads every pixel) cut into
-    /// horizontal bands, and the components' tracing, quad fit and refinement, and the
-    /// quads' decoding, handed out one at a time, the largest first (the crate's `parallel`
-    /// module), run on the threads of the current rayon pool (crate feature
+    /// horizontal bands, and the components' tracing, quad fit, refinement and decoding
+    /// (each quad read as soon as it is found), handed out one at a time, the largest first
+    /// (the crate's `parallel` module), run on the threads of the current rayon pool (crate feature
     /// `parallel`; without it, this is [`Detector::detect`]). The output is identical
     /// to [`Detector::detect`]'s (a test checks it). Frames under a megapixel are detected on
     /// the calling thread alone, where the threads' start-up costs more than they save;
@@ -338,11 +347,21 @@ impl Detector {
             dictionaries: &self.dictionaries,
             grid_of: &self.grid_of,
         };
-        if self.bands > 1 && self.quads.len() > 1 {
+        // The quads the threads already read (detect_parallel), in quad order.
+        let mut done = 0;
+        if std::mem::take(&mut self.early_valid) && self.early.len() <= self.quads.len() {
+            for d in self.early.iter().flatten() {
+                push_unique(out, *d);
+            }
+            done = self.early.len();
+            self.decoding.blur.solved_quads = self.early_blurred;
+        }
+        let rest = &self.quads[done..];
+        if self.bands > 1 && rest.len() > 1 {
             crate::parallel::decode_all(
                 img,
                 &ctx,
-                &self.quads,
+                rest,
                 self.bands,
                 &mut self.decoders,
                 &mut self.merge,
@@ -350,7 +369,7 @@ impl Detector {
                 out,
             );
         } else {
-            for q in &self.quads {
+            for q in rest {
                 if let Some(d) = ctx.decode(img, q, &mut self.decoding) {
                     push_unique(out, d);
                 }
@@ -543,15 +562,31 @@ impl Detector {
         let components = self.labeller.label(&self.bin, w);
         self.retried.clear();
         self.retried.resize(components.len(), false);
+        self.early.clear();
+        self.early_blurred = 0;
+        // A full-resolution scan on threads decodes its quads as it finds them
+        // (`decode_quads` then reads only the re-cut's).
+        self.early_valid = self.bands > 1 && f == 1;
         if self.bands > 1 {
+            let dctx = DecodeContext {
+                config: &self.config,
+                dictionaries: &self.dictionaries,
+                grid_of: &self.grid_of,
+            };
             crate::parallel::examine_all(
                 &ctx,
                 components,
                 self.bands,
                 &mut self.workers,
                 &mut self.merge,
-                &mut self.quads,
-                (&mut self.retry, &mut self.retried),
+                self.early_valid.then_some(&dctx),
+                crate::parallel::Examined {
+                    quads: &mut self.quads,
+                    readings: &mut self.early,
+                    blurred: &mut self.early_blurred,
+                    retry: &mut self.retry,
+                    retried: &mut self.retried,
+                },
             );
         } else {
             for (i, c) in components.iter().enumerate() {

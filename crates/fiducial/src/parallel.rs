@@ -6,12 +6,15 @@
 //! cost sits in the few components that are markers, and a fixed cut of the list into runs
 //! left one thread idle for a fifth of the decoding on the benchmark frame. Each result
 //! keeps its item's index, and the results are merged in index order, so the output is
-//! exactly that of the single-threaded loop. Without the crate feature `parallel` the
-//! workers run in turn.
+//! exactly that of the single-threaded loop. A worker reads each quad as soon as it has
+//! found it, so that examining and decoding are one stage for the threads (one meeting
+//! fewer, and the readings balance with the tracing); only the quads the re-cut adds are
+//! read afterwards, again on the threads. Without the crate feature `parallel` the workers
+//! run in turn.
 
 use crate::contour::Component;
 use crate::decode::Decoded;
-use crate::detector::{DecodeContext, Decoding, Examined, Quad, Scan, push_unique};
+use crate::detector::{DecodeContext, Decoding, Examined as Done, Quad, Scan, push_unique};
 use crate::image::GrayView;
 use crate::refine::Refiner;
 use crate::split::Rect;
@@ -33,9 +36,23 @@ fn on_threads<W: Send>(workers: &mut [W], run: impl Fn(&mut W) + Sync + Send) {
 pub(crate) struct Worker {
     contour: Vec<[i32; 2]>,
     refiner: Refiner,
-    /// Quads and re-cut boxes with the index of their component.
-    quads: Vec<(usize, Quad)>,
+    /// Decoding scratch, when quads are decoded as they are found.
+    decoding: Option<Decoding>,
+    /// Quads (and their reading, when decoded here) and re-cut boxes with the index of
+    /// their component.
+    quads: Vec<(usize, Quad, Option<Decoded>)>,
     retry: Vec<(usize, Rect)>,
+}
+
+/// Where [`examine_all`] puts its results: the quads, their readings when it decodes them
+/// (aligned with the quads it appends) and the count of blurred readings among those, the
+/// re-cut boxes and the flags of their components.
+pub(crate) struct Examined<'a> {
+    pub(crate) quads: &'a mut Vec<Quad>,
+    pub(crate) readings: &'a mut Vec<Option<Decoded>>,
+    pub(crate) blurred: &'a mut usize,
+    pub(crate) retry: &'a mut Vec<Rect>,
+    pub(crate) retried: &'a mut [bool],
 }
 
 /// Estimated cost of examining a component that is not too small to: tracing and
@@ -44,19 +61,21 @@ fn weight(c: &Component) -> u32 {
     (c.x_max - c.x_min + c.y_max - c.y_min).min(512)
 }
 
-/// Examines `components` on `threads` workers and appends their quads to `quads` and their
-/// re-cut boxes to `retry` (flagging their components in `retried`), in the order of the
-/// single-threaded loop. Components too small
-/// to examine, which the loop drops first thing, are not handed out; the others go the
-/// largest first. `merged` is scratch.
+/// Examines `components` on `threads` workers and appends their quads and re-cut boxes to
+/// `to` (flagging the boxes' components), in the order of the single-threaded loop. With
+/// `decode`, each worker also reads each quad as soon as it has found it (one stage fewer
+/// for the threads to meet at, and the readings balance with the rest of the work); the
+/// readings are those [`crate::Detector::decode_quads`] would give. Components too small to
+/// examine, which the loop drops first thing, are not handed out; the others go the largest
+/// first. `merged` is scratch.
 pub(crate) fn examine_all(
     scan: &Scan<'_, '_>,
     components: &[Component],
     threads: usize,
     workers: &mut Vec<Worker>,
     merged: &mut Merge,
-    quads: &mut Vec<Quad>,
-    (retry, retried): (&mut Vec<Rect>, &mut [bool]),
+    decode: Option<&DecodeContext<'_>>,
+    to: Examined<'_>,
 ) {
     let k = threads.max(1);
     if workers.len() < k {
@@ -77,15 +96,26 @@ pub(crate) fn examine_all(
     on_threads(&mut workers[..k], |w: &mut Worker| {
         w.quads.clear();
         w.retry.clear();
+        if let (Some(ctx), None) = (decode, &w.decoding) {
+            w.decoding = Some(Decoding::new(ctx.dictionaries()));
+        }
+        if let Some(d) = w.decoding.as_mut() {
+            d.blur.solved_quads = 0;
+        }
         loop {
             let j = next.fetch_add(1, Ordering::Relaxed);
             let Some(&i) = order.get(j) else {
                 break;
             };
             match scan.examine(&components[i], &mut w.contour, &mut w.refiner) {
-                Examined::Quad(q) => w.quads.push((i, q)),
-                Examined::Retry(r) => w.retry.push((i, r)),
-                Examined::Dropped => {}
+                Done::Quad(q) => {
+                    let reading = decode
+                        .zip(w.decoding.as_mut())
+                        .and_then(|(ctx, d)| ctx.decode(scan.img, &q, d));
+                    w.quads.push((i, q, reading));
+                }
+                Done::Retry(r) => w.retry.push((i, r)),
+                Done::Dropped => {}
             }
         }
     });
@@ -94,20 +124,26 @@ pub(crate) fn examine_all(
     for w in &workers[..k] {
         merged.quads.extend_from_slice(&w.quads);
         merged.retry.extend_from_slice(&w.retry);
+        if decode.is_some() {
+            *to.blurred += w.decoding.as_ref().map_or(0, |d| d.blur.solved_quads);
+        }
     }
     merged.quads.sort_unstable_by_key(|e| e.0);
     merged.retry.sort_unstable_by_key(|e| e.0);
-    quads.extend(merged.quads.iter().map(|e| e.1));
-    retry.extend(merged.retry.iter().map(|e| e.1));
+    to.quads.extend(merged.quads.iter().map(|e| e.1));
+    if decode.is_some() {
+        to.readings.extend(merged.quads.iter().map(|e| e.2));
+    }
+    to.retry.extend(merged.retry.iter().map(|e| e.1));
     for e in &merged.retry {
-        retried[e.0] = true;
+        to.retried[e.0] = true;
     }
 }
 
 /// Scratch of the index-ordered merges, kept by the detector between frames.
 #[derive(Debug, Default, Clone)]
 pub(crate) struct Merge {
-    quads: Vec<(usize, Quad)>,
+    quads: Vec<(usize, Quad, Option<Decoded>)>,
     retry: Vec<(usize, Rect)>,
     found: Vec<(usize, Decoded)>,
     /// Component or quad indices, costliest first.
