@@ -262,25 +262,13 @@ fn tag36h11_poses_on_a_real_frame_match_opencv() {
     .unwrap();
     let fixtures = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures");
     let frame = fixtures.join("realdata/duckietown/test_image_multiple_01.png");
-    std::fs::write(
-        d.join("camera.yaml"),
-        "%YAML:1.0
----
-image_width: 640
-image_height: 480
-camera_matrix: !!opencv-matrix
-   rows: 3
-   cols: 3
-   dt: d
-   data: [ 338.563277422543, 0., 336.45495347495824, 0., 338.939280638548, 230.486982216255, 0., 0., 1. ]
-distortion_coefficients: !!opencv-matrix
-   rows: 5
-   cols: 1
-   dt: d
-   data: [ 0., 0., 0., 0., 0. ]
-",
-    )
-    .unwrap();
+    // The tests' OpenCV calibration file with this camera's matrix.
+    let camera = common::CAMERA.replace(
+        "554.2562584220408, 0., 319.5, 0., 554.2562584220408, 239.5",
+        "338.563277422543, 0., 336.45495347495824, 0., 338.939280638548, 230.486982216255",
+    );
+    assert_ne!(camera, common::CAMERA);
+    std::fs::write(d.join("camera.yaml"), camera).unwrap();
     let out = common::run(
         &d,
         &[
