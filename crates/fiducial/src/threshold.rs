@@ -77,8 +77,6 @@ pub const DARK: u8 = 1;
 pub struct Binarizer {
     /// The smoothed frame, kept only for [`Threshold::Otsu`] (its histogram).
     smooth: Vec<u8>,
-    tile_min: Vec<u8>,
-    tile_max: Vec<u8>,
     /// Scratch rows of each band of rows (one band unless [`Binarizer::binarize_parallel`]).
     bands: Vec<Band>,
 }
@@ -210,17 +208,7 @@ impl Binarizer {
             height: h,
         };
         if count == 1 {
-            self.tile_min.resize(tx * ty, 0);
-            self.tile_max.resize(tx * ty, 0);
-            extremes_and_cut(
-                img,
-                &mut out[..],
-                &tiles,
-                (0, ty),
-                &mut self.tile_min,
-                &mut self.tile_max,
-                &mut self.bands[0],
-            );
+            extremes_and_cut(img, &mut out[..], &tiles, (0, ty), &mut self.bands[0]);
             return;
         }
         // Each band on its own thread, in one pass as on one thread: the tile extremes of
@@ -228,22 +216,7 @@ impl Binarizer {
         // too), and the cut of each tile row as soon as the row below it is known.
         let cut_band = |(b, (o, band)): CutBand<'_>| {
             let j0 = b * band_tiles;
-            let Band {
-                tile_min, tile_max, ..
-            } = band;
-            let (mut mins, mut maxs) = (std::mem::take(tile_min), std::mem::take(tile_max));
-            mins.resize(tx * ty, 0);
-            maxs.resize(tx * ty, 0);
-            extremes_and_cut(
-                img,
-                o,
-                &tiles,
-                (j0, (j0 + band_tiles).min(ty)),
-                &mut mins,
-                &mut maxs,
-                band,
-            );
-            (band.tile_min, band.tile_max) = (mins, maxs);
+            extremes_and_cut(img, o, &tiles, (j0, (j0 + band_tiles).min(ty)), band);
         };
         #[cfg(feature = "parallel")]
         {
@@ -353,15 +326,13 @@ fn levels_rows(
 
 /// The adaptive binarization of tile rows `j0 .. j1` (`out` holds their pixel rows) on one
 /// thread: each tile row's extremes (from the row above `j0` to the row below `j1 - 1`, into
-/// `tile_min` and `tile_max`, whole-frame arrays), and the cut of the tile row above it as
-/// soon as they are known (its pixels are then still in cache).
+/// the band's whole-frame tile arrays), and the cut of the tile row above it as soon as they
+/// are known (its pixels are then still in cache).
 fn extremes_and_cut(
     img: &GrayView<'_>,
     out: &mut [u8],
     tiles: &Tiles,
     (j0, j1): (usize, usize),
-    tile_min: &mut [u8],
-    tile_max: &mut [u8],
     band: &mut Band,
 ) {
     let (w, side, tx) = (img.width(), tiles.side, tiles.tx);
@@ -371,8 +342,11 @@ fn extremes_and_cut(
         row_min,
         row_max,
         cut,
-        ..
+        tile_min,
+        tile_max,
     } = band;
+    tile_min.resize(tx * tiles.ty, 0);
+    tile_max.resize(tx * tiles.ty, 0);
     // The extremes needed: the band's tile rows and their neighbours in the frame.
     let (e0, e1) = (j0.saturating_sub(1), (j1 + 1).min(tiles.ty));
     let mut ring = Ring::start(img, e0 * side, hsum);
