@@ -110,25 +110,20 @@ pub struct CrossRatioFrame {
 /// A segment of marker coordinates and the frame that maps it
 /// ([`CrossRatioFrame::segment`]).
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct FrameSegment {
+pub(crate) struct FrameSegment<'a> {
+    frame: &'a CrossRatioFrame,
     /// Homogeneous image of the start, and the change to the end.
     start: [f64; 3],
     delta: [f64; 3],
-    origin: Vector2<f64>,
-    scale: f64,
 }
 
-impl FrameSegment {
+impl FrameSegment<'_> {
     /// The image of the point a fraction `f` of the way along; `None` where
     /// [`CrossRatioFrame::map`] gives none (beyond the horizon, or not finite).
     #[inline]
     pub(crate) fn at(&self, f: f64) -> Option<Point2<f64>> {
-        let [x, y, w] = [0, 1, 2].map(|i| self.start[i] + f * self.delta[i]);
-        if w.is_nan() || w <= 1e-9 {
-            return None;
-        }
-        let p = Vector2::new(x, y) / w;
-        (p.x.is_finite() && p.y.is_finite()).then(|| Point2::from(self.origin + p * self.scale))
+        self.frame
+            .image_of([0, 1, 2].map(|i| self.start[i] + f * self.delta[i]))
     }
 }
 
@@ -270,15 +265,31 @@ impl CrossRatioFrame {
         if !(a.is_finite() && b.is_finite()) {
             return None;
         }
+        self.image_of(self.homogeneous(a, b))
+    }
+
+    /// The homogeneous image `[x, y, w]` of normalised marker coordinates `(a, b)`, before
+    /// the division by `w` (linear in `a` and `b`).
+    #[inline]
+    fn homogeneous(&self, a: f64, b: f64) -> [f64; 3] {
         let [h0, h1, h2, h3, h4, h5, h6, h7] = self.h;
         let (s, t) = (0.5 * (a + 1.0), 0.5 * (b + 1.0));
-        let w = h6 * s + h7 * t + 1.0;
-        // Beyond the horizon (or on it) there is no image point: the construction's edge
-        // points run off to infinity there too.
+        [
+            h0 * s + h1 * t + h2,
+            h3 * s + h4 * t + h5,
+            h6 * s + h7 * t + 1.0,
+        ]
+    }
+
+    /// The image point of a homogeneous image; `None` beyond the horizon (or on it), where
+    /// there is no image point (the construction's edge points run off to infinity there
+    /// too), or when it is not finite.
+    #[inline]
+    fn image_of(&self, [x, y, w]: [f64; 3]) -> Option<Point2<f64>> {
         if w.is_nan() || w <= 1e-9 {
             return None;
         }
-        let p = Vector2::new(h0 * s + h1 * t + h2, h3 * s + h4 * t + h5) / w;
+        let p = Vector2::new(x, y) / w;
         (p.x.is_finite() && p.y.is_finite()).then(|| Point2::from(self.origin + p * self.scale))
     }
 
@@ -291,25 +302,15 @@ impl CrossRatioFrame {
         &self,
         (a0, b0): (f64, f64),
         (a1, b1): (f64, f64),
-    ) -> Option<FrameSegment> {
+    ) -> Option<FrameSegment<'_>> {
         if !(a0.is_finite() && b0.is_finite() && a1.is_finite() && b1.is_finite()) {
             return None;
         }
-        let [h0, h1, h2, h3, h4, h5, h6, h7] = self.h;
-        let hom = |a: f64, b: f64| {
-            let (s, t) = (0.5 * (a + 1.0), 0.5 * (b + 1.0));
-            [
-                h0 * s + h1 * t + h2,
-                h3 * s + h4 * t + h5,
-                h6 * s + h7 * t + 1.0,
-            ]
-        };
-        let (p, q) = (hom(a0, b0), hom(a1, b1));
+        let (p, q) = (self.homogeneous(a0, b0), self.homogeneous(a1, b1));
         Some(FrameSegment {
+            frame: self,
             start: p,
             delta: [q[0] - p[0], q[1] - p[1], q[2] - p[2]],
-            origin: self.origin,
-            scale: self.scale,
         })
     }
 
