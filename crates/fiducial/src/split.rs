@@ -55,6 +55,25 @@ pub struct Rect {
     pub y1: u32,
 }
 
+/// The parts of `runs` (`[y, x0, x1)` in raster order) inside the box `x0 ..= x1`, `y0 ..=
+/// y1`, in order, as `(row, start, end)` in box coordinates (`end` exclusive, never empty).
+fn runs_in(
+    runs: &[[u32; 3]],
+    x0: usize,
+    y0: usize,
+    x1: usize,
+    y1: usize,
+) -> impl Iterator<Item = (usize, usize, usize)> + '_ {
+    let start = runs.partition_point(|q| (q[0] as usize) < y0);
+    runs[start..]
+        .iter()
+        .take_while(move |q| q[0] as usize <= y1)
+        .filter_map(move |q| {
+            let (a, b) = ((q[1] as usize).max(x0), (q[2] as usize).min(x1 + 1));
+            (a < b).then(|| (q[0] as usize - y0, a - x0, b - x0))
+        })
+}
+
 /// The grey-level minimum and maximum of each square tile of a box of the image (the
 /// re-cut's and boundary clustering's local thresholds), in scratch reused from box to box.
 #[derive(Debug, Default, Clone)]
@@ -206,13 +225,9 @@ impl Splitter {
         // With runs, only the tiles they cross need a level (elsewhere nothing is cut):
         // `tile_cut` first marks them (1), then holds their levels.
         if let Some(runs) = runs {
-            let start = runs.partition_point(|q| (q[0] as usize) < y0);
-            for q in runs[start..].iter().take_while(|q| q[0] as usize <= y1) {
-                let (a, b) = ((q[1] as usize).max(x0), (q[2] as usize).min(x1 + 1));
-                if a < b {
-                    let t = (q[0] as usize - y0) / TILE * tw;
-                    self.tile_cut[t + (a - x0) / TILE..=t + (b - 1 - x0) / TILE].fill(1);
-                }
+            for (y, a, b) in runs_in(runs, x0, y0, x1, y1) {
+                let t = y / TILE * tw;
+                self.tile_cut[t + a / TILE..=t + (b - 1) / TILE].fill(1);
             }
         }
         for ty in 0..th {
@@ -236,14 +251,8 @@ impl Splitter {
         self.bin.resize(bw * bh, 0);
         self.row_cut.clear();
         self.row_cut.resize(cw, 0);
-        // With runs: those of the box's rows, in order.
-        let mut runs = runs.map(|r| {
-            let start = r.partition_point(|q| (q[0] as usize) < y0);
-            r[start..]
-                .iter()
-                .take_while(|q| q[0] as usize <= y1)
-                .peekable()
-        });
+        // With runs: those in the box, in order.
+        let mut runs = runs.map(|r| runs_in(r, x0, y0, x1, y1).peekable());
         for y in 0..ch {
             if y % TILE == 0 {
                 // Each tile's level spread over its pixels, so that the cut is one pass
@@ -257,13 +266,7 @@ impl Splitter {
             let out = &mut self.bin[(y + 1) * bw + 1..(y + 1) * bw + 1 + cw];
             match runs.as_mut() {
                 Some(runs) => {
-                    while let Some(q) = runs.next_if(|q| q[0] as usize == y0 + y) {
-                        // The run cut to the box, in box columns.
-                        let a = (q[1] as usize).max(x0) - x0;
-                        let b = (q[2] as usize).min(x1 + 1).saturating_sub(x0);
-                        if a >= b {
-                            continue;
-                        }
+                    while let Some((_, a, b)) = runs.next_if(|r| r.0 == y) {
                         for ((o, &v), &t) in out[a..b]
                             .iter_mut()
                             .zip(&row[a..b])
