@@ -208,16 +208,13 @@ pub struct Detector {
     workers: Vec<crate::parallel::Worker>,
     /// Scratch of decoding on the calling thread.
     decoding: Decoding,
-    /// Per-thread scratch of decoding in [`Detector::detect_parallel`].
-    decoders: Vec<crate::parallel::Decoder>,
     /// Scratch of the parallel paths' index-ordered merges.
     merge: crate::parallel::Merge,
-    /// In [`Detector::detect_parallel`]: the readings of the quads the threads decoded as
-    /// they found them (the first `early.len()` quads), and how many were blurred readings;
-    /// `early_valid` while they belong to the current quads.
+    /// In [`Detector::detect_parallel`]: the readings of the first `early.len()` quads of
+    /// the last scan, which the threads decoded as they found them (empty after any other
+    /// scan), and how many of those were blurred readings.
     early: Vec<Option<Decoded>>,
     early_blurred: usize,
-    early_valid: bool,
 }
 
 impl Default for Detector {
@@ -263,11 +260,9 @@ impl Detector {
         Self {
             config,
             decoding: Decoding::new(dictionaries.len()),
-            decoders: Vec::new(),
             merge: Default::default(),
             early: Vec::new(),
             early_blurred: 0,
-            early_valid: false,
             grid_of,
             dictionaries,
             binarizer: Binarizer::default(),
@@ -348,22 +343,18 @@ impl Detector {
             grid_of: &self.grid_of,
         };
         // The quads the threads already read (detect_parallel), in quad order.
-        let mut done = 0;
-        if std::mem::take(&mut self.early_valid) && self.early.len() <= self.quads.len() {
-            for d in self.early.iter().flatten() {
-                push_unique(out, *d);
-            }
-            done = self.early.len();
-            self.decoding.blur.solved_quads = self.early_blurred;
+        for d in self.early.iter().flatten() {
+            push_unique(out, *d);
         }
-        let rest = &self.quads[done..];
+        self.decoding.blur.solved_quads = self.early_blurred;
+        let rest = &self.quads[self.early.len()..];
         if self.bands > 1 && rest.len() > 1 {
             crate::parallel::decode_all(
                 img,
                 &ctx,
                 rest,
                 self.bands,
-                &mut self.decoders,
+                &mut self.workers,
                 &mut self.merge,
                 &mut self.decoding,
                 out,
@@ -505,6 +496,9 @@ impl Detector {
     /// corners are refined on `img` itself.
     fn find_quads_scaled(&mut self, img: &GrayView<'_>, factor: usize) {
         self.quads.clear();
+        // The threads' readings belong to this scan's quads only.
+        self.early.clear();
+        self.early_blurred = 0;
         let cfg = self.config;
         // The most cells across of any dictionary: the narrowest border cell the edge
         // profiles must stay within.
@@ -562,11 +556,6 @@ impl Detector {
         let components = self.labeller.label(&self.bin, w);
         self.retried.clear();
         self.retried.resize(components.len(), false);
-        self.early.clear();
-        self.early_blurred = 0;
-        // A full-resolution scan on threads decodes its quads as it finds them
-        // (`decode_quads` then reads only the re-cut's).
-        self.early_valid = self.bands > 1 && f == 1;
         if self.bands > 1 {
             let dctx = DecodeContext {
                 config: &self.config,
@@ -579,7 +568,9 @@ impl Detector {
                 self.bands,
                 &mut self.workers,
                 &mut self.merge,
-                self.early_valid.then_some(&dctx),
+                // A full-resolution scan on threads decodes its quads as it finds them
+                // (`decode_quads` then reads only the re-cut's).
+                (f == 1).then_some(&dctx),
                 crate::parallel::Examined {
                     quads: &mut self.quads,
                     readings: &mut self.early,

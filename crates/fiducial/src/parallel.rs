@@ -20,8 +20,16 @@ use crate::refine::Refiner;
 use crate::split::Rect;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-/// Runs `run` on each worker, on rayon's threads with the feature `parallel`.
-fn on_threads<W: Send>(workers: &mut [W], run: impl Fn(&mut W) + Sync + Send) {
+/// Hands the items of `order` (indices, in that order) out to the workers, one at a time
+/// as each is free, and calls `each` with the worker and the item; on rayon's threads with
+/// the feature `parallel`, in turn without.
+fn hand_out(workers: &mut [Worker], order: &[usize], each: impl Fn(&mut Worker, usize) + Sync) {
+    let next = AtomicUsize::new(0);
+    let run = |w: &mut Worker| {
+        while let Some(&i) = order.get(next.fetch_add(1, Ordering::Relaxed)) {
+            each(w, i);
+        }
+    };
     #[cfg(feature = "parallel")]
     {
         use rayon::prelude::*;
@@ -36,12 +44,52 @@ fn on_threads<W: Send>(workers: &mut [W], run: impl Fn(&mut W) + Sync + Send) {
 pub(crate) struct Worker {
     contour: Vec<[i32; 2]>,
     refiner: Refiner,
-    /// Decoding scratch, when quads are decoded as they are found.
+    /// Decoding scratch (made on the first frame that decodes).
     decoding: Option<Decoding>,
     /// Quads (and their reading, when decoded here) and re-cut boxes with the index of
     /// their component.
     quads: Vec<(usize, Quad, Option<Decoded>)>,
     retry: Vec<(usize, Rect)>,
+    /// The markers of [`decode_all`], with their quad's index.
+    found: Vec<(usize, Decoded)>,
+}
+
+impl Worker {
+    /// Clears the results of the last frame, and readies the decoding scratch when this
+    /// frame decodes (`ctx`).
+    fn start(&mut self, ctx: Option<&DecodeContext<'_>>) {
+        self.quads.clear();
+        self.retry.clear();
+        self.found.clear();
+        if let Some(ctx) = ctx {
+            self.decoding
+                .get_or_insert_with(|| Decoding::new(ctx.dictionaries()));
+        }
+        if let Some(d) = self.decoding.as_mut() {
+            d.blur.solved_quads = 0;
+        }
+    }
+
+    /// The blurred readings of this frame's decoding.
+    fn blurred(&self) -> usize {
+        self.decoding.as_ref().map_or(0, |d| d.blur.solved_quads)
+    }
+}
+
+/// `workers` grown to `k` and cut to them, each started ([`Worker::start`]).
+fn ready<'w>(
+    workers: &'w mut Vec<Worker>,
+    k: usize,
+    ctx: Option<&DecodeContext<'_>>,
+) -> &'w mut [Worker] {
+    if workers.len() < k {
+        workers.resize_with(k, Worker::default);
+    }
+    let workers = &mut workers[..k];
+    for w in workers.iter_mut() {
+        w.start(ctx);
+    }
+    workers
 }
 
 /// Where [`examine_all`] puts its results: the quads, their readings when it decodes them
@@ -77,10 +125,7 @@ pub(crate) fn examine_all(
     decode: Option<&DecodeContext<'_>>,
     to: Examined<'_>,
 ) {
-    let k = threads.max(1);
-    if workers.len() < k {
-        workers.resize_with(k, Worker::default);
-    }
+    let workers = ready(workers, threads.max(1), decode);
     merged.order.clear();
     merged.order.extend(
         components
@@ -92,41 +137,24 @@ pub(crate) fn examine_all(
     merged
         .order
         .sort_unstable_by_key(|&i| std::cmp::Reverse(weight(&components[i])));
-    let (order, next) = (&merged.order, AtomicUsize::new(0));
-    on_threads(&mut workers[..k], |w: &mut Worker| {
-        w.quads.clear();
-        w.retry.clear();
-        if let (Some(ctx), None) = (decode, &w.decoding) {
-            w.decoding = Some(Decoding::new(ctx.dictionaries()));
-        }
-        if let Some(d) = w.decoding.as_mut() {
-            d.blur.solved_quads = 0;
-        }
-        loop {
-            let j = next.fetch_add(1, Ordering::Relaxed);
-            let Some(&i) = order.get(j) else {
-                break;
-            };
-            match scan.examine(&components[i], &mut w.contour, &mut w.refiner) {
-                Done::Quad(q) => {
-                    let reading = decode
-                        .zip(w.decoding.as_mut())
-                        .and_then(|(ctx, d)| ctx.decode(scan.img, &q, d));
-                    w.quads.push((i, q, reading));
-                }
-                Done::Retry(r) => w.retry.push((i, r)),
-                Done::Dropped => {}
+    hand_out(workers, &merged.order, |w, i| {
+        match scan.examine(&components[i], &mut w.contour, &mut w.refiner) {
+            Done::Quad(q) => {
+                let reading = decode
+                    .zip(w.decoding.as_mut())
+                    .and_then(|(ctx, d)| ctx.decode(scan.img, &q, d));
+                w.quads.push((i, q, reading));
             }
+            Done::Retry(r) => w.retry.push((i, r)),
+            Done::Dropped => {}
         }
     });
     merged.quads.clear();
     merged.retry.clear();
-    for w in &workers[..k] {
+    for w in workers.iter() {
         merged.quads.extend_from_slice(&w.quads);
         merged.retry.extend_from_slice(&w.retry);
-        if decode.is_some() {
-            *to.blurred += w.decoding.as_ref().map_or(0, |d| d.blur.solved_quads);
-        }
+        *to.blurred += w.blurred();
     }
     merged.quads.sort_unstable_by_key(|e| e.0);
     merged.retry.sort_unstable_by_key(|e| e.0);
@@ -150,14 +178,6 @@ pub(crate) struct Merge {
     order: Vec<usize>,
 }
 
-/// One thread's decoding scratch and markers; kept by the detector between frames.
-#[derive(Debug, Clone)]
-pub(crate) struct Decoder {
-    scratch: Decoding,
-    /// The markers it read, with their quad's index.
-    found: Vec<(usize, Decoded)>,
-}
-
 /// Estimated cost of decoding a quad: the samples of the side check and of the pattern
 /// refinement grow with the outline.
 fn perimeter(q: &Quad) -> f64 {
@@ -175,41 +195,30 @@ pub(crate) fn decode_all(
     ctx: &DecodeContext<'_>,
     quads: &[Quad],
     threads: usize,
-    decoders: &mut Vec<Decoder>,
+    workers: &mut Vec<Worker>,
     merged: &mut Merge,
     main: &mut Decoding,
     out: &mut Vec<Decoded>,
 ) {
-    let k = threads.clamp(1, quads.len().max(1));
-    while decoders.len() < k {
-        decoders.push(Decoder {
-            scratch: Decoding::new(ctx.dictionaries()),
-            found: Vec::new(),
-        });
-    }
+    let workers = ready(workers, threads.clamp(1, quads.len().max(1)), Some(ctx));
     merged.order.clear();
     merged.order.extend(0..quads.len());
     merged
         .order
         .sort_unstable_by(|&a, &b| perimeter(&quads[b]).total_cmp(&perimeter(&quads[a])));
-    let (order, next) = (&merged.order, AtomicUsize::new(0));
-    on_threads(&mut decoders[..k], |d: &mut Decoder| {
-        d.found.clear();
-        d.scratch.blur.solved_quads = 0;
-        loop {
-            let j = next.fetch_add(1, Ordering::Relaxed);
-            let Some(&i) = order.get(j) else {
-                break;
-            };
-            if let Some(m) = ctx.decode(img, &quads[i], &mut d.scratch) {
-                d.found.push((i, m));
-            }
+    hand_out(workers, &merged.order, |w, i| {
+        if let Some(m) = w
+            .decoding
+            .as_mut()
+            .and_then(|d| ctx.decode(img, &quads[i], d))
+        {
+            w.found.push((i, m));
         }
     });
     merged.found.clear();
-    for d in &decoders[..k] {
-        main.blur.solved_quads += d.scratch.blur.solved_quads;
-        merged.found.extend_from_slice(&d.found);
+    for w in workers.iter() {
+        main.blur.solved_quads += w.blurred();
+        merged.found.extend_from_slice(&w.found);
     }
     merged.found.sort_unstable_by_key(|e| e.0);
     for (_, m) in &merged.found {
