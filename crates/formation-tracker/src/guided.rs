@@ -211,12 +211,8 @@ pub fn leader_region(
     let x = mount.offset + l12 * beta12.cos();
     let y = l12 * beta12.sin();
     let (rotation, translation) = mount.leader_to_camera(x, y, beta12 - alpha12);
-    let (mut u0, mut v0, mut u1, mut v1) = (
-        f64::INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::NEG_INFINITY,
-    );
+    // The rig's box `[u0, v0, u1, v1]` over every corner projected.
+    let mut rig = EMPTY_BOX;
     let mut marker_px = 0.0f64;
     // Narrow front faces: box (u0, v0, u1, v1) and width, narrowest first.
     let mut narrow: [Option<([f64; 4], f64)>; MAX_NARROW] = [None; MAX_NARROW];
@@ -231,10 +227,7 @@ pub fn leader_region(
             let Ok(m) = camera.project(&p) else {
                 continue;
             };
-            u0 = u0.min(m.x);
-            v0 = v0.min(m.y);
-            u1 = u1.max(m.x);
-            v1 = v1.max(m.y);
+            rig = grow(rig, &m);
             *slot = Some(m);
         }
         // The vertical edges (NW-SW, NE-SE): their length does not shrink with the face's
@@ -253,20 +246,12 @@ pub fn leader_region(
         {
             let width = (ne - nw).norm().min((se - sw).norm());
             if width >= MIN_FACE_PX {
-                let xs = [nw.x, ne.x, se.x, sw.x];
-                let ys = [nw.y, ne.y, se.y, sw.y];
-                let fold =
-                    |v: [f64; 4], f: fn(f64, f64) -> f64, init: f64| v.into_iter().fold(init, f);
-                let bounds = [
-                    fold(xs, f64::min, f64::INFINITY),
-                    fold(ys, f64::min, f64::INFINITY),
-                    fold(xs, f64::max, f64::NEG_INFINITY),
-                    fold(ys, f64::max, f64::NEG_INFINITY),
-                ];
+                let bounds = [nw, ne, se, sw].iter().fold(EMPTY_BOX, grow);
                 keep_narrowest(&mut narrow, (bounds, width));
             }
         }
     }
+    let [u0, v0, u1, v1] = rig;
     if !(u0.is_finite() && u1.is_finite() && v0.is_finite() && v1.is_finite()) {
         return None;
     }
@@ -289,6 +274,19 @@ pub fn leader_region(
         marker_px,
         narrow,
     })
+}
+
+/// The box `[u0, v0, u1, v1]` holding nothing, which [`grow`] extends.
+const EMPTY_BOX: [f64; 4] = [
+    f64::INFINITY,
+    f64::INFINITY,
+    f64::NEG_INFINITY,
+    f64::NEG_INFINITY,
+];
+
+/// The box `[u0, v0, u1, v1]` grown to hold `p`.
+fn grow([u0, v0, u1, v1]: [f64; 4], p: &nalgebra::Point2<f64>) -> [f64; 4] {
+    [u0.min(p.x), v0.min(p.y), u1.max(p.x), v1.max(p.y)]
 }
 
 /// Inserts `face` (box, width) into `narrow`, kept sorted narrowest first; the widest falls
