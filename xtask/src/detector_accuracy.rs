@@ -514,6 +514,18 @@ fn tag36h11_tally(scenes: usize, cfg: &SceneConfig, seed0: u64) -> crate::Result
     .unwrap_or_default())
 }
 
+/// The longer side of a placed marker, pixels.
+fn longer(m: &marker_testkit::PlacedMarker) -> f64 {
+    (0..4)
+        .map(|k| (m.corners[(k + 1) % 4] - m.corners[k]).norm())
+        .fold(0.0, f64::max)
+}
+
+/// The by-size tables' bin of a placed marker: 20 px wide from 20 px on, the last one open.
+fn size_bin(m: &marker_testkit::PlacedMarker) -> usize {
+    (((longer(m) - 20.0) / 20.0).max(0.0) as usize).min(5)
+}
+
 /// Seeds of the paired comparison's scenes (new ones: not those of any other table).
 const PAIRED_SEED: u64 = 900_000;
 
@@ -597,11 +609,6 @@ fn paired_bins(scenes: usize, first: u64) -> crate::Result<[PairBin; 6]> {
                         .fold(nalgebra::Vector2::zeros(), |a, p| a + p.coords)
                         / 4.0
                 };
-                let longer = |m: &marker_testkit::PlacedMarker| {
-                    (0..4)
-                        .map(|k| (m.corners[(k + 1) % 4] - m.corners[k]).norm())
-                        .fold(0.0, f64::max)
-                };
                 let mut bins = [PairBin::default(); 6];
                 for (m, o) in os.markers.iter().zip(oe) {
                     let Some(o) = o else {
@@ -615,8 +622,7 @@ fn paired_bins(scenes: usize, first: u64) -> crate::Result<[PairBin; 6]> {
                     }) else {
                         continue;
                     };
-                    let side = longer(m);
-                    let b = &mut bins[(((side - 20.0) / 20.0).max(0.0) as usize).min(5)];
+                    let b = &mut bins[size_bin(m)];
                     b.n += 1;
                     b.own += o;
                     b.tag += t;
@@ -900,10 +906,7 @@ impl Tally {
             }
             self.sq_err += se;
             self.corners += 4;
-            let side = (0..4)
-                .map(|i| (m.corners[(i + 1) % 4] - m.corners[i]).norm())
-                .fold(0.0, f64::max);
-            let bin = (((side - 20.0) / 20.0).max(0.0) as usize).min(5);
+            let bin = size_bin(m);
             self.by_size[bin].0 += se;
             self.by_size[bin].1 += 1;
         }
