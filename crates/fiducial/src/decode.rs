@@ -240,12 +240,14 @@ const MAX_QUIET: usize = 4 * 12;
 #[inline]
 fn bilinear(image: &GrayView<'_>, x: f64, y: f64) -> Option<f64> {
     let (w, h) = (image.width(), image.height());
-    if !(x >= 0.0 && y >= 0.0 && x <= (w - 1) as f64 && y <= (h - 1) as f64) {
+    if !(x >= 0.0 && y >= 0.0 && x <= image.max_x() && y <= image.max_y()) {
         return None;
     }
-    // Non-negative here, so truncation is floor (and cheaper than its software call).
-    let (x0, y0) = (x as usize, y as usize);
+    // Non-negative here, so truncation is floor (and cheaper than its software call; a
+    // signed cast is one instruction, an unsigned one several).
+    let (x0, y0) = (x as i64, y as i64);
     let (fx, fy) = (x - x0 as f64, y - y0 as f64);
+    let (x0, y0) = (x0 as usize, y0 as usize);
     let x1 = (x0 + 1).min(w - 1);
     let y1 = (y0 + 1).min(h - 1);
     let (r0, r1) = (image.row(y0), image.row(y1));

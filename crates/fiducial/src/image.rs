@@ -112,6 +112,19 @@ impl<'a> GrayView<'a> {
         })
     }
 
+    /// The largest pixel-centre x, `width - 1`, as a float (sides are at most
+    /// [`Self::MAX_SIDE`], so through `u32`, whose conversion is one instruction).
+    #[inline]
+    pub(crate) fn max_x(&self) -> f64 {
+        f64::from((self.width - 1) as u32)
+    }
+
+    /// The largest pixel-centre y, `height - 1`, as a float (as [`Self::max_x`]).
+    #[inline]
+    pub(crate) fn max_y(&self) -> f64 {
+        f64::from((self.height - 1) as u32)
+    }
+
     /// Width in pixels.
     pub fn width(&self) -> usize {
         self.width

@@ -142,8 +142,10 @@ fn phi(x: f64) -> f64 {
     if pos >= PHI_STEPS as f64 {
         return 1.0;
     }
-    let k = pos as usize;
+    // Positive here, so truncation is floor (a signed cast is one instruction).
+    let k = pos as i64;
     let f = pos - k as f64;
+    let k = k as usize;
     table[k] + (table[k + 1] - table[k]) * f
 }
 

@@ -79,16 +79,18 @@ impl Contour<'_> {
         let (dx, dy) = (bx - ax, by - ay);
         let len = (dx * dx + dy * dy).sqrt().max(1e-9);
         let span = (b + n - a) % n;
-        // (offset from a, distance); the index is taken modulo once, at the end.
+        // (offset from a, distance times `len`); the index is taken modulo once, and the
+        // distance divided once, at the end. Contour points are integers, so the cross
+        // products are exact and the largest of them is the largest distance.
         let mut best = (0, 0.0f64);
         for (k, q) in arc(self.0, a + 1, span.saturating_sub(1)).enumerate() {
             let (qx, qy) = (f64::from(q[0]), f64::from(q[1]));
-            let d = ((qx - ax) * dy - (qy - ay) * dx).abs() / len;
+            let d = ((qx - ax) * dy - (qy - ay) * dx).abs();
             if d > best.1 {
                 best = (k + 1, d);
             }
         }
-        ((a + best.0) % n, best.1)
+        ((a + best.0) % n, best.1 / len)
     }
 
     /// Four vertices in contour order (contour indices): the point farthest from the

@@ -74,14 +74,14 @@ impl Default for RefineConfig {
 /// Bilinear grey level at `(x, y)` (pixel-centre convention), clamped to the frame.
 #[inline]
 pub fn bilinear(img: &GrayView<'_>, x: f64, y: f64) -> f64 {
-    let wmax = (img.width() - 1) as f64;
-    let hmax = (img.height() - 1) as f64;
-    // Clamped to >= 0, so truncation is floor (and NaN becomes 0).
-    let x = x.max(0.0).min(wmax);
-    let y = y.max(0.0).min(hmax);
-    let (xi, yi) = (x as usize, y as usize);
+    // Clamped to >= 0, so truncation is floor (and NaN becomes 0); a signed cast is one
+    // instruction, an unsigned one several.
+    let x = x.max(0.0).min(img.max_x());
+    let y = y.max(0.0).min(img.max_y());
+    let (xi, yi) = (x as i64, y as i64);
     let fx = x - xi as f64;
     let fy = y - yi as f64;
+    let (xi, yi) = (xi as usize, yi as usize);
     let xj = (xi + 1).min(img.width() - 1);
     let r0 = img.row(yi);
     let r1 = img.row((yi + 1).min(img.height() - 1));
@@ -95,7 +95,7 @@ pub fn bilinear(img: &GrayView<'_>, x: f64, y: f64) -> f64 {
 pub(crate) fn sample_profile(img: &GrayView<'_>, start: [f64; 2], step: [f64; 2], out: &mut [f64]) {
     let last = (out.len().max(1) - 1) as f64;
     let end = [start[0] + last * step[0], start[1] + last * step[1]];
-    let (w, h) = ((img.width() - 1) as f64, (img.height() - 1) as f64);
+    let (w, h) = (img.max_x(), img.max_y());
     let inside = |p: [f64; 2]| p[0] >= 0.0 && p[1] >= 0.0 && p[0] < w && p[1] < h;
     if !(inside(start) && inside(end)) {
         for (k, v) in out.iter_mut().enumerate() {
@@ -104,15 +104,17 @@ pub(crate) fn sample_profile(img: &GrayView<'_>, start: [f64; 2], step: [f64; 2]
         }
         return;
     }
-    for (k, v) in out.iter_mut().enumerate() {
-        let t = k as f64;
+    // Inside the frame, so truncation is floor; signed casts are single instructions.
+    let mut t = 0.0;
+    for v in out.iter_mut() {
         let (x, y) = (start[0] + t * step[0], start[1] + t * step[1]);
-        let (xi, yi) = (x as usize, y as usize);
+        let (xi, yi) = (x as i64, y as i64);
         let (fx, fy) = (x - xi as f64, y - yi as f64);
-        let [a, b, c, d] = img.square(xi, yi).map(f64::from);
+        let [a, b, c, d] = img.square(xi as usize, yi as usize).map(f64::from);
         let top = a + (b - a) * fx;
         let bot = c + (d - c) * fx;
         *v = top + (bot - top) * fy;
+        t += 1.0;
     }
 }
 
@@ -136,8 +138,9 @@ fn area_edge(prof: &[f64], step: f64, half: f64, pos: f64, lo: f64, hi: f64) -> 
     let inv = 1.0 / (hi - lo);
     let dark = |g: f64| 1.0 - ((g - lo) * inv).clamp(0.0, 1.0);
     let at = |t: f64| -> f64 {
-        let k = (t as usize).min(prof.len() - 2);
+        let k = (t as i64).min(prof.len() as i64 - 2);
         let f = t - k as f64;
+        let k = k as usize;
         prof[k] + (prof[k + 1] - prof[k]) * f
     };
     // Trapezoids over [a, b], split at sample points (the profile is linear between them).
@@ -145,19 +148,22 @@ fn area_edge(prof: &[f64], step: f64, half: f64, pos: f64, lo: f64, hi: f64) -> 
     let mut t0 = a;
     // The darkness at t0, carried over from the previous trapezoid's end.
     let mut d0 = dark(at(t0));
+    // The sample after t0: a >= 0 (the window starts inside the profile), so truncation is
+    // floor; without SSE4.1 a cast costs a fraction of `floor`'s software call, and a
+    // signed one a fraction of an unsigned one. After the first trapezoid t0 is a sample.
+    let mut k1 = a as i64 + 1;
+    let last = (prof.len() - 1) as i64;
     while t0 < b - 1e-12 {
-        // t0 >= 0 (the window starts inside the profile), so truncation is floor, and
-        // without SSE4.1 a cast costs a fraction of `floor`'s software call.
-        let k1 = t0 as usize + 1;
         let t1 = (k1 as f64).min(b);
         // At a sample inside the profile the interpolation is the sample itself.
-        let d1 = if t1 < b && k1 < prof.len() - 1 {
-            dark(prof[k1])
+        let d1 = if t1 < b && k1 < last {
+            dark(prof[k1 as usize])
         } else {
             dark(at(t1))
         };
         sum += 0.5 * (d0 + d1) * (t1 - t0);
         (t0, d0) = (t1, d1);
+        k1 += 1;
     }
     Some(pos - w + sum * step)
 }
@@ -575,14 +581,16 @@ impl Levels {
 pub(crate) fn edge_in_profile(prof: &[f64], half: f64, lo: f64, hi: f64) -> Option<f64> {
     let mid = 0.5 * (lo + hi);
     let mut best: Option<f64> = None;
-    for k in 0..prof.len() - 1 {
-        let (g0, g1) = (prof[k], prof[k + 1]);
+    let mut kf = 0.0;
+    for pair in prof.windows(2) {
+        let (g0, g1) = (pair[0], pair[1]);
         if g0 < mid && g1 >= mid {
-            let pos = (k as f64 + (mid - g0) / (g1 - g0)) * STEP - half;
+            let pos = (kf + (mid - g0) / (g1 - g0)) * STEP - half;
             if best.is_none_or(|p| pos.abs() < p.abs()) {
                 best = Some(pos);
             }
         }
+        kf += 1.0;
     }
     // The crossing of interpolated samples is biased by up to a tenth of a pixel depending
     // on the edge's phase against the pixel grid ("pixel locking"); the area over a window

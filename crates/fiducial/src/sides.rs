@@ -587,7 +587,7 @@ pub(crate) fn normal_cdf(x: f64) -> f64 {
 
 /// Whether `(x, y)` is inside the frame (bilinear reads there need no clamping).
 fn inside(img: &GrayView<'_>, x: f64, y: f64) -> bool {
-    x >= 0.0 && y >= 0.0 && x <= (img.width() - 1) as f64 && y <= (img.height() - 1) as f64
+    x >= 0.0 && y >= 0.0 && x <= img.max_x() && y <= img.max_y()
 }
 
 /// Median of a non-empty slice (reordered).
