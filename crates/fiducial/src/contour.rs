@@ -46,6 +46,10 @@ pub struct Labeller {
     /// The component of each run.
     run_component: Vec<u32>,
     components: Vec<Component>,
+    /// The row being added: its y and first run.
+    row: Option<(u32, usize)>,
+    /// The previous row: its y and runs.
+    prev: Option<(u32, usize, usize)>,
 }
 
 impl Labeller {
@@ -57,36 +61,68 @@ impl Labeller {
     /// Labels the dark components of `bin` (`width` bytes per row) and returns them in the
     /// raster order of their top-left pixel.
     pub fn label(&mut self, bin: &[u8], width: usize) -> &[Component] {
+        self.begin();
+        if width > 0 {
+            for (y, row) in bin.chunks_exact(width).enumerate() {
+                self.add_row(y as u32, 0, row);
+            }
+        }
+        self.finish()
+    }
+
+    /// Starts a labelling whose pixels come in pieces of rows ([`Labeller::add_row`]), for
+    /// [`Labeller::finish`]: the re-cut labels only the pixels it cut.
+    pub(crate) fn begin(&mut self) {
         self.runs.clear();
         self.parent.clear();
         self.components.clear();
-        if width == 0 {
-            return &self.components;
-        }
-        let mut prev_start = 0usize;
-        let mut prev_end = 0usize;
-        for (y, row) in bin.chunks_exact(width).enumerate() {
-            let row_start = self.runs.len();
-            let mut x = 0usize;
-            while x < width {
-                // Skip light pixels.
-                match first_where(&row[x..], true) {
-                    None => break,
-                    Some(off) => x += off,
-                }
-                let x0 = x;
-                x += first_where(&row[x..], false).unwrap_or(width - x);
-                let idx = self.runs.len() as u32;
-                self.runs.push(Run {
-                    y: y as u32,
-                    x0: x0 as u32,
-                    x1: x as u32,
-                });
-                self.parent.push(idx);
+        self.row = None;
+        self.prev = None;
+    }
+
+    /// Adds the dark runs of `pixels`, the pixels `x0 ..` of row `y`. Rows come in
+    /// increasing order and the pieces of a row from left to right, none touching the next
+    /// (a run never continues from one piece into the next); pixels not given are light.
+    #[inline]
+    pub(crate) fn add_row(&mut self, y: u32, x0: u32, pixels: &[u8]) {
+        match self.row {
+            Some((ry, _)) if ry == y => {}
+            _ => {
+                self.end_row();
+                self.row = Some((y, self.runs.len()));
             }
-            let row_end = self.runs.len();
-            // Join with overlapping runs of the previous row (8-connectivity: pixel ranges
-            // [a0, a1) and [b0, b1) touch when a0 <= b1 and b0 <= a1).
+        }
+        let width = pixels.len();
+        let mut x = 0usize;
+        while x < width {
+            // Skip light pixels.
+            match first_where(&pixels[x..], true) {
+                None => break,
+                Some(off) => x += off,
+            }
+            let start = x;
+            x += first_where(&pixels[x..], false).unwrap_or(width - x);
+            let idx = self.runs.len() as u32;
+            self.runs.push(Run {
+                y,
+                x0: x0 + start as u32,
+                x1: x0 + x as u32,
+            });
+            self.parent.push(idx);
+        }
+    }
+
+    /// Joins the current row's runs with the overlapping runs of the row above it, if that
+    /// was the previous row given (8-connectivity: pixel ranges [a0, a1) and [b0, b1) touch
+    /// when a0 <= b1 and b0 <= a1); the current row becomes the previous one.
+    fn end_row(&mut self) {
+        let Some((y, row_start)) = self.row.take() else {
+            return;
+        };
+        let row_end = self.runs.len();
+        if let Some((py, prev_start, prev_end)) = self.prev
+            && py + 1 == y
+        {
             let mut p = prev_start;
             for r in row_start..row_end {
                 let b = self.runs[r];
@@ -99,9 +135,14 @@ impl Labeller {
                     q += 1;
                 }
             }
-            prev_start = row_start;
-            prev_end = row_end;
         }
+        self.prev = Some((y, row_start, row_end));
+    }
+
+    /// Ends a labelling begun with [`Labeller::begin`] and returns its components in the
+    /// raster order of their top-left pixel.
+    pub(crate) fn finish(&mut self) -> &[Component] {
+        self.end_row();
         // Gather statistics per root, in order of each component's first run.
         self.slot.clear();
         self.slot.resize(self.runs.len(), u32::MAX);

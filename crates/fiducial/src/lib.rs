@@ -36,7 +36,9 @@
 //! (spec 3.4):
 //!
 //! 1. **Binarize** ([`threshold`]): local adaptive thresholds from 8 px tiles (minimum
-//!    contrast 30, so flat areas stay white) by default, or the paper's global Otsu.
+//!    contrast 30, so flat areas stay white) by default, or the paper's global Otsu. On
+//!    x86-64 its row loops are also compiled for AVX2 and chosen at run time when the CPU
+//!    has it (same bits; the crate's only `unsafe` is that call).
 //! 2. **Components and contours** ([`contour`]): run-length union-find labelling; dark
 //!    components too small (side < 10 px), too sparse or touching the frame border (2 px)
 //!    are dropped before their outer border is traced.
@@ -162,6 +164,7 @@ pub mod refine;
 pub mod render;
 pub mod roi;
 pub mod sides;
+mod simd;
 pub mod split;
 pub mod standard;
 pub mod threshold;

@@ -87,6 +87,9 @@ pub(crate) struct BoxTiles {
     /// Element-wise minimum and maximum of a tile row's pixel rows.
     row_min: Vec<u8>,
     row_max: Vec<u8>,
+    /// Per tile, row-major: the minimum and maximum over the 3 x 3 tiles around it.
+    lo: Vec<u8>,
+    hi: Vec<u8>,
 }
 
 impl BoxTiles {
@@ -132,20 +135,33 @@ impl BoxTiles {
                 *hi = b.iter().copied().fold(0, u8::max);
             }
         }
+        // The 3 x 3 neighbourhoods, separably: over the tile rows above, at and below, then
+        // over the tiles left, at and right (both cut to the box; a repeated tile changes
+        // no extreme, so clamping the index does the cutting).
+        self.lo.resize(tw * th, 0);
+        self.hi.resize(tw * th, 0);
+        let (vmin, vmax) = (&mut self.row_min[..tw], &mut self.row_max[..tw]);
+        for ty in 0..th {
+            let (u, d) = (ty.saturating_sub(1) * tw, (ty + 1).min(th - 1) * tw);
+            let t = ty * tw;
+            for tx in 0..tw {
+                vmin[tx] = self.min[u + tx].min(self.min[t + tx]).min(self.min[d + tx]);
+                vmax[tx] = self.max[u + tx].max(self.max[t + tx]).max(self.max[d + tx]);
+            }
+            for tx in 0..tw {
+                let (l, r) = (tx.saturating_sub(1), (tx + 1).min(tw - 1));
+                self.lo[t + tx] = vmin[l].min(vmin[tx]).min(vmin[r]);
+                self.hi[t + tx] = vmax[l].max(vmax[tx]).max(vmax[r]);
+            }
+        }
         (tw, th)
     }
 
     /// The minimum and maximum over the 3 x 3 tiles around tile `(tx, ty)` (cut to the box).
+    #[inline]
     pub(crate) fn around(&self, tx: usize, ty: usize) -> (u8, u8) {
-        let (tw, th) = (self.tw, self.th);
-        let (mut lo, mut hi) = (u8::MAX, 0u8);
-        for ny in ty.saturating_sub(1)..(ty + 2).min(th) {
-            for nx in tx.saturating_sub(1)..(tx + 2).min(tw) {
-                lo = lo.min(self.min[ny * tw + nx]);
-                hi = hi.max(self.max[ny * tw + nx]);
-            }
-        }
-        (lo, hi)
+        let i = ty * self.tw + tx;
+        (self.lo[i], self.hi[i])
     }
 }
 
@@ -240,49 +256,22 @@ impl Splitter {
                 if hi - lo < min_contrast {
                     continue;
                 }
-                let level = f64::from(lo) + cut * f64::from(hi - lo);
-                // In [lo, hi]: the rounding up stays a grey level.
-                self.tile_cut[ty * tw + tx] = level.ceil().clamp(0.0, 255.0) as u8;
+                // In [lo, hi]: the rounding up stays a grey level. Rounded up by a cast
+                // (exact for a non-negative level; `ceil` is a software call without
+                // SSE4.1).
+                let level = (f64::from(lo) + cut * f64::from(hi - lo)).clamp(0.0, 255.0);
+                let whole = level as u8;
+                self.tile_cut[ty * tw + tx] = whole + u8::from(f64::from(whole) < level);
             }
         }
-        // The re-cut, with a light frame of one pixel so that no component touches it.
+        // The re-cut, with a light frame of one pixel so that no component touches it. The
+        // buffer is all light between calls (what a call cuts dark it clears again), so
+        // only the pixels cut need writing and clearing.
         let (bw, bh) = (cw + 2, ch + 2);
-        self.bin.clear();
-        self.bin.resize(bw * bh, 0);
-        self.row_cut.clear();
-        self.row_cut.resize(cw, 0);
-        // With runs: those in the box, in order.
-        let mut runs = runs.map(|r| runs_in(r, x0, y0, x1, y1).peekable());
-        for y in 0..ch {
-            if y % TILE == 0 {
-                // Each tile's level spread over its pixels, so that the cut is one pass
-                // over whole rows (which vectorises).
-                let cuts = &self.tile_cut[(y / TILE) * tw..(y / TILE + 1) * tw];
-                for (chunk, &t) in self.row_cut.chunks_mut(TILE).zip(cuts) {
-                    chunk.fill(t);
-                }
-            }
-            let row = &img.row(y0 + y)[x0..=x1];
-            let out = &mut self.bin[(y + 1) * bw + 1..(y + 1) * bw + 1 + cw];
-            match runs.as_mut() {
-                Some(runs) => {
-                    while let Some((_, a, b)) = runs.next_if(|r| r.0 == y) {
-                        for ((o, &v), &t) in out[a..b]
-                            .iter_mut()
-                            .zip(&row[a..b])
-                            .zip(&self.row_cut[a..b])
-                        {
-                            *o = u8::from(v < t) * DARK;
-                        }
-                    }
-                }
-                None => {
-                    for ((o, &v), &t) in out.iter_mut().zip(row).zip(&self.row_cut) {
-                        *o = u8::from(v < t) * DARK;
-                    }
-                }
-            }
+        if self.bin.len() < bw * bh {
+            self.bin.resize(bw * bh, 0);
         }
+        cut_rows(self, img, runs, [x0, y0, x1, y1], tw);
         let m = params.border_margin.max(1) as usize;
         let min_side = params.min_side;
         let Self {
@@ -291,7 +280,7 @@ impl Splitter {
             contour,
             ..
         } = self;
-        for &c in labeller.label(sbin, bw) {
+        for &c in labeller.finish() {
             let cbw = c.x_max - c.x_min + 1;
             let cbh = c.y_max - c.y_min + 1;
             // Image coordinates of the component's box (the frame adds one pixel).
@@ -316,6 +305,58 @@ impl Splitter {
             };
             let (ox, oy) = (x0 as f64 - 1.0, y0 as f64 - 1.0);
             found(coarse.map(|[x, y]| [x + ox, y + oy]));
+        }
+        // Light again: every dark pixel is in a run of the labelling.
+        for (_, y, a, b) in labeller.runs() {
+            let row = y as usize * bw;
+            sbin[row + a as usize..row + b as usize].fill(0);
+        }
+    }
+}
+
+/// The cut of the re-cut's box `[x0, y0, x1, y1]` (inclusive; `tw` tiles across, levels in
+/// `tile_cut`): every pixel of `runs` there (every pixel of the box without runs) below its
+/// tile's level is dark in `s.bin` (framed, `x1 - x0 + 3` wide), and the labeller of `s` is
+/// given the cut pixels (a labelling begun, not finished).
+fn cut_rows(
+    s: &mut Splitter,
+    img: &GrayView<'_>,
+    runs: Option<&[[u32; 3]]>,
+    [x0, y0, x1, y1]: [usize; 4],
+    tw: usize,
+) {
+    let (cw, ch) = (x1 - x0 + 1, y1 - y0 + 1);
+    let bw = cw + 2;
+    s.row_cut.clear();
+    s.row_cut.resize(cw, 0);
+    // With runs: those in the box, in order.
+    let mut runs = runs.map(|r| runs_in(r, x0, y0, x1, y1).peekable());
+    s.labeller.begin();
+    for y in 0..ch {
+        if y % TILE == 0 {
+            // Each tile's level spread over its pixels, so that the cut is one pass over
+            // whole rows (which vectorises).
+            let cuts = &s.tile_cut[(y / TILE) * tw..(y / TILE + 1) * tw];
+            for (chunk, &t) in s.row_cut.chunks_mut(TILE).zip(cuts) {
+                chunk.fill(t);
+            }
+        }
+        let row = &img.row(y0 + y)[x0..=x1];
+        let out = &mut s.bin[(y + 1) * bw + 1..(y + 1) * bw + 1 + cw];
+        let mut cut_piece = |a: usize, b: usize| {
+            for ((o, &v), &t) in out[a..b].iter_mut().zip(&row[a..b]).zip(&s.row_cut[a..b]) {
+                *o = u8::from(v < t) * DARK;
+            }
+            s.labeller
+                .add_row((y + 1) as u32, (a + 1) as u32, &out[a..b]);
+        };
+        match runs.as_mut() {
+            Some(runs) => {
+                while let Some((_, a, b)) = runs.next_if(|r| r.0 == y) {
+                    cut_piece(a, b);
+                }
+            }
+            None => cut_piece(0, cw),
         }
     }
 }
@@ -422,8 +463,19 @@ mod tests {
             } else {
                 (Some(first.as_slice()), Some(runs.as_slice()), CUT, 0)
             };
-            s.cut_at(&img, runs, rect, &params, cut, min_contrast, |_| {});
-            prop_assert_eq!(s.bin.clone(), reference(&px, w, given, rect, cut, min_contrast));
+            // Twice on one splitter, so that what a call leaves behind would show.
+            for _ in 0..2 {
+                s.cut_at(&img, runs, rect, &params, cut, min_contrast, |_| {});
+                // The cut, from the runs the labeller was given (framed box coordinates).
+                let bw = (rect.x1 - rect.x0 + 3) as usize;
+                let mut cut_image = vec![0u8; bw * (rect.y1 - rect.y0 + 3) as usize];
+                for (_, y, a, b) in s.labeller.runs() {
+                    cut_image[y as usize * bw + a as usize..y as usize * bw + b as usize].fill(DARK);
+                }
+                prop_assert_eq!(cut_image, reference(&px, w, given, rect, cut, min_contrast));
+                // The cut's buffer is light again for the next box.
+                prop_assert!(s.bin.iter().all(|&v| v == 0));
+            }
         }
     }
 }
