@@ -104,18 +104,24 @@ pub(crate) fn sample_profile(img: &GrayView<'_>, start: [f64; 2], step: [f64; 2]
         }
         return;
     }
-    // Inside the frame, so truncation is floor; signed casts are single instructions.
     let mut t = 0.0;
     for v in out.iter_mut() {
-        let (x, y) = (start[0] + t * step[0], start[1] + t * step[1]);
-        let (xi, yi) = (x as i64, y as i64);
-        let (fx, fy) = (x - xi as f64, y - yi as f64);
-        let [a, b, c, d] = img.square(xi as usize, yi as usize).map(f64::from);
-        let top = a + (b - a) * fx;
-        let bot = c + (d - c) * fx;
-        *v = top + (bot - top) * fy;
+        *v = bilinear_inside(img, start[0] + t * step[0], start[1] + t * step[1]);
         t += 1.0;
     }
+}
+
+/// [`bilinear`] at a point of `[0, width - 1) x [0, height - 1)`, where it needs no
+/// clamping (the same value).
+#[inline]
+pub(crate) fn bilinear_inside(img: &GrayView<'_>, x: f64, y: f64) -> f64 {
+    // Non-negative, so truncation is floor; signed casts are single instructions.
+    let (xi, yi) = (x as i64, y as i64);
+    let (fx, fy) = (x - xi as f64, y - yi as f64);
+    let [a, b, c, d] = img.square(xi as usize, yi as usize).map(f64::from);
+    let top = a + (b - a) * fx;
+    let bot = c + (d - c) * fx;
+    top + (bot - top) * fy
 }
 
 /// Refines an edge position `pos` (profile coordinates: sample `k` is at `k * step - half`)
@@ -308,9 +314,9 @@ impl Refiner {
         cfg: &RefineConfig,
     ) -> Option<(Line, f64)> {
         let st = Stations::new(a, b, pass, cell, cfg)?;
-        let (mut mins, maxs) = self.sample_profiles(img, &st, pass);
+        let (mins, maxs) = self.sample_profiles(img, &st, pass);
         let m = st.count.min(MAX_LEVELS);
-        let levels = Levels::new(&mut mins[..m], &maxs[..m]);
+        let levels = Levels::new(&mins[..m], &maxs[..m]);
         let mut csum = 0.0;
         self.pts.clear();
         for (i, ([px, py], prof)) in self.profiles.iter().enumerate().take(m) {
@@ -356,10 +362,16 @@ impl Refiner {
                 [STEP * n[0], STEP * n[1]],
                 &mut prof[..=st.k_max],
             );
+            // Bilinear samples of bytes are never NaN, so plain comparisons give what
+            // `f64::min` and `max` would, without their NaN handling in the chain.
             let (mut plo, mut phi) = (f64::MAX, f64::MIN);
             for &v in &prof[..=st.k_max] {
-                plo = plo.min(v);
-                phi = phi.max(v);
+                if v < plo {
+                    plo = v;
+                }
+                if v > phi {
+                    phi = v;
+                }
             }
             if s < MAX_LEVELS {
                 mins[s] = plo;
@@ -498,6 +510,28 @@ impl Stations {
     }
 }
 
+/// The value of rank `len / 10` (0-based, in `f64::total_cmp` order) of at most
+/// [`MAX_LEVELS`] values: the low percentile the levels are taken at. The few smallest are
+/// kept sorted in a small array, which costs far less than a selection over the copy of all.
+fn tenth(v: &[f64]) -> f64 {
+    let rank = v.len() / 10;
+    let mut low = [f64::INFINITY; MAX_LEVELS / 10 + 1];
+    let low = &mut low[..=rank];
+    for (i, &x) in v.iter().enumerate() {
+        // Insert x among the `rank + 1` smallest so far (the last one drops out).
+        let mut j = i.min(rank);
+        if i > rank && x.total_cmp(&low[rank]).is_ge() {
+            continue;
+        }
+        while j > 0 && x.total_cmp(&low[j - 1]).is_lt() {
+            low[j] = low[j - 1];
+            j -= 1;
+        }
+        low[j] = x;
+    }
+    low[rank]
+}
+
 /// The dark and light levels of each station of a side.
 ///
 /// Stations next to a white data cell see a dark level lifted by blur (on small markers),
@@ -519,24 +553,13 @@ struct Levels {
 
 impl Levels {
     /// From the profile minima (reordered in place) and negated maxima of the stations.
-    fn new(mins: &mut [f64], maxs: &[f64]) -> Self {
+    fn new(mins: &[f64], maxs: &[f64]) -> Self {
         let m = mins.len();
-        let pct = |v: &mut [f64]| -> f64 {
-            let rank = v.len() / 10;
-            *v.select_nth_unstable_by(rank, |a: &f64, b: &f64| a.total_cmp(b))
-                .1
-        };
-        let lo_all = pct(mins);
-        let mut all = [0.0f64; MAX_LEVELS];
-        all[..m].copy_from_slice(&maxs[..m]);
-        let hi_all = -pct(&mut all[..m]);
+        let lo_all = tenth(mins);
+        let hi_all = -tenth(maxs);
         let half_m = m / 2;
         let (hi_a, hi_b, c_a, c_b) = if m >= 6 {
-            let mut a = [0.0f64; MAX_LEVELS];
-            let mut b = [0.0f64; MAX_LEVELS];
-            a[..half_m].copy_from_slice(&maxs[..half_m]);
-            b[..m - half_m].copy_from_slice(&maxs[half_m..m]);
-            let (ha, hb) = (-pct(&mut a[..half_m]), -pct(&mut b[..m - half_m]));
+            let (ha, hb) = (-tenth(&maxs[..half_m]), -tenth(&maxs[half_m..m]));
             // Only a clear gradient (over 8 % along the side) is followed; otherwise the
             // whole side's levels are steadier.
             if (ha - hb).abs() > 0.08 * hi_all {
@@ -601,6 +624,25 @@ pub(crate) fn edge_in_profile(prof: &[f64], half: f64, lo: f64, hi: f64) -> Opti
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    proptest::proptest! {
+        /// The levels' percentile is the value of rank `len / 10` of the sorted values.
+        #[test]
+        fn tenth_is_the_rank_of_a_tenth(
+            v in proptest::collection::vec(-300.0f64..300.0, 1..=MAX_LEVELS),
+            repeat in 0usize..4,
+        ) {
+            // Repeated values too, as flat profiles give.
+            let mut v = v;
+            let n = v.len();
+            for i in 0..n.min(repeat * 5) {
+                v[i] = v[i / 3];
+            }
+            let mut sorted = v.clone();
+            sorted.sort_by(f64::total_cmp);
+            proptest::prop_assert_eq!(tenth(&v).to_bits(), sorted[n / 10].to_bits());
+        }
+    }
 
     #[test]
     fn line_fit_and_intersection() {

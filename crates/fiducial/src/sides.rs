@@ -58,7 +58,7 @@ use crate::cross_ratio::CrossRatioFrame;
 use crate::decode::Decoded;
 use crate::family::MarkerFamily;
 use crate::image::GrayView;
-use crate::refine::bilinear;
+use crate::refine::{bilinear, bilinear_inside};
 
 /// Settings of the side check ([`crate::DetectorConfig::side_check`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -538,10 +538,45 @@ fn profile<const N: usize>(
     v: f64,
     spread: f64,
 ) -> Option<[f64; N]> {
+    profile_with::<N, true>(img, frame, to_ab, u0, u1, v, spread)
+}
+
+/// [`profile`], with `FAST` lines wholly inside the frame read without per-sample checks
+/// (without it, every sample is checked: the tests' reference).
+#[allow(clippy::too_many_arguments)]
+fn profile_with<const N: usize, const FAST: bool>(
+    img: &GrayView<'_>,
+    frame: &CrossRatioFrame,
+    to_ab: &impl Fn(f64, f64) -> (f64, f64),
+    u0: f64,
+    u1: f64,
+    v: f64,
+    spread: f64,
+) -> Option<[f64; N]> {
     let mut prof = [0.0f64; N];
     // The three lines, each a segment of the frame from u0 to u1.
     let line = |dv: f64| frame.segment(to_ab(u0, v + dv), to_ab(u1, v + dv));
     let lines = [line(-spread)?, line(0.0)?, line(spread)?];
+    // Lines whose ends lie inside the frame by a margin lie wholly inside it (a homography
+    // maps a segment that does not reach the horizon to a segment): their samples are read
+    // without the per-sample check and clamping (the same values).
+    let m = 1e-6;
+    let (xm, ym) = (img.max_x() - m, img.max_y() - m);
+    let within = |p: Option<nalgebra::Point2<f64>>| {
+        p.is_some_and(|q| q.x >= m && q.y >= m && q.x < xm && q.y < ym)
+    };
+    if FAST && lines.iter().all(|l| within(l.at(0.0)) && within(l.at(1.0))) {
+        for (j, p) in prof.iter_mut().enumerate() {
+            let f = j as f64 / (N - 1) as f64;
+            let mut sum = 0.0;
+            for l in &lines {
+                let q = l.at(f)?;
+                sum += bilinear_inside(img, q.x, q.y);
+            }
+            *p = sum / 3.0;
+        }
+        return Some(prof);
+    }
     for (j, p) in prof.iter_mut().enumerate() {
         let f = j as f64 / (N - 1) as f64;
         let mut sum = 0.0;
@@ -604,6 +639,7 @@ fn median(v: &mut [f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::Point2;
 
     #[test]
     fn normal_cdf_matches_known_values() {
@@ -624,6 +660,46 @@ mod tests {
         assert!(normal_cdf(f64::NAN).is_nan());
         assert_eq!(normal_cdf(f64::INFINITY), 1.0);
         assert_eq!(normal_cdf(f64::NEG_INFINITY), 0.0);
+    }
+
+    proptest::proptest! {
+        /// Profiles read on the fast path (lines wholly inside the frame) are bit for bit
+        /// those read sample by sample, and a profile leaving the frame is `None` on both.
+        #[test]
+        fn fast_profiles_match_the_checked_ones(
+            seed in proptest::prelude::any::<u64>(),
+            x0 in -10.0f64..40.0,
+            y0 in -10.0f64..40.0,
+            size in 4.0f64..40.0,
+            skew in -0.2f64..0.2,
+            side in 0usize..4,
+            v in 0.0f64..8.0,
+        ) {
+            let (w, h) = (48usize, 40usize);
+            let mut state = seed | 1;
+            let px: Vec<u8> = (0..w * h)
+                .map(|_| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    state as u8
+                })
+                .collect();
+            let img = GrayView::new(&px, w, h).unwrap();
+            let corners = [
+                Point2::new(x0, y0),
+                Point2::new(x0 + size, y0 + skew * size),
+                Point2::new(x0 + size * (1.0 + skew), y0 + size),
+                Point2::new(x0 - skew * size, y0 + size * (1.0 - skew)),
+            ];
+            let Ok(frame) = CrossRatioFrame::new(&corners) else {
+                return Ok(());
+            };
+            let to_ab = |u: f64, v: f64| side_to_ab(side, 8.0, 9.0, u, v);
+            let fast = profile_with::<SAMPLES, true>(&img, &frame, &to_ab, U0, U1, v, 0.25);
+            let checked = profile_with::<SAMPLES, false>(&img, &frame, &to_ab, U0, U1, v, 0.25);
+            proptest::prop_assert_eq!(fast.map(|p| p.map(f64::to_bits)), checked.map(|p| p.map(f64::to_bits)));
+        }
     }
 
     #[test]
