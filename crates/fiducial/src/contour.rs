@@ -123,26 +123,84 @@ impl Labeller {
         if let Some((py, prev_start, prev_end)) = self.prev
             && py + 1 == y
         {
-            let mut p = prev_start;
-            for r in row_start..row_end {
-                let b = self.runs[r];
-                while p < prev_end && self.runs[p].x1 < b.x0 {
-                    p += 1;
-                }
-                let mut q = p;
-                while q < prev_end && self.runs[q].x0 <= b.x1 {
-                    self.union(q as u32, r as u32);
-                    q += 1;
-                }
-            }
+            self.join((prev_start, prev_end), (row_start, row_end));
         }
         self.prev = Some((y, row_start, row_end));
+    }
+
+    /// Joins the runs `row_start .. row_end` of a row with the overlapping runs
+    /// `prev_start .. prev_end` of the row above it.
+    fn join(
+        &mut self,
+        (prev_start, prev_end): (usize, usize),
+        (row_start, row_end): (usize, usize),
+    ) {
+        let mut p = prev_start;
+        for r in row_start..row_end {
+            let b = self.runs[r];
+            while p < prev_end && self.runs[p].x1 < b.x0 {
+                p += 1;
+            }
+            let mut q = p;
+            while q < prev_end && self.runs[q].x0 <= b.x1 {
+                self.union(q as u32, r as u32);
+                q += 1;
+            }
+        }
     }
 
     /// Ends a labelling begun with [`Labeller::begin`] and returns its components in the
     /// raster order of their top-left pixel.
     pub(crate) fn finish(&mut self) -> &[Component] {
         self.end_row();
+        self.gather()
+    }
+
+    /// Starts a labelling of one horizontal band of a binary image (`rows`, whole rows of
+    /// `width` bytes, the first of them row `y0` of the image), for [`Labeller::merge`]:
+    /// its runs and their joins within the band, without the components.
+    pub(crate) fn label_band(&mut self, y0: usize, rows: &[u8], width: usize) {
+        self.begin();
+        if width > 0 {
+            for (i, row) in rows.chunks_exact(width).enumerate() {
+                self.add_row((y0 + i) as u32, 0, row);
+            }
+        }
+        self.end_row();
+    }
+
+    /// Labels a binary image from the labellings of its horizontal bands
+    /// ([`Labeller::label_band`], top to bottom, each band's first row following the last
+    /// one's): the same components, in the same order, and the same runs as
+    /// [`Labeller::label`] on the whole image. Only the runs of the rows where two bands
+    /// meet are joined here, and the components gathered; the scan of the pixels was the
+    /// bands' (on their own threads, [`crate::Detector::detect_parallel`]).
+    pub(crate) fn merge(&mut self, bands: &[Labeller]) -> &[Component] {
+        self.begin();
+        for band in bands {
+            let off = self.runs.len();
+            // The runs of the previous band's last row: the joins across the boundary.
+            let prev = self.runs.last().map(|last| {
+                let y = last.y;
+                let start = off - self.runs.iter().rev().take_while(|r| r.y == y).count();
+                (y, start, off)
+            });
+            self.runs.extend_from_slice(&band.runs);
+            self.parent
+                .extend(band.parent.iter().map(|&p| p + off as u32));
+            if let (Some((py, start, _)), Some(first)) = (prev, band.runs.first())
+                && py + 1 == first.y
+            {
+                let end = off + band.runs.iter().take_while(|r| r.y == first.y).count();
+                self.join((start, off), (off, end));
+            }
+        }
+        self.gather()
+    }
+
+    /// The components of the runs and their joins, in order of each component's first run
+    /// (`run_component` filled on the way).
+    fn gather(&mut self) -> &[Component] {
         // Gather statistics per root, in order of each component's first run.
         self.slot.clear();
         self.slot.resize(self.runs.len(), u32::MAX);
@@ -330,6 +388,48 @@ mod tests {
             .flat_map(|r| r.bytes().map(|b| u8::from(b == b'#')))
             .collect();
         (bin, w)
+    }
+
+    proptest::proptest! {
+        /// Labelling an image in horizontal bands and merging them gives the components,
+        /// their order and the runs of labelling it whole, wherever the bands are cut
+        /// (empty rows at a cut included).
+        #[test]
+        fn merged_bands_label_as_the_whole_image(
+            w in 1usize..24,
+            h in 1usize..24,
+            seed in proptest::prelude::any::<u64>(),
+            density in 1u64..6,
+            cuts in proptest::collection::vec(0usize..24, 0..4),
+        ) {
+            let mut state = seed | 1;
+            let bin: Vec<u8> = (0..w * h)
+                .map(|i| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    // Some blank rows, so that a cut can fall on one.
+                    u8::from(i / w % 5 != 4 && state % 7 < density)
+                })
+                .collect();
+            let mut whole = Labeller::new();
+            let expected = whole.label(&bin, w).to_vec();
+            let expected_runs: Vec<_> = whole.runs().collect();
+            let mut cuts: Vec<usize> = cuts.into_iter().map(|c| c % h).collect();
+            cuts.push(0);
+            cuts.push(h);
+            cuts.sort_unstable();
+            cuts.dedup();
+            let mut bands = vec![Labeller::new(); cuts.len() - 1];
+            for (band, pair) in bands.iter_mut().zip(cuts.windows(2)) {
+                band.label_band(pair[0], &bin[pair[0] * w..pair[1] * w], w);
+            }
+            let mut merged = Labeller::new();
+            // Twice on one labeller, so that stale state would show.
+            merged.label(&bin, w);
+            proptest::prop_assert_eq!(merged.merge(&bands).to_vec(), expected);
+            proptest::prop_assert_eq!(merged.runs().collect::<Vec<_>>(), expected_runs);
+        }
     }
 
     #[test]

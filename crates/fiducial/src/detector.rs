@@ -183,6 +183,12 @@ pub struct Detector {
     binarizer: Binarizer,
     bin: Vec<u8>,
     labeller: Labeller,
+    /// One labeller per band of [`Detector::detect_parallel`]'s binarization: each band's
+    /// rows are labelled on the thread that cut them, then merged into `labeller`.
+    band_labellers: Vec<Labeller>,
+    /// How many of `band_labellers` the last full-resolution scan used (0: none, the frame
+    /// was labelled whole).
+    bands_labelled: usize,
     contour: Vec<[i32; 2]>,
     refiner: Refiner,
     quads: Vec<Quad>,
@@ -268,6 +274,8 @@ impl Detector {
             binarizer: Binarizer::default(),
             bin: Vec::new(),
             labeller: Labeller::default(),
+            band_labellers: Vec::new(),
+            bands_labelled: 0,
             contour: Vec::new(),
             refiner: Refiner::default(),
             quads: Vec::new(),
@@ -522,9 +530,23 @@ impl Detector {
             self.contour.reserve(2 * (w + h) + 16);
             self.quads.reserve(64);
         }
-        if f == 1 {
-            self.binarizer
-                .binarize_parallel(img, cfg.threshold, &mut self.bin, self.bands);
+        self.bands_labelled = 0;
+        if f == 1 && self.bands > 1 {
+            // Each band's rows labelled on the thread that cut them, while they are in its
+            // cache; only the rows where bands meet are joined afterwards.
+            if self.band_labellers.len() < self.bands {
+                self.band_labellers
+                    .resize_with(self.bands, Labeller::default);
+            }
+            self.bands_labelled = self.binarizer.binarize_parallel_then(
+                img,
+                cfg.threshold,
+                &mut self.bin,
+                &mut self.band_labellers[..self.bands],
+                &|l: &mut Labeller, y0, rows: &[u8]| l.label_band(y0, rows, w),
+            );
+        } else if f == 1 {
+            self.binarizer.binarize(img, cfg.threshold, &mut self.bin);
         } else {
             crate::image::decimate(img, f, &mut self.small);
             let Ok(small) = GrayView::new(&self.small, w, h) else {
@@ -553,7 +575,12 @@ impl Detector {
             cells_across,
         };
         self.retry.clear();
-        let components = self.labeller.label(&self.bin, w);
+        let components = if self.bands_labelled > 0 {
+            self.labeller
+                .merge(&self.band_labellers[..self.bands_labelled])
+        } else {
+            self.labeller.label(&self.bin, w)
+        };
         self.retried.clear();
         self.retried.resize(components.len(), false);
         if self.bands > 1 {

@@ -82,8 +82,8 @@ pub struct Binarizer {
 }
 
 /// One band's work in [`Binarizer::binarize_parallel`]: its index, its rows of the output,
-/// its scratch.
-type CutBand<'a> = (usize, (&'a mut [u8], &'a mut Band));
+/// its scratch, its caller's state.
+type CutBand<'a, S> = (usize, ((&'a mut [u8], &'a mut Band), &'a mut S));
 
 /// The scratch rows one band of rows needs.
 #[derive(Debug, Default, Clone)]
@@ -144,7 +144,7 @@ impl Binarizer {
     /// Writes the binary image of `img` into `out` (`width * height` bytes, row-major,
     /// [`DARK`] for dark pixels, 0 for light). `out` keeps its capacity between calls.
     pub fn binarize(&mut self, img: &GrayView<'_>, threshold: Threshold, out: &mut Vec<u8>) {
-        self.run(img, threshold, out, 1);
+        self.run(img, threshold, out, 1, &mut [()], &|_, _, _| {});
     }
 
     /// [`Binarizer::binarize`] on up to `bands` threads of the current rayon pool (with the
@@ -164,10 +164,38 @@ impl Binarizer {
         out: &mut Vec<u8>,
         bands: usize,
     ) {
-        self.run(img, threshold, out, bands.max(1));
+        let mut none = vec![(); bands.max(1)];
+        self.run(img, threshold, out, bands.max(1), &mut none, &|_, _, _| {});
     }
 
-    fn run(&mut self, img: &GrayView<'_>, threshold: Threshold, out: &mut Vec<u8>, bands: usize) {
+    /// [`Binarizer::binarize_parallel`], and then, on the thread that cut each band and
+    /// while its rows are still in that thread's cache, `after(&mut states[b], y0, rows)`
+    /// with band `b`'s first row and its rows of the output (whole rows). Returns the
+    /// number of bands, `states.len()` at most (one band, the whole frame, with
+    /// [`Threshold::Otsu`]); the detector labels each band's rows this way.
+    pub(crate) fn binarize_parallel_then<S: Send>(
+        &mut self,
+        img: &GrayView<'_>,
+        threshold: Threshold,
+        out: &mut Vec<u8>,
+        states: &mut [S],
+        after: &(impl Fn(&mut S, usize, &[u8]) + Sync),
+    ) -> usize {
+        self.run(img, threshold, out, states.len().max(1), states, after)
+    }
+
+    /// Binarizes in up to `bands` bands (see [`Binarizer::binarize_parallel`]) and calls
+    /// `after` on each band's rows with its state (`states` has one per band); returns the
+    /// number of bands.
+    fn run<S: Send>(
+        &mut self,
+        img: &GrayView<'_>,
+        threshold: Threshold,
+        out: &mut Vec<u8>,
+        bands: usize,
+        states: &mut [S],
+        after: &(impl Fn(&mut S, usize, &[u8]) + Sync),
+    ) -> usize {
         let (w, h) = (img.width(), img.height());
         // Every byte of these is written below: resize only (no clear and refill).
         out.resize(w * h, 0);
@@ -177,7 +205,7 @@ impl Binarizer {
             Threshold::Otsu => None,
         };
         let (tx, ty) = (w.div_ceil(side), h.div_ceil(side));
-        let band_tiles = ty.div_ceil(bands.clamp(1, ty));
+        let band_tiles = ty.div_ceil(bands.min(states.len()).clamp(1, ty));
         let band_rows = band_tiles * side;
         let count = h.div_ceil(band_rows);
         if self.bands.len() < count {
@@ -197,7 +225,10 @@ impl Binarizer {
             for o in out.iter_mut() {
                 *o = u8::from(*o <= t);
             }
-            return;
+            if let Some(s) = states.first_mut() {
+                after(s, 0, out);
+            }
+            return 1;
         };
         let tiles = Tiles {
             side,
@@ -209,28 +240,35 @@ impl Binarizer {
         };
         if count == 1 {
             extremes_and_cut(img, &mut out[..], &tiles, (0, ty), &mut self.bands[0]);
-            return;
+            if let Some(s) = states.first_mut() {
+                after(s, 0, out);
+            }
+            return 1;
         }
         // Each band on its own thread, in one pass as on one thread: the tile extremes of
         // its tile rows (and of the row above and below it, which its neighbours compute
         // too), and the cut of each tile row as soon as the row below it is known.
-        let cut_band = |(b, (o, band)): CutBand<'_>| {
+        let cut_band = |(b, ((o, band), state)): CutBand<'_, S>| {
             let j0 = b * band_tiles;
             extremes_and_cut(img, o, &tiles, (j0, (j0 + band_tiles).min(ty)), band);
+            after(state, j0 * side, o);
         };
         #[cfg(feature = "parallel")]
         {
             use rayon::prelude::*;
             out.par_chunks_mut(band_rows * w)
                 .zip(self.bands.par_iter_mut())
+                .zip(states.par_iter_mut())
                 .enumerate()
                 .for_each(cut_band);
         }
         #[cfg(not(feature = "parallel"))]
         out.chunks_mut(band_rows * w)
             .zip(self.bands.iter_mut())
+            .zip(states.iter_mut())
             .enumerate()
             .for_each(cut_band);
+        count
     }
 
     /// The smoothed frame (3x3 box filter) of the last call with [`Threshold::Otsu`],
