@@ -313,7 +313,9 @@ impl Detector {
     }
 
     /// [`Detector::detect`] with binarization (the stage that reads every pixel) cut into
-    /// horizontal bands, and the components' tracing, quad fit, refinement and decoding
+    /// horizontal bands, each band's rows labelled on the thread that cut them (only the
+    /// rows where bands meet are joined afterwards), and the components' tracing, quad
+    /// fit, refinement and decoding
     /// (each quad read as soon as it is found), handed out one at a time, the largest first
     /// (the crate's `parallel` module), run on the threads of the current rayon pool (crate feature
     /// `parallel`; without it, this is [`Detector::detect`]). The output is identical

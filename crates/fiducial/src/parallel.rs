@@ -1,5 +1,6 @@
 //! The threaded parts of [`Detector::detect_parallel`](crate::Detector::detect_parallel)
-//! (issue #12) beyond banded binarization: the components of a frame are examined (traced,
+//! (issue #12) beyond banded binarization and labelling (each band's rows labelled on the
+//! thread that cut them, [`crate::contour::Labeller::merge`]): the components of a frame are examined (traced,
 //! fitted, refined) and the quads decoded by as many workers as there are threads, each
 //! with its own scratch. The work is handed out as it goes (an atomic counter over the
 //! items, the costliest first), so that a thread that drew cheap items takes more: a frame's
