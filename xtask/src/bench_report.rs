@@ -46,8 +46,12 @@ const TARGETS: &[Target] = &[
     },
     Target {
         id: "fiducial/detect_640x480",
-        target_ns: Some(350_000.0),
-        note: "target <= 0.35 ms (#12; was 1.0 ms); OpenCV ArUco 3.1 ms, AprilTag 3 8.5 ms",
+        target_ns: Some(1_000_000.0),
+        note: "eight markers of 20-120 px (the accuracy scene); target <= 1.0 ms. #12 sets its \
+               0.35 ms on the demo scene (`formation-sim/detect_full_640x480`); this scene took \
+               0.56 ms when #12 was written, before the occlusion checks (#16) and the pattern \
+               refinement (#13), whose costs the ratios below bound; OpenCV ArUco 3.1 ms, \
+               AprilTag 3 8.5 ms",
     },
     Target {
         id: "formation-sim/detect_full_640x480",
