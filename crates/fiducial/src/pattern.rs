@@ -55,8 +55,8 @@ use crate::cross_ratio::CrossRatioFrame;
 use crate::family::MarkerFamily;
 use crate::image::GrayView;
 use crate::refine::{
-    Line, PROFILE, RefineConfig, STEP, SideFrame, edge_in_profile, fit_line, intersect,
-    sample_profile,
+    Line, PROFILE, RefineConfig, STEP, SideFrame, bilinear_inside, edge_in_profile, fit_line,
+    intersect, sample_profile,
 };
 use crate::sides::normal_cdf;
 
@@ -369,6 +369,7 @@ impl PatternRefiner {
         self.values.clear();
         self.index.clear();
         let (rows, cols) = (cells.rows, cells.cols);
+        let (xm, ym) = (img.max_x(), img.max_y());
         for r in 0..rows {
             for (si, sy) in SUB.iter().enumerate() {
                 let v = r as f64 + 0.5 + sy;
@@ -378,7 +379,13 @@ impl PatternRefiner {
                         let u = c as f64 + 0.5 + sx;
                         let a = -1.0 + 2.0 * u / cols as f64;
                         let p = frame.map(a, b)?;
-                        let g = crate::refine::bilinear(img, p.x, p.y);
+                        // Inside the frame (the usual case) without the clamping; the same
+                        // value.
+                        let g = if p.x >= 0.0 && p.y >= 0.0 && p.x < xm && p.y < ym {
+                            bilinear_inside(img, p.x, p.y)
+                        } else {
+                            crate::refine::bilinear(img, p.x, p.y)
+                        };
                         self.values.push(g);
                         self.index
                             .push([(c * SUB.len() + sj) as u16, (r * SUB.len() + si) as u16]);
@@ -624,7 +631,12 @@ impl PatternRefiner {
                 [STEP * g.n[0], STEP * g.n[1]],
                 &mut prof[..=g.k_max],
             );
-            *mx = prof[..=g.k_max].iter().copied().fold(f64::MIN, f64::max);
+            // Bilinear samples of bytes are never NaN: a plain comparison gives `f64::max`'s
+            // answer without its NaN handling in the chain.
+            *mx = prof[..=g.k_max]
+                .iter()
+                .copied()
+                .fold(f64::MIN, |m, v| if v > m { v } else { m });
             self.profiles.push(prof);
             let (u, v) = (-1.0 + 2.0 * d / g.len, *mx);
             s1 += 1.0;
