@@ -104,27 +104,49 @@ impl BoxTiles {
         ch: usize,
         tile: usize,
     ) -> (usize, usize) {
+        self.compute_in(img, [x0, y0, cw, ch], tile, |_| (0, usize::MAX))
+    }
+
+    /// [`BoxTiles::compute`] where only the tiles `cols(ty)` (a range of tile columns,
+    /// cut to the box; empty for none) of each tile row `ty` are needed: the others are
+    /// left neutral (minimum 255, maximum 0), and [`BoxTiles::around`] is right for every
+    /// tile whose 3 x 3 neighbourhood lies in the ranges.
+    pub(crate) fn compute_in(
+        &mut self,
+        img: &GrayView<'_>,
+        [x0, y0, cw, ch]: [usize; 4],
+        tile: usize,
+        cols: impl Fn(usize) -> (usize, usize),
+    ) -> (usize, usize) {
         let (tw, th) = (cw.div_ceil(tile), ch.div_ceil(tile));
         (self.tw, self.th) = (tw, th);
-        self.min.resize(tw * th, 0);
+        self.min.clear();
+        self.min.resize(tw * th, u8::MAX);
+        self.max.clear();
         self.max.resize(tw * th, 0);
         self.row_min.resize(cw, 0);
         self.row_max.resize(cw, 0);
         // Element-wise over a tile row's pixel rows first (whole rows: this vectorises),
         // then each tile's columns.
         for ty in 0..th {
-            let (row_min, row_max) = (&mut self.row_min[..cw], &mut self.row_max[..cw]);
+            let (c0, c1) = cols(ty);
+            let c1 = c1.min(tw);
+            if c0 >= c1 {
+                continue;
+            }
+            let (p0, p1) = (c0 * tile, (c1 * tile).min(cw));
+            let (row_min, row_max) = (&mut self.row_min[p0..p1], &mut self.row_max[p0..p1]);
             row_min.fill(u8::MAX);
             row_max.fill(0);
             for y in ty * tile..((ty + 1) * tile).min(ch) {
-                let row = &img.row(y0 + y)[x0..x0 + cw];
+                let row = &img.row(y0 + y)[x0 + p0..x0 + p1];
                 for ((lo, hi), &v) in row_min.iter_mut().zip(row_max.iter_mut()).zip(row) {
                     *lo = (*lo).min(v);
                     *hi = (*hi).max(v);
                 }
             }
             let t = ty * tw;
-            let (mins, maxs) = (&mut self.min[t..t + tw], &mut self.max[t..t + tw]);
+            let (mins, maxs) = (&mut self.min[t + c0..t + c1], &mut self.max[t + c0..t + c1]);
             for (((a, b), lo), hi) in row_min
                 .chunks(tile)
                 .zip(row_max.chunks(tile))
@@ -173,6 +195,8 @@ pub struct Splitter {
     tiles: BoxTiles,
     /// Per tile: grey levels below this are cut dark.
     tile_cut: Vec<u8>,
+    /// Per tile row: the tile columns whose statistics the cut needs, `[first, end)`.
+    reach: Vec<(usize, usize)>,
     /// The levels of the current tile row, per pixel.
     row_cut: Vec<u8>,
     labeller: Labeller,
@@ -232,20 +256,35 @@ impl Splitter {
             return;
         }
         let (cw, ch) = (x1 - x0 + 1, y1 - y0 + 1);
-        // Tile statistics over the rectangle.
-        let (tw, th) = self.tiles.compute(img, x0, y0, cw, ch, TILE);
+        let (tw, th) = (cw.div_ceil(TILE), ch.div_ceil(TILE));
         // Each tile's cut as an integer: a grey level `v` is below `lo + cut (hi - lo)`
         // exactly when it is below that value rounded up (0 where nothing is cut).
         self.tile_cut.clear();
         self.tile_cut.resize(tw * th, 0);
         // With runs, only the tiles they cross need a level (elsewhere nothing is cut):
-        // `tile_cut` first marks them (1), then holds their levels.
+        // `tile_cut` first marks them (1), then holds their levels. Their neighbourhoods
+        // need tile statistics: per tile row, the columns of the tiles marked in it and the
+        // rows next to it, one more either side (`reach`, first and past-the-last column).
+        self.reach.clear();
         if let Some(runs) = runs {
+            self.reach.resize(th, (usize::MAX, 0));
             for (y, a, b) in runs_in(runs, x0, y0, x1, y1) {
-                let t = y / TILE * tw;
-                self.tile_cut[t + a / TILE..=t + (b - 1) / TILE].fill(1);
+                let ty = y / TILE;
+                let t = ty * tw;
+                let (ca, cb) = (a / TILE, (b - 1) / TILE);
+                self.tile_cut[t + ca..=t + cb].fill(1);
+                for r in ty.saturating_sub(1)..(ty + 2).min(th) {
+                    let span = &mut self.reach[r];
+                    *span = (span.0.min(ca.saturating_sub(1)), span.1.max(cb + 2));
+                }
             }
+        } else {
+            self.reach.resize(th, (0, tw));
         }
+        // Tile statistics over those tiles of the rectangle.
+        let reach = &self.reach;
+        self.tiles
+            .compute_in(img, [x0, y0, cw, ch], TILE, |ty| reach[ty]);
         for ty in 0..th {
             for tx in 0..tw {
                 if runs.is_some() && self.tile_cut[ty * tw + tx] == 0 {
