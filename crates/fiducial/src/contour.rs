@@ -402,16 +402,10 @@ mod tests {
             density in 1u64..6,
             cuts in proptest::collection::vec(0usize..24, 0..4),
         ) {
-            let mut state = seed | 1;
-            let bin: Vec<u8> = (0..w * h)
-                .map(|i| {
-                    state ^= state << 13;
-                    state ^= state >> 7;
-                    state ^= state << 17;
-                    // Some blank rows, so that a cut can fall on one.
-                    u8::from(i / w % 5 != 4 && state % 7 < density)
-                })
-                .collect();
+            let bin = crate::test_bytes(seed, w * h, |i, state| {
+                // Some blank rows, so that a cut can fall on one.
+                u8::from(i / w % 5 != 4 && state % 7 < density)
+            });
             let mut whole = Labeller::new();
             let expected = whole.label(&bin, w).to_vec();
             let expected_runs: Vec<_> = whole.runs().collect();

@@ -744,15 +744,9 @@ mod tests {
             step in 0.0f64..2.5,
             k in 0i32..=MAX_STEPS,
         ) {
-            let mut state = seed | 1;
-            let px: Vec<u8> = (0..w * h)
-                .map(|_| {
-                    state ^= state << 13;
-                    state ^= state >> 7;
-                    state ^= state << 17;
-                    state as u8
-                })
-                .collect();
+            let px = crate::test_bytes(seed, w * h, |_, state| {
+                state as u8
+            });
             let img = GrayView::new(&px, w, h).unwrap();
             let fast = square_mean(&img, [cx, cy], step, k);
             let checked = square_mean_checked(&img, [cx, cy], step, k);

@@ -231,15 +231,9 @@ mod tests {
         ) {
             // A strided view, so that rows are read through the stride.
             let stride = w + pad;
-            let mut state = seed | 1;
-            let data: Vec<u8> = (0..stride * h)
-                .map(|_| {
-                    state ^= state << 13;
-                    state ^= state >> 7;
-                    state ^= state << 17;
-                    state as u8
-                })
-                .collect();
+            let data = crate::test_bytes(seed, stride * h, |_, state| {
+                state as u8
+            });
             let img = GrayView::with_stride(&data, w, h, stride).unwrap();
             let mut out = vec![7u8; 1000];
             decimate(&img, f, &mut out);

@@ -186,3 +186,18 @@ pub use crate::standard::{
     StandardDictionary, canonical_name, dictionary_by_name, dictionary_names, standard_dictionaries,
 };
 pub use crate::threshold::{Threshold, rgb_to_gray, rgba_to_gray};
+
+/// `n` seeded bytes for the crate's property tests: `f(i, r)` of each index `i` and the
+/// `i`-th number `r` of a xorshift64 sequence started from `seed`.
+#[cfg(test)]
+pub(crate) fn test_bytes(seed: u64, n: usize, mut f: impl FnMut(usize, u64) -> u8) -> Vec<u8> {
+    let mut state = seed | 1;
+    (0..n)
+        .map(|i| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            f(i, state)
+        })
+        .collect()
+}

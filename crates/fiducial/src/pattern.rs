@@ -831,15 +831,9 @@ mod tests {
             skew in -3.0f64..3.0,
         ) {
             let w = 80usize;
-            let mut state = seed | 1;
-            let pixels: Vec<u8> = (0..w * w)
-                .map(|_| {
-                    state ^= state << 13;
-                    state ^= state >> 7;
-                    state ^= state << 17;
-                    (state >> 56) as u8
-                })
-                .collect();
+            let pixels = crate::test_bytes(seed, w * w, |_, state| {
+                (state >> 56) as u8
+            });
             let mut q = square(x0, y0, side);
             q[2][0] += skew;
             q[3][1] -= skew;

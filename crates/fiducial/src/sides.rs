@@ -230,7 +230,7 @@ pub fn side_offsets(
             // this side, `v` cells along it (v measured in the data cell's own position).
             let kf = f64::from(k) + 1.5; // centre of the cell, border cell counted
             let to_ab = |u: f64, v: f64| side_to_ab(side, wc, hc, u, v);
-            let Some(prof) = profile::<SAMPLES>(img, &frame, &to_ab, U0, U1, kf, 0.25) else {
+            let Some(prof) = profile::<SAMPLES, true>(img, &frame, &to_ab, U0, U1, kf, 0.25) else {
                 continue;
             };
             // Darkest sample of the first half (inside the border), lightest of the second
@@ -471,7 +471,7 @@ fn outer_edges(
         let cells = along as usize;
         for k in [0, 1, cells.saturating_sub(2), cells.saturating_sub(1)] {
             let v = k as f64 + 0.5;
-            let Some(prof) = profile::<N>(img, frame, &to_ab, UO, UI, v, 0.15) else {
+            let Some(prof) = profile::<N, true>(img, frame, &to_ab, UO, UI, v, 0.15) else {
                 continue;
             };
             // Lightest sample of the outer half, darkest of the inner (the border).
@@ -529,22 +529,12 @@ fn side_to_ab(side: usize, wc: f64, hc: f64, u: f64, v: f64) -> (f64, f64) {
 /// lines `spread` cells apart. `None` if a sample falls outside the frame. `to_ab` must be
 /// affine (as [`side_to_ab`] is): each line is then a segment of the frame's homography,
 /// mapped end to end ([`CrossRatioFrame::segment`]).
-fn profile<const N: usize>(
-    img: &GrayView<'_>,
-    frame: &CrossRatioFrame,
-    to_ab: &impl Fn(f64, f64) -> (f64, f64),
-    u0: f64,
-    u1: f64,
-    v: f64,
-    spread: f64,
-) -> Option<[f64; N]> {
-    profile_with::<N, true>(img, frame, to_ab, u0, u1, v, spread)
-}
-
-/// [`profile`], with `FAST` lines wholly inside the frame read without per-sample checks
-/// (without it, every sample is checked: the tests' reference).
+///
+/// With `FAST` (the detector's), lines wholly inside the frame are read without the
+/// per-sample check and clamping; without it every sample is checked (the tests'
+/// reference).
 #[allow(clippy::too_many_arguments)]
-fn profile_with<const N: usize, const FAST: bool>(
+fn profile<const N: usize, const FAST: bool>(
     img: &GrayView<'_>,
     frame: &CrossRatioFrame,
     to_ab: &impl Fn(f64, f64) -> (f64, f64),
@@ -676,15 +666,9 @@ mod tests {
             v in 0.0f64..8.0,
         ) {
             let (w, h) = (48usize, 40usize);
-            let mut state = seed | 1;
-            let px: Vec<u8> = (0..w * h)
-                .map(|_| {
-                    state ^= state << 13;
-                    state ^= state >> 7;
-                    state ^= state << 17;
-                    state as u8
-                })
-                .collect();
+            let px = crate::test_bytes(seed, w * h, |_, state| {
+                state as u8
+            });
             let img = GrayView::new(&px, w, h).unwrap();
             let corners = [
                 Point2::new(x0, y0),
@@ -696,8 +680,8 @@ mod tests {
                 return Ok(());
             };
             let to_ab = |u: f64, v: f64| side_to_ab(side, 8.0, 9.0, u, v);
-            let fast = profile_with::<SAMPLES, true>(&img, &frame, &to_ab, U0, U1, v, 0.25);
-            let checked = profile_with::<SAMPLES, false>(&img, &frame, &to_ab, U0, U1, v, 0.25);
+            let fast = profile::<SAMPLES, true>(&img, &frame, &to_ab, U0, U1, v, 0.25);
+            let checked = profile::<SAMPLES, false>(&img, &frame, &to_ab, U0, U1, v, 0.25);
             proptest::prop_assert_eq!(fast.map(|p| p.map(f64::to_bits)), checked.map(|p| p.map(f64::to_bits)));
         }
     }

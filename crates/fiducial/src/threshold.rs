@@ -963,15 +963,9 @@ mod tests {
             two_level in proptest::prelude::any::<bool>(),
         ) {
             // Random bytes, or two levels (so that the line rule fires often).
-            let mut state = seed | 1;
-            let img: Vec<u8> = (0..w * h)
-                .map(|_| {
-                    state ^= state << 13;
-                    state ^= state >> 7;
-                    state ^= state << 17;
-                    if two_level { if state & 1 == 0 { 20 } else { 230 } } else { state as u8 }
-                })
-                .collect();
+            let img = crate::test_bytes(seed, w * h, |_, state| {
+                if two_level { if state & 1 == 0 { 20 } else { 230 } } else { state as u8 }
+            });
             let view = GrayView::new(&img, w, h).unwrap();
             // The row kernel the binarizer runs (levels into the output, means kept), twice
             // on one scratch with a larger frame in between, so stale contents would show.
@@ -1011,17 +1005,11 @@ mod tests {
             otsu in proptest::prelude::any::<bool>(),
             seed in proptest::prelude::any::<u64>(),
         ) {
-            let mut state = seed | 1;
-            let img: Vec<u8> = (0..w * h)
-                .map(|i| {
-                    state ^= state << 13;
-                    state ^= state >> 7;
-                    state ^= state << 17;
-                    // Blocks of two levels with noise, so that both cuts fire.
-                    let base = if (i % w / 7 + i / w / 5) % 2 == 0 { 40 } else { 210 };
-                    (base + (state % 16) as u32) as u8
-                })
-                .collect();
+            let img = crate::test_bytes(seed, w * h, |i, state| {
+                // Blocks of two levels with noise, so that both cuts fire.
+                let base = if (i % w / 7 + i / w / 5) % 2 == 0 { 40 } else { 210 };
+                (base + (state % 16) as u32) as u8
+            });
             let t = if otsu {
                 Threshold::Otsu
             } else {
@@ -1052,19 +1040,13 @@ mod tests {
             min_contrast in 0u8..60,
             seed in proptest::prelude::any::<u64>(),
         ) {
-            let mut state = seed | 1;
-            let img: Vec<u8> = (0..w * h)
-                .map(|i| {
-                    state ^= state << 13;
-                    state ^= state >> 7;
-                    state ^= state << 17;
-                    // Blocks of two levels with noise and thin lines, so that every test
-                    // of the cut fires.
-                    let base = if (i % w / 9 + i / w / 6) % 2 == 0 { 30 } else { 220 };
-                    let line = if i % w % 13 == 0 { 0 } else { base };
-                    (line + (state % 24) as u32) as u8
-                })
-                .collect();
+            let img = crate::test_bytes(seed, w * h, |i, state| {
+                // Blocks of two levels with noise and thin lines, so that every test
+                // of the cut fires.
+                let base = if (i % w / 9 + i / w / 6) % 2 == 0 { 30 } else { 220 };
+                let line = if i % w % 13 == 0 { 0 } else { base };
+                (line + (state % 24) as u32) as u8
+            });
             let view = GrayView::new(&img, w, h).unwrap();
             let t = Threshold::Adaptive { tile_size: tile, min_contrast };
             let dispatched = binarize(&img, w, h, t);
