@@ -18,7 +18,9 @@
 //! only their own pixels (the labeller's runs of them), box by box (the union of the boxes
 //! when their areas add up to more than the frame): a darker cut's components are parts of
 //! the first cut's, so a marker already found or a speck inside the box could only give
-//! parts of itself. Levels are computed only for the tiles those pixels cross. A frame in
+//! parts of itself. Levels are computed only for the tiles those pixels cross (tile
+//! statistics only for their 3 x 3 neighbourhoods), and only the pixels cut are labelled
+//! (the labeller takes them piece by piece, not the whole box). A frame in
 //! which every large component was a quad (the synthetic marker scenes) pays nothing; a
 //! cluttered frame pays about one more quad-finding pass, plus the
 //! refinement of the new quads the re-cut finds (on the clutter frames of the accuracy
@@ -190,7 +192,9 @@ impl BoxTiles {
 /// Scratch buffers of the re-cut, reused from frame to frame.
 #[derive(Debug, Default, Clone)]
 pub struct Splitter {
-    /// The re-cut binary image of one rectangle, with a light frame of one pixel.
+    /// The re-cut binary image of one rectangle, with a light frame of one pixel; all
+    /// light between calls (a call clears what it cut dark), so that a box needs no
+    /// clearing of its own.
     bin: Vec<u8>,
     tiles: BoxTiles,
     /// Per tile: grey levels below this are cut dark.
