@@ -61,13 +61,9 @@ impl Labeller {
     /// Labels the dark components of `bin` (`width` bytes per row) and returns them in the
     /// raster order of their top-left pixel.
     pub fn label(&mut self, bin: &[u8], width: usize) -> &[Component] {
-        self.begin();
-        if width > 0 {
-            for (y, row) in bin.chunks_exact(width).enumerate() {
-                self.add_row(y as u32, 0, row);
-            }
-        }
-        self.finish()
+        // The whole image is one band.
+        self.label_band(0, bin, width);
+        self.gather()
     }
 
     /// Starts a labelling whose pixels come in pieces of rows ([`Labeller::add_row`]), for
@@ -157,8 +153,9 @@ impl Labeller {
     }
 
     /// Starts a labelling of one horizontal band of a binary image (`rows`, whole rows of
-    /// `width` bytes, the first of them row `y0` of the image), for [`Labeller::merge`]:
-    /// its runs and their joins within the band, without the components.
+    /// `width` bytes, the first of them row `y0` of the image), for [`Labeller::merge`]
+    /// ([`Labeller::label`] labels a whole image as one band): its runs and their joins
+    /// within the band, without the components.
     pub(crate) fn label_band(&mut self, y0: usize, rows: &[u8], width: usize) {
         self.begin();
         if width > 0 {

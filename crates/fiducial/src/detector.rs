@@ -315,10 +315,10 @@ impl Detector {
     /// [`Detector::detect`] with binarization (the stage that reads every pixel) cut into
     /// horizontal bands, each band's rows labelled on the thread that cut them (only the
     /// rows where bands meet are joined afterwards), and the components' tracing, quad
-    /// fit, refinement and decoding
-    /// (each quad read as soon as it is found), handed out one at a time, the largest first
-    /// (the crate's `parallel` module), run on the threads of the current rayon pool (crate feature
-    /// `parallel`; without it, this is [`Detector::detect`]). The output is identical
+    /// fit, refinement and decoding (each quad read as soon as it is found) handed out one
+    /// at a time, the largest first (the crate's `parallel` module), run on the threads of
+    /// the current rayon pool (crate feature `parallel`; without it, this is
+    /// [`Detector::detect`]). The output is identical
     /// to [`Detector::detect`]'s (a test checks it). Frames under a megapixel are detected on
     /// the calling thread alone, where the threads' start-up costs more than they save;
     /// single-threaded [`Detector::detect`] stays the default. Unlike it, this may allocate

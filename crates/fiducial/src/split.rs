@@ -83,9 +83,8 @@ pub(crate) struct BoxTiles {
     /// Per tile, row-major.
     min: Vec<u8>,
     max: Vec<u8>,
-    /// Tiles per row and per column.
+    /// Tiles per row.
     tw: usize,
-    th: usize,
     /// Element-wise minimum and maximum of a tile row's pixel rows.
     row_min: Vec<u8>,
     row_max: Vec<u8>,
@@ -121,7 +120,7 @@ impl BoxTiles {
         cols: impl Fn(usize) -> (usize, usize),
     ) -> (usize, usize) {
         let (tw, th) = (cw.div_ceil(tile), ch.div_ceil(tile));
-        (self.tw, self.th) = (tw, th);
+        self.tw = tw;
         self.min.clear();
         self.min.resize(tw * th, u8::MAX);
         self.max.clear();
@@ -314,7 +313,7 @@ impl Splitter {
         if self.bin.len() < bw * bh {
             self.bin.resize(bw * bh, 0);
         }
-        cut_rows(self, img, runs, [x0, y0, x1, y1], tw);
+        self.cut_rows(img, runs, [x0, y0, x1, y1], tw);
         let m = params.border_margin.max(1) as usize;
         let min_side = params.min_side;
         let Self {
@@ -355,51 +354,55 @@ impl Splitter {
             sbin[row + a as usize..row + b as usize].fill(0);
         }
     }
-}
 
-/// The cut of the re-cut's box `[x0, y0, x1, y1]` (inclusive; `tw` tiles across, levels in
-/// `tile_cut`): every pixel of `runs` there (every pixel of the box without runs) below its
-/// tile's level is dark in `s.bin` (framed, `x1 - x0 + 3` wide), and the labeller of `s` is
-/// given the cut pixels (a labelling begun, not finished).
-fn cut_rows(
-    s: &mut Splitter,
-    img: &GrayView<'_>,
-    runs: Option<&[[u32; 3]]>,
-    [x0, y0, x1, y1]: [usize; 4],
-    tw: usize,
-) {
-    let (cw, ch) = (x1 - x0 + 1, y1 - y0 + 1);
-    let bw = cw + 2;
-    s.row_cut.clear();
-    s.row_cut.resize(cw, 0);
-    // With runs: those in the box, in order.
-    let mut runs = runs.map(|r| runs_in(r, x0, y0, x1, y1).peekable());
-    s.labeller.begin();
-    for y in 0..ch {
-        if y % TILE == 0 {
-            // Each tile's level spread over its pixels, so that the cut is one pass over
-            // whole rows (which vectorises).
-            let cuts = &s.tile_cut[(y / TILE) * tw..(y / TILE + 1) * tw];
-            for (chunk, &t) in s.row_cut.chunks_mut(TILE).zip(cuts) {
-                chunk.fill(t);
-            }
-        }
-        let row = &img.row(y0 + y)[x0..=x1];
-        let out = &mut s.bin[(y + 1) * bw + 1..(y + 1) * bw + 1 + cw];
-        let mut cut_piece = |a: usize, b: usize| {
-            for ((o, &v), &t) in out[a..b].iter_mut().zip(&row[a..b]).zip(&s.row_cut[a..b]) {
-                *o = u8::from(v < t) * DARK;
-            }
-            s.labeller
-                .add_row((y + 1) as u32, (a + 1) as u32, &out[a..b]);
-        };
-        match runs.as_mut() {
-            Some(runs) => {
-                while let Some((_, a, b)) = runs.next_if(|r| r.0 == y) {
-                    cut_piece(a, b);
+    /// The cut of the re-cut's box `[x0, y0, x1, y1]` (inclusive; `tw` tiles across, levels in
+    /// `tile_cut`): every pixel of `runs` there (every pixel of the box without runs) below its
+    /// tile's level is dark in `bin` (framed, `x1 - x0 + 3` wide), and the labeller is given
+    /// the cut pixels (a labelling begun, not finished).
+    fn cut_rows(
+        &mut self,
+        img: &GrayView<'_>,
+        runs: Option<&[[u32; 3]]>,
+        [x0, y0, x1, y1]: [usize; 4],
+        tw: usize,
+    ) {
+        let (cw, ch) = (x1 - x0 + 1, y1 - y0 + 1);
+        let bw = cw + 2;
+        self.row_cut.clear();
+        self.row_cut.resize(cw, 0);
+        // With runs: those in the box, in order.
+        let mut runs = runs.map(|r| runs_in(r, x0, y0, x1, y1).peekable());
+        self.labeller.begin();
+        for y in 0..ch {
+            if y % TILE == 0 {
+                // Each tile's level spread over its pixels, so that the cut is one pass over
+                // whole rows (which vectorises).
+                let cuts = &self.tile_cut[(y / TILE) * tw..(y / TILE + 1) * tw];
+                for (chunk, &t) in self.row_cut.chunks_mut(TILE).zip(cuts) {
+                    chunk.fill(t);
                 }
             }
-            None => cut_piece(0, cw),
+            let row = &img.row(y0 + y)[x0..=x1];
+            let out = &mut self.bin[(y + 1) * bw + 1..(y + 1) * bw + 1 + cw];
+            let mut cut_piece = |a: usize, b: usize| {
+                for ((o, &v), &t) in out[a..b]
+                    .iter_mut()
+                    .zip(&row[a..b])
+                    .zip(&self.row_cut[a..b])
+                {
+                    *o = u8::from(v < t) * DARK;
+                }
+                self.labeller
+                    .add_row((y + 1) as u32, (a + 1) as u32, &out[a..b]);
+            };
+            match runs.as_mut() {
+                Some(runs) => {
+                    while let Some((_, a, b)) = runs.next_if(|r| r.0 == y) {
+                        cut_piece(a, b);
+                    }
+                }
+                None => cut_piece(0, cw),
+            }
         }
     }
 }
