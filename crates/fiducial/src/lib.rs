@@ -164,7 +164,6 @@ pub mod refine;
 pub mod render;
 pub mod roi;
 pub mod sides;
-mod simd;
 pub mod split;
 pub mod standard;
 pub mod threshold;

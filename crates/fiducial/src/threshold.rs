@@ -144,7 +144,7 @@ impl Binarizer {
     /// Writes the binary image of `img` into `out` (`width * height` bytes, row-major,
     /// [`DARK`] for dark pixels, 0 for light). `out` keeps its capacity between calls.
     pub fn binarize(&mut self, img: &GrayView<'_>, threshold: Threshold, out: &mut Vec<u8>) {
-        self.run(img, threshold, out, 1, &mut [()], &|_, _, _| {});
+        self.run(img, threshold, out, &mut [()], &|_, _, _| {});
     }
 
     /// [`Binarizer::binarize`] on up to `bands` threads of the current rayon pool (with the
@@ -164,8 +164,9 @@ impl Binarizer {
         out: &mut Vec<u8>,
         bands: usize,
     ) {
+        // One (empty, allocation-free) state per band.
         let mut none = vec![(); bands.max(1)];
-        self.run(img, threshold, out, bands.max(1), &mut none, &|_, _, _| {});
+        self.run(img, threshold, out, &mut none, &|_, _, _| {});
     }
 
     /// [`Binarizer::binarize_parallel`], and then, on the thread that cut each band and
@@ -181,18 +182,16 @@ impl Binarizer {
         states: &mut [S],
         after: &(impl Fn(&mut S, usize, &[u8]) + Sync),
     ) -> usize {
-        self.run(img, threshold, out, states.len().max(1), states, after)
+        self.run(img, threshold, out, states, after)
     }
 
-    /// Binarizes in up to `bands` bands (see [`Binarizer::binarize_parallel`]) and calls
-    /// `after` on each band's rows with its state (`states` has one per band); returns the
-    /// number of bands.
+    /// Binarizes in up to `states.len()` bands (see [`Binarizer::binarize_parallel`]) and
+    /// calls `after` on each band's rows with its state; returns the number of bands.
     fn run<S: Send>(
         &mut self,
         img: &GrayView<'_>,
         threshold: Threshold,
         out: &mut Vec<u8>,
-        bands: usize,
         states: &mut [S],
         after: &(impl Fn(&mut S, usize, &[u8]) + Sync),
     ) -> usize {
@@ -205,7 +204,7 @@ impl Binarizer {
             Threshold::Otsu => None,
         };
         let (tx, ty) = (w.div_ceil(side), h.div_ceil(side));
-        let band_tiles = ty.div_ceil(bands.min(states.len()).clamp(1, ty));
+        let band_tiles = ty.div_ceil(states.len().clamp(1, ty));
         let band_rows = band_tiles * side;
         let count = h.div_ceil(band_rows);
         if self.bands.len() < count {
@@ -364,23 +363,48 @@ fn levels_rows(
     }
 }
 
-crate::simd::with_avx2! {
-    /// The adaptive binarization of tile rows `j0 .. j1` (`out` holds their pixel rows) on one
-    /// thread: each tile row's extremes (from the row above `j0` to the row below `j1 - 1`, into
-    /// the band's whole-frame tile arrays), and the cut of the tile row above it as soon as they
-    /// are known (its pixels are then still in cache).
-    ///
-    /// Compiled twice on x86-64: for the baseline (SSE2) and for AVX2, which the CPU is asked
-    /// for at run time (the 16-bit loops then take 16 pixels at a time; binarization of a
-    /// 640x480 frame takes about a quarter less time). The code is the same and integer-only,
-    /// so both give the same bits (a test compares them).
-    fn extremes_and_cut(
-        img: &GrayView<'_>,
-        out: &mut [u8],
-        tiles: &Tiles,
-        rows: (usize, usize),
-        band: &mut Band,
-    ) = extremes_and_cut_body;
+/// The adaptive binarization of tile rows `j0 .. j1` (`out` holds their pixel rows) on one
+/// thread: each tile row's extremes (from the row above `j0` to the row below `j1 - 1`, into
+/// the band's whole-frame tile arrays), and the cut of the tile row above it as soon as they
+/// are known (its pixels are then still in cache).
+///
+/// Compiled twice on x86-64: for the baseline (SSE2) and for AVX2, which the CPU is asked
+/// for at run time (std caches the answer): the 16-bit loops then take 16 pixels at a time,
+/// and binarization of the demo frame at 640x480 took 62 us instead of 82. The code is the
+/// same source, inlined into each, and integer-only, so both give the same bits (a proptest
+/// compares them). The labeller's row scan and the re-cut's tiles and cut were tried the
+/// same way and gained nothing measurable. The call below is the crate's only `unsafe`.
+fn extremes_and_cut(
+    img: &GrayView<'_>,
+    out: &mut [u8],
+    tiles: &Tiles,
+    rows: (usize, usize),
+    band: &mut Band,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2 (checked at run time just above), which is all that
+        // calling a function compiled with `target_feature(enable = "avx2")` requires.
+        #[allow(unsafe_code)]
+        unsafe {
+            extremes_and_cut_avx2(img, out, tiles, rows, band);
+        }
+        return;
+    }
+    extremes_and_cut_body(img, out, tiles, rows, band);
+}
+
+/// [`extremes_and_cut_body`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn extremes_and_cut_avx2(
+    img: &GrayView<'_>,
+    out: &mut [u8],
+    tiles: &Tiles,
+    rows: (usize, usize),
+    band: &mut Band,
+) {
+    extremes_and_cut_body(img, out, tiles, rows, band);
 }
 
 /// The body of [`extremes_and_cut`], inlined (with what it calls) into each compilation.
@@ -1030,7 +1054,7 @@ mod tests {
 
     proptest::proptest! {
         /// The compilation chosen at run time (AVX2 on a CPU that has it, see
-        /// `crate::simd`) gives the bits of the baseline one, called directly here. On a
+        /// `extremes_and_cut`) gives the bits of the baseline one, called directly here. On a
         /// CPU without AVX2 both are the baseline and this checks nothing more.
         #[test]
         fn avx2_and_baseline_binarizations_agree(
