@@ -287,11 +287,7 @@ impl Sampler<'_, '_> {
 fn square_mean(img: &GrayView<'_>, centre: [f64; 2], step: f64, k: i32) -> Option<f64> {
     let at = |c: f64, i: i32| c + f64::from(i) * step;
     let [cx, cy] = centre;
-    if !(at(cx, -k) >= 0.0
-        && at(cy, -k) >= 0.0
-        && at(cx, k) < img.max_x()
-        && at(cy, k) < img.max_y())
-    {
+    if !(img.within(at(cx, -k), at(cy, -k)) && img.within(at(cx, k), at(cy, k))) {
         return square_mean_checked(img, centre, step, k);
     }
     // Every sample inside with a right and a lower neighbour: the columns' pixels and

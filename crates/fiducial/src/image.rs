@@ -125,6 +125,13 @@ impl<'a> GrayView<'a> {
         f64::from((self.height - 1) as u32)
     }
 
+    /// Whether `(x, y)` lies in `[0, width - 1) x [0, height - 1)`: its 2 x 2 bilinear
+    /// square ([`GrayView::square`]) is inside the image, with no clamping (false for NaN).
+    #[inline]
+    pub(crate) fn within(&self, x: f64, y: f64) -> bool {
+        x >= 0.0 && y >= 0.0 && x < self.max_x() && y < self.max_y()
+    }
+
     /// Width in pixels.
     pub fn width(&self) -> usize {
         self.width

@@ -55,8 +55,8 @@ use crate::cross_ratio::CrossRatioFrame;
 use crate::family::MarkerFamily;
 use crate::image::GrayView;
 use crate::refine::{
-    Line, PROFILE, RefineConfig, STEP, SideFrame, bilinear_inside, edge_in_profile, fit_line,
-    intersect, sample_profile,
+    Line, PROFILE, RefineConfig, STEP, SideFrame, edge_in_profile, fit_line, intersect,
+    sample_profile,
 };
 use crate::sides::normal_cdf;
 
@@ -369,7 +369,6 @@ impl PatternRefiner {
         self.values.clear();
         self.index.clear();
         let (rows, cols) = (cells.rows, cells.cols);
-        let (xm, ym) = (img.max_x(), img.max_y());
         for r in 0..rows {
             for (si, sy) in SUB.iter().enumerate() {
                 let v = r as f64 + 0.5 + sy;
@@ -379,13 +378,7 @@ impl PatternRefiner {
                         let u = c as f64 + 0.5 + sx;
                         let a = -1.0 + 2.0 * u / cols as f64;
                         let p = frame.map(a, b)?;
-                        // Inside the frame (the usual case) without the clamping; the same
-                        // value.
-                        let g = if p.x >= 0.0 && p.y >= 0.0 && p.x < xm && p.y < ym {
-                            bilinear_inside(img, p.x, p.y)
-                        } else {
-                            crate::refine::bilinear(img, p.x, p.y)
-                        };
+                        let g = crate::refine::bilinear(img, p.x, p.y);
                         self.values.push(g);
                         self.index
                             .push([(c * SUB.len() + sj) as u16, (r * SUB.len() + si) as u16]);

@@ -74,6 +74,10 @@ impl Default for RefineConfig {
 /// Bilinear grey level at `(x, y)` (pixel-centre convention), clamped to the frame.
 #[inline]
 pub fn bilinear(img: &GrayView<'_>, x: f64, y: f64) -> f64 {
+    if img.within(x, y) {
+        // Nothing to clamp (the same value).
+        return bilinear_inside(img, x, y);
+    }
     // Clamped to >= 0, so truncation is floor (and NaN becomes 0); a signed cast is one
     // instruction, an unsigned one several.
     let x = x.max(0.0).min(img.max_x());
@@ -95,9 +99,7 @@ pub fn bilinear(img: &GrayView<'_>, x: f64, y: f64) -> f64 {
 pub(crate) fn sample_profile(img: &GrayView<'_>, start: [f64; 2], step: [f64; 2], out: &mut [f64]) {
     let last = (out.len().max(1) - 1) as f64;
     let end = [start[0] + last * step[0], start[1] + last * step[1]];
-    let (w, h) = (img.max_x(), img.max_y());
-    let inside = |p: [f64; 2]| p[0] >= 0.0 && p[1] >= 0.0 && p[0] < w && p[1] < h;
-    if !(inside(start) && inside(end)) {
+    if !(img.within(start[0], start[1]) && img.within(end[0], end[1])) {
         for (k, v) in out.iter_mut().enumerate() {
             let t = k as f64;
             *v = bilinear(img, start[0] + t * step[0], start[1] + t * step[1]);

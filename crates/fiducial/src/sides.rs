@@ -551,9 +551,8 @@ fn profile<const N: usize, const FAST: bool>(
     // maps a segment that does not reach the horizon to a segment): their samples are read
     // without the per-sample check and clamping (the same values).
     let m = 1e-6;
-    let (xm, ym) = (img.max_x() - m, img.max_y() - m);
     let within = |p: Option<nalgebra::Point2<f64>>| {
-        p.is_some_and(|q| q.x >= m && q.y >= m && q.x < xm && q.y < ym)
+        p.is_some_and(|q| img.within(q.x - m, q.y - m) && img.within(q.x + m, q.y + m))
     };
     if FAST && lines.iter().all(|l| within(l.at(0.0)) && within(l.at(1.0))) {
         for (j, p) in prof.iter_mut().enumerate() {
