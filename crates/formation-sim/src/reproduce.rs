@@ -2,12 +2,14 @@
 //! the paper's dual UKF on request) run over a simulated [`Scenario`], step records, and the
 //! figures of merit.
 
-use formation_tracker::filter::{FilterConfig, FilterDesign, FilterError, FormationFilter};
-use nalgebra::{Vector2, Vector3};
+use formation_tracker::filter::{
+    FilterConfig, FilterDesign, FilterError, FilterStep, FormationFilter,
+};
+use nalgebra::{Matrix3, Vector2, Vector3};
 use serde::Serialize;
 use unicycle::{PolarModel, PolarState, wrap_angle};
 
-use crate::scenario::{PAPER_X0, Scenario, ScenarioConfig, ScenarioError, simulate};
+use crate::scenario::{PAPER_X0, Sample, Scenario, ScenarioConfig, ScenarioError, simulate};
 
 /// Errors of a reproduction run.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -18,6 +20,11 @@ pub enum ReproduceError {
     /// The formation filter failed.
     #[error(transparent)]
     Filter(#[from] FilterError),
+    /// Smoothing was asked of a [`FilterRun`] that kept no history of these records.
+    #[error(
+        "no filter history to smooth: the run was made without keeping one (FilterRun::new with keep_history = false), or the records are not the run's"
+    )]
+    NoHistory,
 }
 
 /// The filter configuration of the reproduction: the paper's initial state `x0` with the
@@ -136,71 +143,118 @@ pub struct MeanSquareErrors {
 impl MeanSquareErrors {
     /// Accumulates `records` (angles wrapped, see [`StepRecord::estimation_error`]).
     pub fn of<'a>(records: impl IntoIterator<Item = &'a StepRecord>) -> Self {
-        let mut est = [0.0; 5];
-        let mut meas = [0.0; 3];
-        let (mut late, mut n_late) = ([0.0; 2], 0usize);
-        let (mut estimated, mut measured) = (0usize, 0usize);
+        let mut tally = ErrorTally::default();
         for r in records {
-            let e = r.estimation_error();
-            let errors = [
-                e[0],
-                e[1],
-                e[2],
-                r.v1_estimated - r.v1_true,
-                r.w1_estimated - r.w1_true,
-            ];
-            if errors.iter().all(|v| v.is_finite()) {
-                for (acc, x) in est.iter_mut().zip(errors) {
-                    *acc += x * x;
-                }
-                estimated += 1;
-                if r.t > 2.0 {
-                    late[0] += errors[3] * errors[3];
-                    late[1] += errors[4] * errors[4];
-                    n_late += 1;
-                }
+            tally.push(r);
+        }
+        tally.finish()
+    }
+}
+
+/// [`MeanSquareErrors`] accumulated one record at a time, in constant memory (the same sums
+/// in the same order as [`MeanSquareErrors::of`], so the same figures to the bit).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ErrorTally {
+    est: [f64; 5],
+    meas: [f64; 3],
+    late: [f64; 2],
+    n_late: usize,
+    estimated: usize,
+    measured: usize,
+}
+
+impl ErrorTally {
+    /// Adds one record.
+    pub fn push(&mut self, r: &StepRecord) {
+        let e = r.estimation_error();
+        let errors = [
+            e[0],
+            e[1],
+            e[2],
+            r.v1_estimated - r.v1_true,
+            r.w1_estimated - r.w1_true,
+        ];
+        if errors.iter().all(|v| v.is_finite()) {
+            for (acc, x) in self.est.iter_mut().zip(errors) {
+                *acc += x * x;
             }
-            let m = r.measurement_error();
-            if m.iter().all(|v| v.is_finite()) {
-                for (acc, x) in meas.iter_mut().zip(m.iter()) {
-                    *acc += x * x;
-                }
-                measured += 1;
+            self.estimated += 1;
+            if r.t > 2.0 {
+                self.late[0] += errors[3] * errors[3];
+                self.late[1] += errors[4] * errors[4];
+                self.n_late += 1;
             }
         }
+        let m = r.measurement_error();
+        if m.iter().all(|v| v.is_finite()) {
+            for (acc, x) in self.meas.iter_mut().zip(m.iter()) {
+                *acc += x * x;
+            }
+            self.measured += 1;
+        }
+    }
+
+    /// The means of what was pushed (zeros for nothing).
+    pub fn finish(&self) -> MeanSquareErrors {
         let (ne, nm, nl) = (
-            estimated.max(1) as f64,
-            measured.max(1) as f64,
-            n_late.max(1) as f64,
+            self.estimated.max(1) as f64,
+            self.measured.max(1) as f64,
+            self.n_late.max(1) as f64,
         );
-        Self {
-            estimate: est.map(|v| v / ne),
-            measurement: meas.map(|v| v / nm),
-            estimated,
-            measured,
-            rms_velocity_after_2s: late.map(|v| (v / nl).sqrt()),
+        MeanSquareErrors {
+            estimate: self.est.map(|v| v / ne),
+            measurement: self.meas.map(|v| v / nm),
+            estimated: self.estimated,
+            measured: self.measured,
+            rms_velocity_after_2s: self.late.map(|v| (v / nl).sqrt()),
         }
     }
 }
 
-/// Computes the [`Summary`] of a run's records.
+/// The figures of a run ([`Summary`]) from its step records.
 pub fn summarize(records: &[StepRecord], seed: u64, bias: bool) -> Summary {
-    let m = MeanSquareErrors::of(records);
-    Summary {
-        mse_l12: m.estimate[0],
-        mse_alpha12: m.estimate[1],
-        mse_beta12: m.estimate[2],
-        mse_v1: m.estimate[3],
-        mse_w1: m.estimate[4],
-        mse_meas_l12: m.measurement[0],
-        mse_meas_alpha12: m.measurement[1],
-        mse_meas_beta12: m.measurement[2],
-        rms_v1_after_2s: m.rms_velocity_after_2s[0],
-        rms_w1_after_2s: m.rms_velocity_after_2s[1],
-        steps: records.len(),
-        mse_from_t: records.first().map_or(0.0, |r| r.t),
-        seed,
-        bias,
+    let mut tally = SummaryTally::default();
+    for r in records {
+        tally.push(r);
+    }
+    tally.finish(seed, bias)
+}
+
+/// [`summarize`] one record at a time, in constant memory (the same figures to the bit).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SummaryTally {
+    errors: ErrorTally,
+    steps: usize,
+    first_t: Option<f64>,
+}
+
+impl SummaryTally {
+    /// Adds one record.
+    pub fn push(&mut self, r: &StepRecord) {
+        self.errors.push(r);
+        self.steps += 1;
+        self.first_t.get_or_insert(r.t);
+    }
+
+    /// The summary of what was pushed.
+    pub fn finish(&self, seed: u64, bias: bool) -> Summary {
+        let m = self.errors.finish();
+        Summary {
+            mse_l12: m.estimate[0],
+            mse_alpha12: m.estimate[1],
+            mse_beta12: m.estimate[2],
+            mse_v1: m.estimate[3],
+            mse_w1: m.estimate[4],
+            mse_meas_l12: m.measurement[0],
+            mse_meas_alpha12: m.measurement[1],
+            mse_meas_beta12: m.measurement[2],
+            rms_v1_after_2s: m.rms_velocity_after_2s[0],
+            rms_w1_after_2s: m.rms_velocity_after_2s[1],
+            steps: self.steps,
+            mse_from_t: self.first_t.unwrap_or(0.0),
+            seed,
+            bias,
+        }
     }
 }
 
@@ -267,20 +321,90 @@ pub fn run_filter_with(
     config: &FilterConfig,
     follower_controller: bool,
 ) -> Result<Reproduction, ReproduceError> {
-    let mut filter = FormationFilter::new(config)?;
-    let r = scenario.config.noise_covariance();
+    let mut run = FilterRun::new(config, &scenario.config, follower_controller, true)?;
     let mut records = Vec::with_capacity(scenario.samples.len());
     let mut consistency = Vec::with_capacity(scenario.samples.len());
-    let mut history = Vec::with_capacity(scenario.samples.len());
-    history.push(filter.record(unicycle::Inputs::new(0.0, 0.0), None));
-    for pair in scenario.samples.windows(2) {
-        let (prev, now) = (&pair[0], &pair[1]);
-        if follower_controller {
+    for sample in &scenario.samples {
+        if let Some((record, stats)) = run.push(sample)? {
+            records.push(record);
+            consistency.push(stats);
+        }
+    }
+    let (seed, bias) = (scenario.config.seed, scenario.config.bias.is_some());
+    let summary = summarize(&records, seed, bias);
+    let smoothed_records = run.smoothed_records(&records)?;
+    let smoothed_summary = summarize(&smoothed_records, seed, bias);
+    Ok(Reproduction {
+        scenario: scenario.config.clone(),
+        records,
+        consistency,
+        summary,
+        smoothed_records,
+        smoothed_summary,
+    })
+}
+
+/// The formation filter run over a scenario one sample at a time, as [`run_filter_with`]
+/// does (the same records to the bit), for runs too long to hold: it keeps only the filter
+/// and, if asked, the history the offline smoother needs (one [`FilterStep`] per step, about
+/// 1.4 kB), so without the smoother its memory does not grow with the duration.
+pub struct FilterRun {
+    filter: FormationFilter,
+    r: Matrix3<f64>,
+    follower_controller: bool,
+    previous: Option<Sample>,
+    history: Option<Vec<FilterStep>>,
+}
+
+impl FilterRun {
+    /// A run of the filter `config` over samples of a scenario with configuration
+    /// `scenario` (its measurement noise is the filter's `R`); with `follower_controller` the
+    /// filter is told the follower's controller at each step (see [`run_filter_with`]); with
+    /// `keep_history` every step is recorded for [`Self::smoothed_records`].
+    ///
+    /// # Errors
+    /// A filter configuration [`FormationFilter::new`] refuses.
+    pub fn new(
+        config: &FilterConfig,
+        scenario: &ScenarioConfig,
+        follower_controller: bool,
+        keep_history: bool,
+    ) -> Result<Self, ReproduceError> {
+        let filter = FormationFilter::new(config)?;
+        let history =
+            keep_history.then(|| vec![filter.record(unicycle::Inputs::new(0.0, 0.0), None)]);
+        Ok(Self {
+            filter,
+            r: scenario.noise_covariance(),
+            follower_controller,
+            previous: None,
+            history,
+        })
+    }
+
+    /// Feeds the next sample. The first sample (`t = 0`) only starts the run and gives
+    /// `None`; every later one is filtered (the follower's inputs and controller of the
+    /// previous sample over the step, this sample's measurement) and gives its record and
+    /// consistency statistics.
+    ///
+    /// # Errors
+    /// A [`ReproduceError::Filter`] from the filter's step.
+    pub fn push(
+        &mut self,
+        now: &Sample,
+    ) -> Result<Option<(StepRecord, StepConsistency)>, ReproduceError> {
+        let Some(prev) = self.previous.replace(now.clone()) else {
+            return Ok(None);
+        };
+        let filter = &mut self.filter;
+        if self.follower_controller {
             // The follower knows its own controller: the IMM's models B and C use it.
             filter.set_follower_controller(Some(prev.controller))?;
         }
-        filter.step(&now.measurement, &r, prev.follower_inputs)?;
-        history.push(filter.record(prev.follower_inputs, Some((now.measurement, r))));
+        filter.step(&now.measurement, &self.r, prev.follower_inputs)?;
+        if let Some(history) = &mut self.history {
+            history.push(filter.record(prev.follower_inputs, Some((now.measurement, self.r))));
+        }
         let w = filter.leader_velocity();
         let w_std = filter.leader_velocity_std();
         let ex = wrapped_error(&PolarModel::h(filter.state()), &PolarModel::h(&now.truth));
@@ -290,12 +414,12 @@ pub fn run_filter_with(
             .into_owned();
         let ew = Vector2::new(w.v - prev.leader_inputs.v, w.w - prev.leader_inputs.w);
         let pw = *filter.leader_velocity_covariance();
-        consistency.push(StepConsistency {
+        let stats = StepConsistency {
             nis: filter.last_nis().unwrap_or(f64::NAN),
             nees_formation: px.try_inverse().map_or(f64::NAN, |inv| ex.dot(&(inv * ex))),
             nees_velocity: pw.try_inverse().map_or(f64::NAN, |inv| ew.dot(&(inv * ew))),
-        });
-        records.push(StepRecord {
+        };
+        let record = StepRecord {
             t: now.t,
             truth: PolarModel::h(&now.truth),
             measured: now.measurement,
@@ -307,34 +431,43 @@ pub fn run_filter_with(
             w1_estimated: w.w,
             v1_std: w_std[0],
             w1_std: w_std[1],
-        });
+        };
+        Ok(Some((record, stats)))
     }
-    let (seed, bias) = (scenario.config.seed, scenario.config.bias.is_some());
-    let summary = summarize(&records, seed, bias);
-    // history[0] is the prior at t = 0, which has no record.
-    let smoothed = filter.smooth(&history)?;
-    let smoothed_records: Vec<StepRecord> = records
-        .iter()
-        .zip(&smoothed[1..])
-        .map(|(r, s)| StepRecord {
-            estimated: PolarModel::h(&s.state),
-            estimated_std: s.formation_std(),
-            v1_estimated: s.velocity.v,
-            w1_estimated: s.velocity.w,
-            v1_std: s.velocity_std()[0],
-            w1_std: s.velocity_std()[1],
-            ..r.clone()
-        })
-        .collect();
-    let smoothed_summary = summarize(&smoothed_records, seed, bias);
-    Ok(Reproduction {
-        scenario: scenario.config.clone(),
-        records,
-        consistency,
-        summary,
-        smoothed_records,
-        smoothed_summary,
-    })
+
+    /// The `records` this run gave (all of them, in order), with the estimates of the
+    /// offline smoother ([`FormationFilter::smooth`], run backwards over the recorded pass)
+    /// in place of the causal ones; everything else as recorded.
+    ///
+    /// # Errors
+    /// [`ReproduceError::NoHistory`] for a run made without `keep_history` or records that
+    /// are not this run's; a [`ReproduceError::Filter`] from the smoother.
+    pub fn smoothed_records(
+        &self,
+        records: &[StepRecord],
+    ) -> Result<Vec<StepRecord>, ReproduceError> {
+        let Some(history) = &self.history else {
+            return Err(ReproduceError::NoHistory);
+        };
+        // history[0] is the prior at t = 0, which has no record.
+        if history.len() != records.len() + 1 {
+            return Err(ReproduceError::NoHistory);
+        }
+        let smoothed = self.filter.smooth(history)?;
+        Ok(records
+            .iter()
+            .zip(&smoothed[1..])
+            .map(|(r, s)| StepRecord {
+                estimated: PolarModel::h(&s.state),
+                estimated_std: s.formation_std(),
+                v1_estimated: s.velocity.v,
+                w1_estimated: s.velocity.w,
+                v1_std: s.velocity_std()[0],
+                w1_std: s.velocity_std()[1],
+                ..r.clone()
+            })
+            .collect())
+    }
 }
 
 /// The reproduction of the paper's Figs. 12-13: the reference scenario with `seed` (and the

@@ -185,75 +185,153 @@ pub fn simulate_scheduled(
     leader_inputs: impl Fn(f64) -> Inputs,
     setpoints: &[SetpointChange],
 ) -> Result<Scenario, ScenarioError> {
-    let n = config.steps();
-    if n == 0 || !config.dt.is_finite() {
-        return Err(ScenarioError::NoSteps {
-            duration: config.duration,
-            dt: config.dt,
-        });
-    }
-    let mut noise = Vec::with_capacity(3);
-    for (index, &s) in config.noise_std.iter().enumerate() {
-        // Normal::new refuses only non-finite deviations; a negative one is refused here.
-        let invalid = ScenarioError::InvalidNoise { index, value: s };
-        if s < 0.0 {
-            return Err(invalid);
-        }
-        noise.push(Normal::new(0.0, s).map_err(|_| invalid)?);
-    }
-    let bias = config.bias.unwrap_or([0.0; 3]);
-    let model = PolarModel::new(config.d)?;
-    let start = Formation::from_poses(&config.leader0, &config.follower0, config.d)?;
-    let mut goal = ControllerConfig::hold(&start);
-    let mut controller = SeparationBearingController::new(config.d, goal)?;
-    let mut schedule: Vec<&SetpointChange> = setpoints.iter().collect();
-    schedule.sort_by(|a, b| a.at.total_cmp(&b.at));
-    let mut next_change = 0;
-    let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
-
-    let mut leader = config.leader0;
-    let mut follower = config.follower0;
-    let mut samples = Vec::with_capacity(n + 1);
-    for k in 0..=n {
-        let t = k as f64 * config.dt;
-        let truth = model.state_from_poses(&leader, &follower)?;
-        let formation = Formation::from_vector(&PolarModel::h(&truth));
-        let mut changed = false;
-        while let Some(change) = schedule.get(next_change).filter(|c| t >= c.at) {
-            goal.l12_desired = change.l12.unwrap_or(goal.l12_desired);
-            goal.alpha12_desired = change.alpha12.unwrap_or(goal.alpha12_desired);
-            next_change += 1;
-            changed = true;
-        }
-        if changed {
-            controller = SeparationBearingController::new(config.d, goal)?;
-        }
-        let u1 = leader_inputs(t);
-        let u2 = controller.inputs(&formation, u1)?;
-        let mut y = PolarModel::h(&truth);
-        for i in 0..3 {
-            y[i] += bias[i] + noise[i].sample(&mut rng);
-        }
-        y[1] = wrap_angle(y[1]);
-        y[2] = wrap_angle(y[2]);
-        samples.push(Sample {
-            t,
-            truth,
-            follower,
-            leader_inputs: u1,
-            follower_inputs: u2,
-            measurement: y,
-            controller: goal,
-        });
-        if k < n {
-            leader = leader.integrate_exact(u1, config.dt)?;
-            follower = follower.integrate_exact(u2, config.dt)?;
-        }
+    let simulation = Simulation::new(config, leader_inputs, setpoints)?;
+    let mut samples = Vec::with_capacity(config.steps() + 1);
+    for sample in simulation {
+        samples.push(sample?);
     }
     Ok(Scenario {
         config: config.clone(),
         samples,
     })
+}
+
+/// A scenario simulated one sample at a time: the same samples as [`simulate_scheduled`]
+/// (which collects them), in the same order, from the same random stream, but in constant
+/// memory whatever the duration. `reproduce dukf` filters a scenario of hours through it.
+///
+/// Yields `config.steps() + 1` samples (`t = 0, dt, ..., duration`); after an error it
+/// yields nothing more.
+pub struct Simulation<F> {
+    config: ScenarioConfig,
+    leader_inputs: F,
+    noise: [Normal<f64>; 3],
+    bias: [f64; 3],
+    model: PolarModel,
+    goal: ControllerConfig,
+    controller: SeparationBearingController,
+    schedule: Vec<SetpointChange>,
+    next_change: usize,
+    rng: ChaCha8Rng,
+    leader: Pose,
+    follower: Pose,
+    /// The next sample's index `k`; `None` once finished or failed.
+    k: Option<usize>,
+    n: usize,
+}
+
+impl<F: Fn(f64) -> Inputs> Simulation<F> {
+    /// Checks `config` and sets up the run; nothing is simulated yet.
+    ///
+    /// # Errors
+    /// As [`simulate_scheduled`] for the configuration itself (no step, a bad noise
+    /// deviation, a degenerate start, a set-point the controller refuses at the start).
+    pub fn new(
+        config: &ScenarioConfig,
+        leader_inputs: F,
+        setpoints: &[SetpointChange],
+    ) -> Result<Self, ScenarioError> {
+        let n = config.steps();
+        if n == 0 || !config.dt.is_finite() {
+            return Err(ScenarioError::NoSteps {
+                duration: config.duration,
+                dt: config.dt,
+            });
+        }
+        let normal = |index: usize| {
+            let s = config.noise_std[index];
+            // Normal::new refuses only non-finite deviations; a negative one is refused here.
+            let invalid = ScenarioError::InvalidNoise { index, value: s };
+            if s < 0.0 {
+                return Err(invalid);
+            }
+            Normal::new(0.0, s).map_err(|_| invalid)
+        };
+        let noise = [normal(0)?, normal(1)?, normal(2)?];
+        let model = PolarModel::new(config.d)?;
+        let start = Formation::from_poses(&config.leader0, &config.follower0, config.d)?;
+        let goal = ControllerConfig::hold(&start);
+        let controller = SeparationBearingController::new(config.d, goal)?;
+        let mut schedule = setpoints.to_vec();
+        schedule.sort_by(|a, b| a.at.total_cmp(&b.at));
+        Ok(Self {
+            config: config.clone(),
+            leader_inputs,
+            noise,
+            bias: config.bias.unwrap_or([0.0; 3]),
+            model,
+            goal,
+            controller,
+            schedule,
+            next_change: 0,
+            rng: ChaCha8Rng::seed_from_u64(config.seed),
+            leader: config.leader0,
+            follower: config.follower0,
+            k: Some(0),
+            n,
+        })
+    }
+
+    /// The scenario's configuration.
+    pub fn config(&self) -> &ScenarioConfig {
+        &self.config
+    }
+
+    /// Sample `k`, and the poses moved on to step `k + 1`.
+    fn sample(&mut self, k: usize) -> Result<Sample, ScenarioError> {
+        let dt = self.config.dt;
+        let t = k as f64 * dt;
+        let truth = self.model.state_from_poses(&self.leader, &self.follower)?;
+        let formation = Formation::from_vector(&PolarModel::h(&truth));
+        let mut changed = false;
+        while let Some(change) = self.schedule.get(self.next_change).filter(|c| t >= c.at) {
+            self.goal.l12_desired = change.l12.unwrap_or(self.goal.l12_desired);
+            self.goal.alpha12_desired = change.alpha12.unwrap_or(self.goal.alpha12_desired);
+            self.next_change += 1;
+            changed = true;
+        }
+        if changed {
+            self.controller = SeparationBearingController::new(self.config.d, self.goal)?;
+        }
+        let u1 = (self.leader_inputs)(t);
+        let u2 = self.controller.inputs(&formation, u1)?;
+        let mut y = PolarModel::h(&truth);
+        for i in 0..3 {
+            y[i] += self.bias[i] + self.noise[i].sample(&mut self.rng);
+        }
+        y[1] = wrap_angle(y[1]);
+        y[2] = wrap_angle(y[2]);
+        let sample = Sample {
+            t,
+            truth,
+            follower: self.follower,
+            leader_inputs: u1,
+            follower_inputs: u2,
+            measurement: y,
+            controller: self.goal,
+        };
+        if k < self.n {
+            self.leader = self.leader.integrate_exact(u1, dt)?;
+            self.follower = self.follower.integrate_exact(u2, dt)?;
+        }
+        Ok(sample)
+    }
+}
+
+impl<F: Fn(f64) -> Inputs> Iterator for Simulation<F> {
+    type Item = Result<Sample, ScenarioError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let k = self.k?;
+        let sample = self.sample(k);
+        self.k = (sample.is_ok() && k < self.n).then_some(k + 1);
+        Some(sample)
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        let left = self.k.map_or(0, |k| self.n + 1 - k);
+        (left, Some(left))
+    }
 }
 
 #[cfg(test)]

@@ -45,7 +45,7 @@ use unicycle::{Inputs, PolarState, Pose};
 
 use crate::reproduce::{ReproduceError, Reproduction, run_filter};
 use crate::scenario::{
-    PAPER_BIAS, PAPER_X0, Scenario, ScenarioConfig, ScenarioError, SetpointChange,
+    PAPER_BIAS, PAPER_X0, Scenario, ScenarioConfig, ScenarioError, SetpointChange, Simulation,
     simulate_scheduled,
 };
 use crate::scene::CameraSpec;
@@ -596,20 +596,39 @@ impl ScenarioSpec {
     /// # Errors
     /// As [`simulate_scheduled`].
     pub fn simulate(&self, seed: u64, paper_bias: bool) -> Result<Scenario, ScenarioError> {
-        let changes: Vec<SetpointChange> = self
-            .setpoints
+        simulate_scheduled(
+            &self.config(seed, paper_bias),
+            |t| self.leader_inputs(t),
+            &self.setpoint_changes(),
+        )
+    }
+
+    /// As [`Self::simulate`], one sample at a time in constant memory (the same samples).
+    ///
+    /// # Errors
+    /// As [`Simulation::new`].
+    pub fn simulation(
+        &self,
+        seed: u64,
+        paper_bias: bool,
+    ) -> Result<Simulation<impl Fn(f64) -> Inputs + '_>, ScenarioError> {
+        Simulation::new(
+            &self.config(seed, paper_bias),
+            |t| self.leader_inputs(t),
+            &self.setpoint_changes(),
+        )
+    }
+
+    /// The set-point changes in the simulator's form.
+    fn setpoint_changes(&self) -> Vec<SetpointChange> {
+        self.setpoints
             .iter()
             .map(|s| SetpointChange {
                 at: s.at,
                 l12: s.l12,
                 alpha12: s.alpha12,
             })
-            .collect();
-        simulate_scheduled(
-            &self.config(seed, paper_bias),
-            |t| self.leader_inputs(t),
-            &changes,
-        )
+            .collect()
     }
 
     /// The filter's initial state: `filter_x0`, or the paper's.

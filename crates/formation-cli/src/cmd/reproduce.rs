@@ -8,9 +8,15 @@ use std::path::{Path, PathBuf};
 
 use clap::{Args as ClapArgs, Subcommand};
 use formation_sim::plot::{fig12_panels, fig13_panels, write_png, write_svg};
-use formation_sim::reproduce::{Reproduction, StepRecord, Summary, reproduce_with, run_filter};
+use formation_sim::reproduce::{
+    FilterRun, ReproduceError, StepRecord, Summary, SummaryTally, paper_filter_config_with,
+    summarize,
+};
+use formation_sim::scenario::{
+    Sample, ScenarioConfig, ScenarioError, Simulation, reference_leader_inputs,
+};
 use formation_sim::scenario_file::ScenarioSpec;
-use formation_tracker::filter::FilterDesign;
+use formation_tracker::filter::{FilterConfig, FilterDesign};
 
 use super::CliError;
 
@@ -85,143 +91,254 @@ pub struct DukfArgs {
 /// Runs `reproduce`.
 pub fn run(args: Args) -> Result<(), CliError> {
     match args.what {
-        What::Dukf(a) => {
-            let design = if a.dual {
-                FilterDesign::Dual
-            } else {
-                FilterDesign::Imm
-            };
-            let run = match &a.scenario {
-                None => run_dukf(&a.out, a.seed, a.bias, design)?,
-                Some(file) => run_dukf_scenario(&a.out, a.seed, a.bias, file, design)?,
-            };
-            let label = match design {
-                FilterDesign::Imm => "IMM formation filter,",
-                FilterDesign::Dual => "dual UKF,",
-            };
-            let mut text = summary_table(&run.summary).replacen("dual UKF,", label, 1);
-            if a.smooth {
-                write_smoothed(&a.out, &run)?;
-                text.push('\n');
-                text.push_str(&summary_table(&run.smoothed_summary).replacen(
-                    "dual UKF,",
-                    "smoothed (offline, joint unscented RTS),",
-                    1,
-                ));
-            }
-            super::write_stdout(format_args!("{text}"))?;
-            Ok(())
-        }
+        What::Dukf(a) => run_dukf(&a),
         What::PaperScenes(a) => super::reproduce_scenes::run(&a),
     }
 }
 
-/// Runs the reproduction with `design` and writes every output into `out`; progress goes
-/// to stderr.
-fn run_dukf(
-    out: &Path,
-    seed: u64,
-    bias: bool,
-    design: FilterDesign,
-) -> Result<Reproduction, CliError> {
-    eprintln!(
-        "reproduce dukf: seed {seed}{}, writing to {}",
-        if bias { ", with the paper's bias" } else { "" },
-        out.display()
-    );
-    super::prepare_out_dir(out)?;
-    let run = reproduce_with(seed, bias, design)?;
-    write_outputs(out, &run)?;
-    Ok(run)
-}
+/// At most this many steps go into a figure: a longer run's figures show every k-th step
+/// (k a power of two), so that memory stays flat however long the scenario; series.csv
+/// always has every step.
+const FIGURE_STEPS: usize = 16_384;
 
-/// As [`run_dukf`] on a scenario file.
-fn run_dukf_scenario(
-    out: &Path,
-    seed: u64,
-    bias: bool,
-    file: &Path,
-    design: FilterDesign,
-) -> Result<Reproduction, CliError> {
-    let spec = ScenarioSpec::load(file).map_err(|e| e.to_string())?;
-    eprintln!(
-        "reproduce dukf: scenario {}, seed {seed}{}, writing to {}",
-        file.display(),
-        if bias { ", with the paper's bias" } else { "" },
-        out.display()
-    );
-    super::prepare_out_dir(out)?;
-    let scenario = spec
-        .simulate(seed, bias)
-        .map_err(formation_sim::reproduce::ReproduceError::from)?;
-    let mut config = spec.filter_config();
-    config.tuning.design = design;
-    let run = run_filter(&scenario, &config)?;
-    write_outputs(out, &run)?;
-    Ok(run)
-}
-
-/// Writes the smoothed series and summary of a run into `out`.
-fn write_smoothed(out: &Path, run: &Reproduction) -> Result<(), CliError> {
-    write_file(
-        &out.join("series-smoothed.csv"),
-        &series_csv(&run.smoothed_records),
-    )?;
-    let json = serde_json::to_string_pretty(&run.smoothed_summary)?;
-    write_file(&out.join("summary-smoothed.json"), &(json + "\n"))?;
-    eprintln!("reproduce dukf: wrote series-smoothed.csv, summary-smoothed.json");
+/// Runs `reproduce dukf`: simulates the scenario one sample at a time, filters it, and
+/// streams series.csv; keeps only the figure's (bounded) steps, the summary's sums, and with
+/// `--smooth` the history the smoother needs. Progress goes to stderr.
+fn run_dukf(a: &DukfArgs) -> Result<(), CliError> {
+    let design = if a.dual {
+        FilterDesign::Dual
+    } else {
+        FilterDesign::Imm
+    };
+    let with_bias = if a.bias {
+        ", with the paper's bias"
+    } else {
+        ""
+    };
+    let (summary, smoothed) = match &a.scenario {
+        None => {
+            eprintln!(
+                "reproduce dukf: seed {}{with_bias}, writing to {}",
+                a.seed,
+                a.out.display()
+            );
+            super::prepare_out_dir(&a.out)?;
+            let mut config = ScenarioConfig::reference(a.seed);
+            if a.bias {
+                config = config.with_paper_bias();
+            }
+            let filter = paper_filter_config_with(config.d, config.dt, design);
+            let simulation = Simulation::new(&config, reference_leader_inputs, &[])
+                .map_err(ReproduceError::from)?;
+            filter_and_write(&a.out, simulation, &config, &filter, a.smooth)?
+        }
+        Some(file) => {
+            let spec = ScenarioSpec::load(file).map_err(|e| e.to_string())?;
+            eprintln!(
+                "reproduce dukf: scenario {}, seed {}{with_bias}, writing to {}",
+                file.display(),
+                a.seed,
+                a.out.display()
+            );
+            super::prepare_out_dir(&a.out)?;
+            let simulation = spec
+                .simulation(a.seed, a.bias)
+                .map_err(ReproduceError::from)?;
+            let config = simulation.config().clone();
+            let mut filter = spec.filter_config();
+            filter.tuning.design = design;
+            filter_and_write(&a.out, simulation, &config, &filter, a.smooth)?
+        }
+    };
+    let label = match design {
+        FilterDesign::Imm => "IMM formation filter,",
+        FilterDesign::Dual => "dual UKF,",
+    };
+    let mut text = summary_table(&summary).replacen("dual UKF,", label, 1);
+    if let Some(smoothed) = smoothed {
+        text.push('\n');
+        text.push_str(&summary_table(&smoothed).replacen(
+            "dual UKF,",
+            "smoothed (offline, joint unscented RTS),",
+            1,
+        ));
+    }
+    super::write_stdout(format_args!("{text}"))?;
     Ok(())
 }
 
-/// Writes the series, figures and summary of a run into `out`.
-fn write_outputs(out: &Path, run: &Reproduction) -> Result<Summary, CliError> {
-    write_file(&out.join("series.csv"), &series_csv(&run.records))?;
-    let fig12 = fig12_panels(&run.records);
+/// Filters `samples` and writes series.csv (streamed), the figures, summary.json and, with
+/// `smooth`, series-smoothed.csv and summary-smoothed.json into `out`; returns the summaries.
+fn filter_and_write(
+    out: &Path,
+    samples: impl Iterator<Item = Result<Sample, ScenarioError>>,
+    scenario: &ScenarioConfig,
+    filter: &FilterConfig,
+    smooth: bool,
+) -> Result<(Summary, Option<Summary>), CliError> {
+    let (seed, bias) = (scenario.seed, scenario.bias.is_some());
+    let mut run = FilterRun::new(filter, scenario, true, smooth)?;
+    let mut series = SeriesFile::create(&out.join("series.csv"))?;
+    let mut tally = SummaryTally::default();
+    let mut figure = Thinned::new(FIGURE_STEPS);
+    // Every record, for the smoother's series (only with --smooth).
+    let mut all = Vec::new();
+    let mut progress =
+        super::progress::Progress::new("reproduce dukf", "steps", Some(scenario.steps() as u64));
+    for sample in samples {
+        let sample = sample.map_err(ReproduceError::from)?;
+        let Some((record, _)) = run.push(&sample)? else {
+            continue;
+        };
+        progress.inc();
+        series.row(&record)?;
+        tally.push(&record);
+        if smooth {
+            all.push(record.clone());
+        }
+        figure.push(record);
+    }
+    progress.finish();
+    series.finish()?;
+    let summary = tally.finish(seed, bias);
+    let records = figure.into_vec();
+    let fig12 = fig12_panels(&records);
     write_svg(&out.join("fig12.svg"), &fig12, FIGURE_SIZE)?;
     write_png(&out.join("fig12.png"), &fig12, FIGURE_SIZE)?;
-    let fig13 = fig13_panels(&run.records);
+    let fig13 = fig13_panels(&records);
     write_svg(&out.join("fig13.svg"), &fig13, FIGURE_SIZE)?;
     write_png(&out.join("fig13.png"), &fig13, FIGURE_SIZE)?;
-    let json = serde_json::to_string_pretty(&run.summary)?;
+    let json = serde_json::to_string_pretty(&summary)?;
     write_file(&out.join("summary.json"), &(json + "\n"))?;
     eprintln!(
         "reproduce dukf: wrote series.csv, fig12.svg/png, fig13.svg/png, summary.json ({} steps)",
-        run.summary.steps
+        summary.steps
     );
-    Ok(run.summary.clone())
+    if !smooth {
+        return Ok((summary, None));
+    }
+    let smoothed = run.smoothed_records(&all)?;
+    let mut series = SeriesFile::create(&out.join("series-smoothed.csv"))?;
+    for r in &smoothed {
+        series.row(r)?;
+    }
+    series.finish()?;
+    let smoothed_summary = summarize(&smoothed, seed, bias);
+    let json = serde_json::to_string_pretty(&smoothed_summary)?;
+    write_file(&out.join("summary-smoothed.json"), &(json + "\n"))?;
+    eprintln!("reproduce dukf: wrote series-smoothed.csv, summary-smoothed.json");
+    Ok((summary, Some(smoothed_summary)))
+}
+
+/// Every step while there are at most `cap`; past that every second one of those kept, and
+/// so on: at most `cap` steps, evenly spaced, in constant memory.
+struct Thinned {
+    kept: Vec<StepRecord>,
+    cap: usize,
+    stride: usize,
+    seen: usize,
+}
+
+impl Thinned {
+    fn new(cap: usize) -> Self {
+        Self {
+            kept: Vec::new(),
+            cap: cap.max(2),
+            stride: 1,
+            seen: 0,
+        }
+    }
+
+    fn push(&mut self, r: StepRecord) {
+        if self.seen.is_multiple_of(self.stride) {
+            if self.kept.len() == self.cap {
+                let mut i = 0;
+                self.kept.retain(|_| {
+                    i += 1;
+                    i % 2 == 1
+                });
+                self.stride *= 2;
+            }
+            if self.seen.is_multiple_of(self.stride) {
+                self.kept.push(r);
+            }
+        }
+        self.seen += 1;
+    }
+
+    fn into_vec(self) -> Vec<StepRecord> {
+        self.kept
+    }
 }
 
 fn write_file(path: &Path, text: &str) -> Result<(), CliError> {
     std::fs::write(path, text).map_err(|e| format!("cannot write {}: {e}", path.display()).into())
 }
 
-/// The per-step series as CSV with a header.
-fn series_csv(records: &[StepRecord]) -> String {
-    let mut s = String::from(
-        "t,l12_true,l12_measured,l12_estimated,alpha12_true,alpha12_measured,alpha12_estimated,\
-         beta12_true,beta12_measured,beta12_estimated,v1_true,v1_estimated,w1_true,w1_estimated\n",
-    );
-    for r in records {
-        let _ = writeln!(
-            s,
-            "{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6}",
-            r.t,
-            r.truth[0],
-            r.measured[0],
-            r.estimated[0],
-            r.truth[1],
-            r.measured[1],
-            r.estimated[1],
-            r.truth[2],
-            r.measured[2],
-            r.estimated[2],
-            r.v1_true,
-            r.v1_estimated,
-            r.w1_true,
-            r.w1_estimated
-        );
+/// The per-step series as CSV, written one row at a time.
+struct SeriesFile {
+    path: PathBuf,
+    out: std::io::BufWriter<std::fs::File>,
+}
+
+impl SeriesFile {
+    fn create(path: &Path) -> Result<Self, CliError> {
+        let file = std::fs::File::create(path)
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        let mut series = Self {
+            path: path.to_owned(),
+            out: std::io::BufWriter::new(file),
+        };
+        series.write(SERIES_HEADER)?;
+        Ok(series)
     }
-    s
+
+    fn row(&mut self, r: &StepRecord) -> Result<(), CliError> {
+        let mut line = String::new();
+        series_row(&mut line, r);
+        self.write(&line)
+    }
+
+    fn write(&mut self, text: &str) -> Result<(), CliError> {
+        use std::io::Write as _;
+        self.out
+            .write_all(text.as_bytes())
+            .map_err(|e| format!("cannot write {}: {e}", self.path.display()).into())
+    }
+
+    fn finish(mut self) -> Result<(), CliError> {
+        use std::io::Write as _;
+        self.out
+            .flush()
+            .map_err(|e| format!("cannot write {}: {e}", self.path.display()).into())
+    }
+}
+
+/// The header line of series.csv.
+const SERIES_HEADER: &str = "t,l12_true,l12_measured,l12_estimated,alpha12_true,alpha12_measured,\
+     alpha12_estimated,beta12_true,beta12_measured,beta12_estimated,v1_true,v1_estimated,w1_true,\
+     w1_estimated\n";
+
+/// One row of series.csv.
+fn series_row(s: &mut String, r: &StepRecord) {
+    let _ = writeln!(
+        s,
+        "{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6}",
+        r.t,
+        r.truth[0],
+        r.measured[0],
+        r.estimated[0],
+        r.truth[1],
+        r.measured[1],
+        r.estimated[1],
+        r.truth[2],
+        r.measured[2],
+        r.estimated[2],
+        r.v1_true,
+        r.v1_estimated,
+        r.w1_true,
+        r.w1_estimated
+    );
 }
 
 /// A short readable table of the summary.
