@@ -57,26 +57,41 @@
 //! backward pass is `dukf`'s unscented RTS smoother with the same transitions. Each
 //! step reports its own smoothed `[v1, w1]`, as the causal IMM does. On the reference
 //! scenario this halves the causal IMM's errors several times over (`docs/smoothing.md`).
+//!
+//! The IMM's smoother runs over the observable block `[l12, alpha12, beta12, v1, w1, a_v,
+//! a_w]` only. The leader's pose in the world, `[x1, y1, theta1]`, is seen by no measurement
+//! and drives nothing else (the formation's motion does not depend on it), so leaving it out
+//! changes no smoothed formation or velocity in exact arithmetic; kept in, its variance grew
+//! without bound (hundreds of square metres after minutes, against `l12`'s 1e-11) and the
+//! backward gains amplified rounding until the covariance overflowed on every run longer
+//! than about 400 s. A smoothed step reports that pose and its covariance as the causal pass
+//! estimated them, uncorrelated with the rest. The smoother is tested over half an hour
+//! (`formation-sim/tests/smoother_long_runs.rs`) and was run over three hours.
 //! A history recorded by the dual UKF has no joint estimate and is refused
 //! ([`FilterError::HistoryDesign`]); the dual smoother accepts an IMM history (it uses the
 //! marginals).
 
 use std::cell::Cell;
 
-use dukf::{AngleMask, Gaussian, RtsSmoother, Ukf, UkfError};
+use dukf::{AngleMask, Gaussian, RtsSmoother, Space as _, Ukf, UkfError};
 use nalgebra::{Matrix2, Matrix3, SMatrix, SVector, Vector2, Vector3};
 use unicycle::{
     ControllerConfig, Formation, Inputs, MEASUREMENT_ANGLES, PolarModel, PolarState, STATE_ANGLES,
-    UnicycleError, wrap_angle,
+    UnicycleError,
 };
 
 use super::{
-    Engine, FilterDesign, FilterError, FormationFilter, ImmEngine, Joint, Matrix6, Matrix10,
-    imm_process,
+    Engine, FilterDesign, FilterError, FormationFilter, ImmEngine, Joint, Matrix6, imm_process,
 };
 
 type Augmented = SVector<f64, 8>;
 type Matrix8 = SMatrix<f64, 8, 8>;
+type Observable = SVector<f64, 7>;
+type Matrix7 = SMatrix<f64, 7, 7>;
+
+/// The leader's pose in the world, `[x1, y1, theta1]`, heads the state: no measurement sees
+/// it and no other component's motion depends on it, so it is left out of the IMM's smoother.
+const HIDDEN: usize = 3;
 
 /// One step of a [`FormationFilter`]'s forward pass, as the smoother needs it: the filtered
 /// estimates after the step and the follower inputs applied over it. Recorded with
@@ -273,7 +288,9 @@ impl FormationFilter {
         engine: &ImmEngine,
         history: &[FilterStep],
     ) -> Result<Vec<SmoothedStep>, FilterError> {
-        let space = AngleMask::<10>::from_indices(&STATE_ANGLES)?;
+        // The smoother runs over the observable block `o = z[3..] = [l12, alpha12, beta12,
+        // v1, w1, a_v, a_w]`, whose angles are the measurement's (see the module docs).
+        let space = AngleMask::<7>::from_indices(&MEASUREMENT_ANGLES)?;
         let smoother = RtsSmoother::new(space, self.ut)?;
         let Some(first) = history.first() else {
             return Err(UkfError::EmptyHistory.into());
@@ -298,56 +315,62 @@ impl FormationFilter {
         // changes included; `None` where the filter was not told it).
         let (model, dt) = (&self.model, self.dt);
         let controller = |k: usize| history.get(k + 1).and_then(|s| s.controller);
-        let predictions = |k: usize, z: &Joint| -> [Joint; 3] {
+        let predictions = |k: usize, o: &Observable| -> [Observable; 3] {
             let u: Vector2<f64> = history
                 .get(k + 1)
                 .map_or(Inputs::new(0.0, 0.0), |s| s.inputs)
                 .into();
             let mut f = imm_process(model, &u, dt, controller(k), &failure);
-            [f(0, z), f(1, z), f(2, z)]
+            // The hidden pose is zero: the observable block's prediction does not read it.
+            let z = embed(o);
+            [0, 1, 2].map(|j| observable(&f(j, &z)))
         };
-        let wrapped = |mut d: Joint| -> Joint {
-            for i in STATE_ANGLES {
-                d[i] = wrap_angle(d[i]);
-            }
-            d
-        };
-        let mixed = |k: usize, z: &Joint| -> (Joint, [Joint; 3]) {
-            let outs = predictions(k, z);
+        let mixed = |k: usize, o: &Observable| -> (Observable, [Observable; 3]) {
+            let outs = predictions(k, o);
             let p = weights(k);
             let base = outs[0];
-            let mut acc = Joint::zeros();
-            for (pj, o) in p.iter().zip(&outs) {
-                acc += wrapped(o - base) * *pj;
+            let mut acc = Observable::zeros();
+            for (pj, out) in p.iter().zip(&outs) {
+                acc += space.residual(out, &base) * *pj;
             }
-            let mean = wrapped(base + acc);
-            (mean, outs)
+            (space.add(&base, &acc), outs)
         };
-        let mut process = |k: usize, z: &Joint| -> Joint { mixed(k, z).0 };
-        let noise_at = |k: usize, m: &Joint| -> Matrix10 {
+        let mut process = |k: usize, o: &Observable| -> Observable { mixed(k, o).0 };
+        let noise_at = |k: usize, m: &Observable| -> Matrix7 {
             let (mean, outs) = mixed(k, m);
             let p = weights(k);
-            let mut q = Matrix10::zeros();
+            let mut q = Matrix7::zeros();
             for j in 0..3 {
-                let d = wrapped(outs[j] - mean);
-                q += (engine.noise(controller(k).is_some())[j] + d * d.transpose()) * p[j];
+                let d = space.residual(&outs[j], &mean);
+                let qj = engine.noise(controller(k).is_some())[j]
+                    .fixed_view::<7, 7>(HIDDEN, HIDDEN)
+                    .into_owned();
+                q += (qj + d * d.transpose()) * p[j];
             }
             (q + q.transpose()) * 0.5
         };
         let measurement_space = AngleMask::<3>::from_indices(&MEASUREMENT_ANGLES)?;
-        let mut noises: Vec<Matrix10> = Vec::with_capacity(history.len());
+        let mut noises: Vec<Matrix7> = Vec::with_capacity(history.len());
         let mut forward = || {
-            let mut joint = Ukf::new(start.mean, start.covariance, space, self.ut)?;
+            let mut joint = Ukf::new(
+                observable(&start.mean),
+                start
+                    .covariance
+                    .fixed_view::<7, 7>(HIDDEN, HIDDEN)
+                    .into_owned(),
+                space,
+                self.ut,
+            )?;
             let mut filtered = Vec::with_capacity(history.len());
             filtered.push(Gaussian::new(*joint.state(), *joint.covariance()));
             for (k, step) in history.iter().enumerate().skip(1) {
                 let q = noise_at(k - 1, joint.state());
                 noises.push(q);
-                joint.predict(|z| mixed(k - 1, z).0, &q)?;
+                joint.predict(|o| mixed(k - 1, o).0, &q)?;
                 if let Some((y, r)) = step.measurement {
                     joint.update(
                         &y,
-                        |z| Vector3::new(z[3], z[4], z[5]),
+                        |o| Vector3::new(o[0], o[1], o[2]),
                         &r,
                         &measurement_space,
                     )?;
@@ -370,14 +393,42 @@ impl FormationFilter {
         Ok(smoothed
             .estimates
             .iter()
-            .map(|s| SmoothedStep {
-                state: s.mean.fixed_rows::<6>(0).into_owned(),
-                state_covariance: s.covariance.fixed_view::<6, 6>(0, 0).into_owned(),
-                velocity: Vector2::new(s.mean[6], s.mean[7]).into(),
-                velocity_covariance: s.covariance.fixed_view::<2, 2>(6, 6).into_owned(),
+            .zip(history)
+            .map(|(s, causal)| {
+                // The hidden pose as the causal pass estimated it, uncorrelated with the rest.
+                let mut state = causal.state;
+                state
+                    .fixed_rows_mut::<3>(HIDDEN)
+                    .copy_from(&s.mean.fixed_rows::<3>(0));
+                let mut state_covariance = Matrix6::zeros();
+                state_covariance
+                    .fixed_view_mut::<3, 3>(0, 0)
+                    .copy_from(&causal.state_covariance.fixed_view::<3, 3>(0, 0));
+                state_covariance
+                    .fixed_view_mut::<3, 3>(HIDDEN, HIDDEN)
+                    .copy_from(&s.covariance.fixed_view::<3, 3>(0, 0));
+                SmoothedStep {
+                    state,
+                    state_covariance,
+                    velocity: Vector2::new(s.mean[3], s.mean[4]).into(),
+                    velocity_covariance: s.covariance.fixed_view::<2, 2>(3, 3).into_owned(),
+                }
             })
             .collect())
     }
+}
+
+/// The IMM's joint state with the hidden pose `[x1, y1, theta1]` zero and the observable
+/// block `o`.
+fn embed(o: &Observable) -> Joint {
+    let mut z = Joint::zeros();
+    z.fixed_rows_mut::<7>(HIDDEN).copy_from(o);
+    z
+}
+
+/// The observable block `z[3..]` of the IMM's joint state.
+fn observable(z: &Joint) -> Observable {
+    z.fixed_rows::<7>(HIDDEN).into_owned()
 }
 
 /// `[x; w]` with `blockdiag(P, Pw)`.
