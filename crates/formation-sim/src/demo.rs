@@ -540,27 +540,8 @@ fn run_demo_inner(
     mut on_frame: impl FnMut(&DemoFrame<'_>),
 ) -> Result<DemoRun, DemoError> {
     validate(config)?;
-    let camera = config.camera;
-    let world = World {
-        config,
-        mount: config.mount,
-        camera,
-        k: pose::Intrinsics::from_hfov(
-            camera.hfov_deg.to_radians(),
-            camera.width as u32,
-            camera.height as u32,
-        )?,
-        rig: RigModel::reference(),
-        dict: Dictionary::paper(),
-    };
-    let mut poses = match &config.scenario {
-        Some(spec) => {
-            let [fx, fy, ft] = spec.follower;
-            let [lx, ly, lt] = spec.leader;
-            vec![Pose::new(lx, ly, lt), Pose::new(fx, fy, ft)]
-        }
-        None => starting_line(config.robots),
-    };
+    let world = World::new(config)?;
+    let mut poses = start_poses(config);
     let mut previous = poses.clone();
     let mut followers = start_followers(&world, &poses)?;
     let steps = (config.duration / config.dt).round() as usize;
@@ -619,6 +600,97 @@ fn run_demo_inner(
         strip,
         summary,
     })
+}
+
+impl<'a> World<'a> {
+    fn new(config: &'a DemoConfig) -> Result<Self, DemoError> {
+        let camera = config.camera;
+        Ok(Self {
+            config,
+            mount: config.mount,
+            camera,
+            k: pose::Intrinsics::from_hfov(
+                camera.hfov_deg.to_radians(),
+                camera.width as u32,
+                camera.height as u32,
+            )?,
+            rig: RigModel::reference(),
+            dict: Dictionary::paper(),
+        })
+    }
+}
+
+/// The robots' poses at `t = 0`: the scenario file's, else the starting line.
+fn start_poses(config: &DemoConfig) -> Vec<Pose> {
+    match &config.scenario {
+        Some(spec) => {
+            let [fx, fy, ft] = spec.follower;
+            let [lx, ly, lt] = spec.leader;
+            vec![Pose::new(lx, ly, lt), Pose::new(fx, fy, ft)]
+        }
+        None => starting_line(config.robots),
+    }
+}
+
+/// The rays the demo's rendering casts: per frame, every pixel times the supersampling's
+/// square times the motion blur's sub-frames, for every follower at every step.
+pub fn render_rays(config: &DemoConfig) -> f64 {
+    let steps = (config.duration / config.dt).round() + 1.0;
+    let subframes = config.motion_blur.map_or(1, |mb| mb.subframes.max(1));
+    let ss = config.render.supersampling.max(1) as f64;
+    steps
+        * (config.robots.saturating_sub(1)) as f64
+        * (config.camera.width * config.camera.height) as f64
+        * ss
+        * ss
+        * subframes as f64
+}
+
+/// How many rays the probe of [`estimate_render_seconds`] casts: about 20 ms of rendering
+/// on the reference machine.
+const PROBE_RAYS: f64 = 2e6;
+
+/// An estimate of the seconds the demo will spend rendering, made before it starts so that
+/// a run of hours says so at once (issue #32): the first frame is rendered as a *probe* with
+/// the same scene, supersampling and sub-frames (no lighting gradient), its camera scaled down so that it
+/// casts about two million rays, and its time is scaled by [`render_rays`]. Good to a factor
+/// of about two (a smaller frame's fixed costs weigh a little more); it measures this machine
+/// in this build, so a debug build's estimate is a debug build's time.
+///
+/// # Errors
+/// A configuration [`run_demo`] would refuse, or a probe that cannot be rendered.
+pub fn estimate_render_seconds(config: &DemoConfig) -> Result<f64, DemoError> {
+    validate(config)?;
+    let rays = render_rays(config);
+    let per_frame = rays / ((config.duration / config.dt).round() + 1.0);
+    let scale = (PROBE_RAYS / per_frame.max(1.0)).sqrt().min(1.0);
+    let mut probe = config.clone();
+    probe.camera.width = ((config.camera.width as f64 * scale).round() as usize).max(8);
+    probe.camera.height = ((config.camera.height as f64 * scale).round() as usize).max(8);
+    let world = World::new(&probe)?;
+    let poses = start_poses(&probe);
+    let applied = vec![Inputs::new(0.0, 0.0); poses.len()];
+    let ctx = StepContext {
+        step: 0,
+        t: 0.0,
+        occluded: false,
+        poses: &poses,
+        previous: &poses,
+        applied: &applied,
+    };
+    let specs = exposure_poses(&probe, &ctx)?
+        .iter()
+        .map(|p| follower_scene(&world, &ctx, p, 1))
+        .collect::<Vec<_>>();
+    let started = Instant::now();
+    scene::render_scene_exposure(&specs, None, &world.rig, world.dict)?;
+    let probe_s = started.elapsed().as_secs_f64();
+    let probe_rays = render_rays(&DemoConfig {
+        duration: 0.0,
+        robots: 2,
+        ..probe
+    });
+    Ok(probe_s * rays / probe_rays.max(1.0))
 }
 
 fn validate(config: &DemoConfig) -> Result<(), DemoError> {
@@ -1008,5 +1080,43 @@ fn summarize(traces: &[FollowerTrace], config: &DemoConfig, render_s: f64) -> De
         closed_loop: config.closed_loop,
         pairs,
         seed: config.render.seed,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn render_rays_count_every_pixel_sample_subframe_follower_and_step() {
+        let mut config = DemoConfig::default();
+        let frames = (config.duration / config.dt).round() + 1.0;
+        let ss = config.render.supersampling as f64;
+        let per_frame = 640.0 * 480.0 * ss * ss;
+        assert_eq!(render_rays(&config), frames * per_frame);
+        config.robots = 4;
+        config.motion_blur = Some(MotionBlurSpec {
+            exposure_s: 0.02,
+            subframes: 5,
+        });
+        assert_eq!(render_rays(&config), frames * 3.0 * 5.0 * per_frame);
+    }
+
+    #[test]
+    fn the_render_estimate_is_made_from_a_small_probe_and_refuses_bad_configurations() {
+        // A 4096 x 4096 camera with supersampling 8 and 5 sub-frames: 5.4e9 rays a frame.
+        // The probe casts about 2e6 of them, so the estimate comes at once.
+        let mut config = DemoConfig::default();
+        config.camera.width = 4096;
+        config.camera.height = 4096;
+        config.render.supersampling = 8;
+        config.motion_blur = Some(MotionBlurSpec {
+            exposure_s: 0.02,
+            subframes: 5,
+        });
+        let estimate = estimate_render_seconds(&config).unwrap();
+        assert!(estimate.is_finite() && estimate > 0.0, "{estimate}");
+        config.duration = f64::NAN;
+        assert!(estimate_render_seconds(&config).is_err());
     }
 }
