@@ -23,7 +23,10 @@ mod cmd;
     after_help = "Exit codes: 0 everything asked for was done; 1 error, nothing usable (one line on \
                   stderr); 2 bad usage (an unknown option, a value out of range); 3 partial, some \
                   images or frames could not be used (the others were reported). A reader that \
-                  closes the pipe (`| head`) ends a command quietly with 0. See docs/reliability.md."
+                  closes the pipe (`| head`) ends a command quietly with 0. `track` and `demo` stopped by \
+                  SIGINT (Ctrl-C) or SIGTERM finish the frame in hand, close their outputs \
+                  and exit with 130 or 143. Outputs are written under temporary names and \
+                  renamed into place only when complete. See docs/reliability.md."
 )]
 struct Cli {
     /// No progress on stderr (bar or periodic status lines); results and errors still print.
@@ -76,12 +79,19 @@ fn main() -> ExitCode {
             ExitCode::SUCCESS
         }
         Err(err) if err.downcast_ref::<cmd::Partial>().is_some() => {
-            eprintln!("formation-tracker: warning: {}", one_line(&err.to_string()));
+            cmd::progress::errln!("formation-tracker: warning: {}", one_line(&err.to_string()));
             ExitCode::from(cmd::EXIT_PARTIAL)
         }
         Err(err) => {
-            eprintln!("formation-tracker: error: {}", one_line(&err.to_string()));
-            ExitCode::FAILURE
+            let (code, kind) = if let Some(i) = err.downcast_ref::<cmd::interrupt::Interrupted>() {
+                (i.exit_code(), "stopped")
+            } else if err.downcast_ref::<cmd::Usage>().is_some() {
+                (cmd::EXIT_USAGE, "error")
+            } else {
+                (1, "error")
+            };
+            cmd::progress::errln!("formation-tracker: {kind}: {}", one_line(&err.to_string()));
+            ExitCode::from(code)
         }
     }
 }

@@ -13,6 +13,16 @@ pub const EXIT_PARTIAL: u8 = 3;
 #[error("{0}")]
 pub struct Partial(pub String);
 
+/// A usage error found after parsing (an output that is one of the inputs, options that
+/// cannot go together): `main` prints it as one error line and exits with
+/// [`EXIT_USAGE`], as clap does for the errors it finds itself (`docs/reliability.md`).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct Usage(pub String);
+
+/// Exit code of a usage error (`docs/reliability.md`).
+pub const EXIT_USAGE: u8 = 2;
+
 /// Writing to standard output failed. `main` ends quietly with exit code 0 when the reader
 /// closed the pipe (`formation-tracker detect *.png | head -n 1`), as command-line tools do,
 /// and reports anything else (a full disk, `> /dev/full`) as one error line with exit code 1.
@@ -166,8 +176,10 @@ pub mod demo;
 pub mod detect;
 pub mod detect_robots;
 pub mod info;
+pub mod interrupt;
 pub mod marker_pose;
 pub mod markers;
+pub mod output;
 pub mod progress;
 pub mod render;
 pub mod reproduce;

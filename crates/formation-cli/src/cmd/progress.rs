@@ -23,6 +23,22 @@ fn status_every() -> Duration {
 
 static QUIET: AtomicBool = AtomicBool::new(false);
 
+/// Writes one line to stderr and ignores a failure: a closed or full stderr (`2>&-`,
+/// `2>/dev/full`) must not turn a run into a panic with exit code 101, as `eprintln!` does
+/// (issue #32). Every line the commands print on stderr goes through [`errln!`].
+pub fn write_stderr(text: std::fmt::Arguments<'_>) {
+    use std::io::Write as _;
+    let _ = std::io::stderr().lock().write_fmt(text);
+}
+
+/// `eprintln!` that never panics: see [`write_stderr`].
+macro_rules! errln {
+    ($($arg:tt)*) => {
+        $crate::cmd::progress::write_stderr(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
+pub(crate) use errln;
+
 /// Sets `--quiet` for the whole run (called once by `main`).
 pub fn set_quiet(quiet: bool) {
     QUIET.store(quiet, Ordering::Relaxed);

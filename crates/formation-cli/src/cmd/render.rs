@@ -35,6 +35,18 @@ pub struct Args {
 
 /// Renders the scene and writes the image (and the truth).
 pub fn run(args: &Args) -> Result<(), CliError> {
+    let mut inputs: Vec<(&str, &std::path::Path)> = Vec::new();
+    for (name, path) in [("--scene", &args.scene), ("--rig", &args.rig)] {
+        if let Some(path) = path {
+            inputs.push((name, path));
+        }
+    }
+    super::output::refuse_inputs_as_outputs(&[("--out", &args.out)], &inputs)?;
+    if let Some(truth) = &args.truth {
+        // The two outputs must differ too: the truth would replace the image.
+        inputs.push(("--out", &args.out));
+        super::output::refuse_inputs_as_outputs(&[("--truth", truth)], &inputs)?;
+    }
     let dict = Dictionary::paper();
     let rig = super::load_rig(args.rig.as_deref(), dict)?;
     let spec = match (&args.paper_fig, &args.scene) {
@@ -61,14 +73,15 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     if let Ok(p) = progress.into_inner() {
         p.finish();
     }
+    let mut staged = super::output::Staged::new();
     rendered
         .image
-        .save_with_format(&args.out, image::ImageFormat::Png)
+        .save_with_format(staged.path(&args.out), image::ImageFormat::Png)
         .map_err(|e| format!("cannot write {}: {e}", args.out.display()))?;
     if let Some(path) = &args.truth {
-        std::fs::write(path, serde_json::to_string_pretty(&rendered.truth)? + "\n")
-            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        staged.write(path, serde_json::to_string_pretty(&rendered.truth)? + "\n")?;
     }
+    staged.commit()?;
     let readable: usize = rendered
         .truth
         .robots

@@ -157,6 +157,8 @@ struct TimingOut {
 
 /// Runs `track`.
 pub fn run(args: &Args) -> Result<(), CliError> {
+    refuse_overwriting_inputs(args)?;
+    super::interrupt::install()?;
     if formation_tracker_cli::bag::is_bag(&args.input) {
         return super::track_bag::run(args);
     }
@@ -196,6 +198,9 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     let (mut broken, mut processed) = (0u64, 0u64);
     let mut mcap: Option<super::track_bag::McapOut> = None;
     loop {
+        if super::interrupt::requested().is_some() {
+            break;
+        }
         let frame = match frames.next_frame() {
             Ok(Some(frame)) => frame,
             Ok(None) => break,
@@ -270,7 +275,14 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     out.flush().map_err(super::StdoutError)?;
     progress.finish();
     if let Some(w) = mcap {
-        w.finish()?;
+        w.finish(processed > 0)?;
+    }
+    if let Some(signal) = super::interrupt::requested() {
+        return Err(super::interrupt::Interrupted {
+            signal,
+            done: format!("{processed} frames tracked and written, {broken} broken"),
+        }
+        .into());
     }
     let truncated = if frames.truncated() {
         "; the stream ended inside a frame (truncated), which was dropped"
@@ -286,6 +298,24 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     }
     eprintln!("track: {summary}");
     Ok(())
+}
+
+/// Refuses, before any work, an `--mcap` output that is one of the inputs (exit code 2).
+fn refuse_overwriting_inputs(args: &Args) -> Result<(), CliError> {
+    let Some(mcap) = &args.mcap else {
+        return Ok(());
+    };
+    let mut inputs: Vec<(&str, &std::path::Path)> = vec![("INPUT", &args.input)];
+    for (name, path) in [
+        ("--camera", &args.camera),
+        ("--rig", &args.rig),
+        ("--inputs", &args.inputs),
+    ] {
+        if let Some(path) = path {
+            inputs.push((name, path));
+        }
+    }
+    super::output::refuse_inputs_as_outputs(&[("--mcap", mcap)], &inputs)
 }
 
 /// The line for a frame the pipeline could not use, with a hint when the frame's size is
@@ -402,7 +432,8 @@ pub(super) fn write_smoothed(
     Ok(())
 }
 
-/// One frame's line: JSON with `--json`, else text.
+/// One frame's line: JSON with `--json`, else text; flushed, so that a reader of a live
+/// stream gets each frame as it is done.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn write_frame(
     out: &mut impl Write,
@@ -434,6 +465,7 @@ pub(super) fn write_frame(
             scan: done.scan,
         };
         out.write_all(format!("{}\n", serde_json::to_string(&line)?).as_bytes())
+            .and_then(|()| out.flush())
             .map_err(super::StdoutError)?;
         return Ok(());
     }
@@ -449,6 +481,9 @@ pub(super) fn write_frame(
         )?;
     }
     writeln!(text, " ({:.1} ms)", timing.total_ms)?;
-    out.write_all(text.as_bytes()).map_err(super::StdoutError)?;
+    // Each frame's line goes out as it is done (`track - | jq` on a live stream).
+    out.write_all(text.as_bytes())
+        .and_then(|()| out.flush())
+        .map_err(super::StdoutError)?;
     Ok(())
 }

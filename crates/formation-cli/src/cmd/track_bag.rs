@@ -26,6 +26,8 @@ pub struct McapOut {
     path: PathBuf,
     writer: FoxgloveWriter<std::io::BufWriter<std::fs::File>>,
     images: bool,
+    /// The file under its temporary name until [`Self::finish`] keeps it.
+    staged: super::output::Staged,
 }
 
 impl McapOut {
@@ -37,19 +39,15 @@ impl McapOut {
         calibration: Calibration,
     ) -> Result<Self, CliError> {
         super::prepare_out_file(path)?;
-        let file = std::fs::File::create(path)
+        let mut staged = super::output::Staged::new();
+        let file = staged.create(path)?;
+        let writer = FoxgloveWriter::new(file, rig, calibration, !args.no_images)
             .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
-        let writer = FoxgloveWriter::new(
-            std::io::BufWriter::new(file),
-            rig,
-            calibration,
-            !args.no_images,
-        )
-        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
         Ok(Self {
             path: path.to_path_buf(),
             writer,
             images: !args.no_images,
+            staged,
         })
     }
 
@@ -78,12 +76,17 @@ impl McapOut {
             .map_err(|e| format!("cannot write {}: {e}", self.path.display()).into())
     }
 
-    /// Ends the file.
-    pub fn finish(self) -> Result<(), CliError> {
+    /// Ends the file (summary and footer) and, if `keep`, renames it into place; without
+    /// `keep` (nothing was tracked) it is removed and an earlier file of that name is left
+    /// as it was.
+    pub fn finish(self, keep: bool) -> Result<(), CliError> {
         self.writer
             .finish()
             .and_then(|mut w| w.flush())
             .map_err(|e| format!("cannot write {}: {e}", self.path.display()))?;
+        if keep {
+            self.staged.commit()?;
+        }
         Ok(())
     }
 }
@@ -141,6 +144,9 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     // reordered by the reader), so that the smoothed lines name the same frames.
     let mut frame_times: Vec<(f64, u64)> = Vec::new();
     loop {
+        if super::interrupt::requested().is_some() {
+            break;
+        }
         let frame = match frames.next_frame() {
             Ok(Some(frame)) => frame,
             Ok(None) => break,
@@ -238,7 +244,14 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     out.flush().map_err(super::StdoutError)?;
     progress.finish();
     if let Some(w) = mcap {
-        w.finish()?;
+        w.finish(processed > 0)?;
+    }
+    if let Some(signal) = super::interrupt::requested() {
+        return Err(super::interrupt::Interrupted {
+            signal,
+            done: format!("{processed} frames tracked and written, {broken} broken"),
+        }
+        .into());
     }
     let s = frames.stats();
     let mut summary = format!(
