@@ -263,3 +263,102 @@ fn a_run_that_tracks_nothing_keeps_the_earlier_mcap() {
             .contains(".tmp-"))
     );
 }
+
+/// The reference scenario file with another duration, in `dir`.
+fn short_scenario(dir: &Path, seconds: f64) -> std::path::PathBuf {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fixtures/scenarios/reference.yaml"
+    ))
+    .unwrap()
+    .replace("duration: 8.0", &format!("duration: {seconds:?}"));
+    let path = dir.join(format!("reference-{seconds}.yaml"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// Every file below `dir` with its bytes, sorted by path.
+fn snapshot(dir: &Path) -> Vec<(std::path::PathBuf, Vec<u8>)> {
+    let mut files = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let path = e.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                files.push((path.clone(), std::fs::read(&path).unwrap()));
+            }
+        }
+    }
+    files.sort();
+    files
+}
+
+#[test]
+fn an_interrupted_demo_leaves_the_earlier_folder_as_it_was() {
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("demo-interrupt-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("out");
+    let short = short_scenario(&dir, 1.0);
+    let first = exe()
+        .args(["-q", "demo", "--seed", "1", "--scenario"])
+        .arg(&short)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(
+        first.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&first.stderr)
+    );
+    let before = snapshot(&out);
+    assert!(before.iter().any(|(p, _)| p.ends_with("demo.mcap")));
+    // A second, longer run into the same folder, stopped after its first frames.
+    let mut child = exe()
+        .args(["demo", "--seed", "2", "--scenario"])
+        .arg(short_scenario(&dir, 8.0))
+        .arg("--out")
+        .arg(&out)
+        .env("FORMATION_TRACKER_STATUS_SECS", "0")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stderr = child.stderr.take().unwrap();
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stderr).lines() {
+            let Ok(line) = line else { break };
+            let _ = tx.send(line);
+        }
+    });
+    let mut lines = Vec::new();
+    loop {
+        let line = rx
+            .recv_timeout(Duration::from_secs(60))
+            .expect("no progress line");
+        let started = line.starts_with("demo: 2/");
+        lines.push(line);
+        if started {
+            break;
+        }
+    }
+    signal(&child, "INT");
+    let status = child.wait().unwrap();
+    while let Ok(line) = rx.recv_timeout(Duration::from_secs(5)) {
+        lines.push(line);
+    }
+    assert_eq!(status.code(), Some(130), "{lines:?}");
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.contains("stopped: interrupted by SIGINT") && l.contains("left as it was")),
+        "{lines:?}"
+    );
+    assert_eq!(snapshot(&out), before, "the folder changed");
+}

@@ -87,6 +87,14 @@ pub enum DemoError {
     /// The scenario's vision settings are out of range.
     #[error(transparent)]
     Scenario(crate::scenario_file::ScenarioFileError),
+    /// The caller asked the run to stop ([`run_demo_until`]) before step `step`.
+    #[error("demo: stopped before step {step} of {steps}")]
+    Stopped {
+        /// The first step not run.
+        step: usize,
+        /// The run's last step.
+        steps: usize,
+    },
 }
 
 /// Settings of the demo. [`DemoConfig::default`] is the documented demo.
@@ -520,7 +528,21 @@ pub fn run_demo_observed(
     progress: impl FnMut(usize, usize),
     on_frame: impl FnMut(&DemoFrame<'_>),
 ) -> Result<DemoRun, DemoError> {
-    run_demo_inner(config, progress, on_frame)
+    run_demo_inner(config, progress, on_frame, || false)
+}
+
+/// [`run_demo_observed`] that asks `stop()` before every step and ends with
+/// [`DemoError::Stopped`] when it says so (a command interrupted by a signal).
+///
+/// # Errors
+/// As [`run_demo`], and [`DemoError::Stopped`].
+pub fn run_demo_until(
+    config: &DemoConfig,
+    progress: impl FnMut(usize, usize),
+    on_frame: impl FnMut(&DemoFrame<'_>),
+    stop: impl Fn() -> bool,
+) -> Result<DemoRun, DemoError> {
+    run_demo_inner(config, progress, on_frame, stop)
 }
 
 /// [`run_demo`], calling `progress(step, steps)` after every step (for a progress bar).
@@ -531,13 +553,14 @@ pub fn run_demo_with_progress(
     config: &DemoConfig,
     progress: impl FnMut(usize, usize),
 ) -> Result<DemoRun, DemoError> {
-    run_demo_inner(config, progress, |_| {})
+    run_demo_inner(config, progress, |_| {}, || false)
 }
 
 fn run_demo_inner(
     config: &DemoConfig,
     mut progress: impl FnMut(usize, usize),
     mut on_frame: impl FnMut(&DemoFrame<'_>),
+    stop: impl Fn() -> bool,
 ) -> Result<DemoRun, DemoError> {
     validate(config)?;
     let world = World::new(config)?;
@@ -549,6 +572,9 @@ fn run_demo_inner(
     let mut strip = Vec::new();
     let mut render_s = 0.0;
     for step in 0..=steps {
+        if stop() {
+            return Err(DemoError::Stopped { step, steps });
+        }
         let t = step as f64 * config.dt;
         let mut applied = vec![leader_inputs_prev];
         applied.extend(followers.iter().map(|f| f.inputs));

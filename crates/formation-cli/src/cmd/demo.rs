@@ -5,12 +5,14 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use clap::Args as ClapArgs;
-use formation_sim::demo::{DemoConfig, DemoFrame, DemoRun, DemoSummary, run_demo_observed};
+use formation_sim::demo::{DemoConfig, DemoError, DemoFrame, DemoRun, DemoSummary, run_demo_until};
 use formation_sim::plot::{fig12_panels, fig13_panels, shade, write_png, write_svg};
 use formation_sim::reproduce::StepRecord;
 use formation_sim::scenario_file::ScenarioSpec;
 
 use super::CliError;
+use super::output::Staged;
+use super::progress::errln;
 
 /// Figure size, pixels.
 const FIGURE_SIZE: (u32, u32) = (1000, 750);
@@ -81,15 +83,43 @@ pub fn run(args: Args) -> Result<(), CliError> {
         },
     };
     config.render.seed = args.seed;
+    if let Some(frames) = &args.save_frames {
+        super::output::refuse_inputs_as_outputs(
+            &[("--save-frames", frames)],
+            &[("--out", &args.out)],
+        )?;
+    }
+    if let Some(scenario) = &args.scenario {
+        super::output::refuse_inputs_as_outputs(
+            &[("--out", &args.out)],
+            &[("--scenario", scenario)],
+        )?;
+    }
+    super::interrupt::install()?;
+    let estimate = formation_sim::demo::estimate_render_seconds(&config)?;
+    if estimate > 60.0 {
+        let subframes = config.motion_blur.map_or(1, |mb| mb.subframes.max(1));
+        errln!(
+            "demo: rendering will take about {} (estimated from a probe frame: {} frames of {}x{}, supersampling {}, {subframes} sub-frame(s)); lower them in the scenario's vision section to go faster",
+            duration_text(estimate),
+            ((config.duration / config.dt).round() as usize + 1) * (config.robots - 1),
+            config.camera.width,
+            config.camera.height,
+            config.render.supersampling,
+        );
+    }
     super::prepare_out_dir(&args.out)?;
+    // Every file goes to a temporary name and is renamed when the whole run is done: an
+    // interrupted or failed demo leaves an earlier folder as it was.
+    let mut staged = Staged::new();
     let mut saver = args
         .save_frames
         .as_deref()
         .map(|dir| FrameSaver::new(dir, &config))
         .transpose()?;
-    let mut mcap = McapSaver::new(&args.out.join("demo.mcap"), &config)?;
+    let mut mcap = McapSaver::new(&mut staged, &args.out.join("demo.mcap"), &config)?;
     let started = std::time::Instant::now();
-    eprintln!(
+    errln!(
         "demo: rendering and tracking {} s at {:.0} frames/s, {} robot(s){}...",
         config.duration,
         1.0 / config.dt,
@@ -101,7 +131,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
     );
     let mut progress = super::progress::Progress::new("demo", "frames", None);
-    let run = run_demo_observed(
+    let run = run_demo_until(
         &config,
         |step, steps| {
             progress.set_total(steps as u64 + 1);
@@ -113,35 +143,95 @@ pub fn run(args: Args) -> Result<(), CliError> {
             }
             mcap.save(frame);
         },
-    )?;
+        || super::interrupt::requested().is_some(),
+    );
     progress.finish();
-    if let Some(saver) = saver {
-        saver.finish()?;
-    }
+    let run = match run {
+        Err(DemoError::Stopped { step, steps }) => {
+            let signal = super::interrupt::requested().unwrap_or(2);
+            return Err(super::interrupt::Interrupted {
+                signal,
+                done: format!(
+                    "{step} of {} steps rendered; nothing written, {} left as it was",
+                    steps + 1,
+                    args.out.display()
+                ),
+            }
+            .into());
+        }
+        other => other?,
+    };
+    let frames_staged = saver.map(FrameSaver::finish).transpose()?;
     mcap.finish()?;
     super::prepare_out_dir(&args.out.join("frames"))?;
-    write_outputs(&args.out, &run, config.occlusion, config.dt)?;
+    write_outputs(&mut staged, &args.out, &run, config.occlusion, config.dt)?;
+    if let Some(frames) = frames_staged {
+        frames.commit()?;
+    }
+    let stale = stale_outputs(&args.out, &staged);
+    staged.commit()?;
+    for path in stale {
+        let _ = std::fs::remove_file(path);
+    }
     super::write_stdout(format_args!(
         "{}",
         summary_text(&run.summary, started.elapsed().as_secs_f64())
     ))?;
-    eprintln!("demo: wrote {}", args.out.display());
+    errln!("demo: wrote {}", args.out.display());
     Ok(())
 }
 
-fn write_file(path: &Path, bytes: &[u8]) -> Result<(), CliError> {
-    std::fs::write(path, bytes).map_err(|e| format!("cannot write {}: {e}", path.display()).into())
+/// `seconds` as `12 min` or `2.5 h`.
+fn duration_text(seconds: f64) -> String {
+    if seconds < 5400.0 {
+        format!("{:.0} min", seconds / 60.0)
+    } else {
+        format!("{:.1} h", seconds / 3600.0)
+    }
+}
+
+/// The demo's own outputs in `out` that this run does not write (the figures of a follower
+/// an earlier run with more robots had, strip frames of other steps): removed once the new
+/// files are in place, so that the folder is one run's.
+fn stale_outputs(out: &Path, staged: &Staged) -> Vec<PathBuf> {
+    let mut stale = Vec::new();
+    let is_demo_file = |dir_is_frames: bool, name: &str| {
+        if dir_is_frames {
+            name.starts_with("frame-") && name.ends_with(".png")
+        } else {
+            (name.starts_with("fig12-robot") || name.starts_with("fig13-robot"))
+                && (name.ends_with(".png") || name.ends_with(".svg"))
+        }
+    };
+    for (dir, frames) in [(out.to_path_buf(), false), (out.join("frames"), true)] {
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            continue;
+        };
+        for entry in entries.flatten() {
+            let name = entry.file_name().to_string_lossy().into_owned();
+            let path = entry.path();
+            if is_demo_file(frames, &name) && !staged.contains(&path) {
+                stale.push(path);
+            }
+        }
+    }
+    stale
+}
+
+fn write_file(staged: &mut Staged, path: &Path, bytes: &[u8]) -> Result<(), CliError> {
+    staged.write(path, bytes)
 }
 
 fn write_outputs(
+    staged: &mut Staged,
     out: &Path,
     run: &DemoRun,
     occlusion: Option<(f64, f64)>,
     dt: f64,
 ) -> Result<(), CliError> {
     let json = serde_json::to_string_pretty(&run.summary)? + "\n";
-    write_file(&out.join("summary.json"), json.as_bytes())?;
-    write_file(&out.join("series.csv"), series_csv(run).as_bytes())?;
+    write_file(staged, &out.join("summary.json"), json.as_bytes())?;
+    write_file(staged, &out.join("series.csv"), series_csv(run).as_bytes())?;
     // Figs. 12-13 for every pair: robot 2's as fig12/fig13, robot k's as figNN-robotK.
     for (i, trace) in run.traces.iter().enumerate() {
         let records: Vec<StepRecord> = trace.records.iter().map(|r| r.step.clone()).collect();
@@ -152,12 +242,13 @@ fn write_outputs(
         };
         let mut fig12 = fig12_panels(&records);
         shade(&mut fig12, occlusion);
-        write_svg(&out.join(format!("fig12{suffix}.svg")), &fig12, FIGURE_SIZE)?;
-        write_png(&out.join(format!("fig12{suffix}.png")), &fig12, FIGURE_SIZE)?;
+        let mut path = |name: String| staged.path(&out.join(name));
+        write_svg(&path(format!("fig12{suffix}.svg")), &fig12, FIGURE_SIZE)?;
+        write_png(&path(format!("fig12{suffix}.png")), &fig12, FIGURE_SIZE)?;
         let mut fig13 = fig13_panels(&records);
         shade(&mut fig13, occlusion);
-        write_svg(&out.join(format!("fig13{suffix}.svg")), &fig13, FIGURE_SIZE)?;
-        write_png(&out.join(format!("fig13{suffix}.png")), &fig13, FIGURE_SIZE)?;
+        write_svg(&path(format!("fig13{suffix}.svg")), &fig13, FIGURE_SIZE)?;
+        write_png(&path(format!("fig13{suffix}.png")), &fig13, FIGURE_SIZE)?;
     }
     for frame in &run.strip {
         let path = out
@@ -165,13 +256,13 @@ fn write_outputs(
             .join(format!("frame-{:04}.png", frame.step));
         frame
             .image
-            .save(&path)
+            .save_with_format(staged.path(&path), image::ImageFormat::Png)
             .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
     }
     if let Some(strip) = contact_sheet(run, dt)? {
         let path = out.join("strip.png");
         strip
-            .save(&path)
+            .save_with_format(staged.path(&path), image::ImageFormat::Png)
             .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
     }
     Ok(())
@@ -380,6 +471,8 @@ struct FrameSaver {
     dir: PathBuf,
     csv: String,
     error: Option<String>,
+    /// Its files, committed with the demo's.
+    staged: Staged,
 }
 
 impl FrameSaver {
@@ -402,12 +495,13 @@ impl FrameSaver {
             h = camera.height,
             hfov = camera.hfov_deg,
         );
-        let path = dir.join("camera.yaml");
-        std::fs::write(&path, yaml).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        let mut staged = Staged::new();
+        staged.write(&dir.join("camera.yaml"), yaml)?;
         Ok(Self {
             dir: dir.to_path_buf(),
             csv: "frame,v2,w2\n".into(),
             error: None,
+            staged,
         })
     }
 
@@ -419,7 +513,10 @@ impl FrameSaver {
             .dir
             .join("frames")
             .join(format!("frame-{:04}.png", frame.step));
-        if let Err(e) = frame.image.save(&path) {
+        if let Err(e) = frame
+            .image
+            .save_with_format(self.staged.path(&path), image::ImageFormat::Png)
+        {
             self.error = Some(format!("cannot write {}: {e}", path.display()));
             return;
         }
@@ -430,18 +527,17 @@ impl FrameSaver {
         );
     }
 
-    fn finish(self) -> Result<(), CliError> {
+    /// Its files, complete and still under their temporary names.
+    fn finish(mut self) -> Result<Staged, CliError> {
         if let Some(e) = self.error {
             return Err(e.into());
         }
-        let path = self.dir.join("inputs.csv");
-        std::fs::write(&path, self.csv)
-            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
-        eprintln!(
+        self.staged.write(&self.dir.join("inputs.csv"), &self.csv)?;
+        errln!(
             "demo: saved the raw frames of robot 2's camera to {}",
             self.dir.display()
         );
-        Ok(())
+        Ok(self.staged)
     }
 }
 
@@ -459,7 +555,7 @@ struct McapSaver {
 }
 
 impl McapSaver {
-    fn new(path: &Path, config: &DemoConfig) -> Result<Self, CliError> {
+    fn new(staged: &mut Staged, path: &Path, config: &DemoConfig) -> Result<Self, CliError> {
         use fiducial::{Detector, DetectorConfig, Dictionary};
         use formation_tracker::tracker::{Tracker, TrackerConfig};
         let (dt, mount) = (config.dt, config.mount);
@@ -483,15 +579,10 @@ impl McapSaver {
             formation_tracker::robots::RobotConfig::default(),
             tracker,
         );
-        let file = std::fs::File::create(path)
-            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
-        let writer = formation_tracker_cli::foxglove::FoxgloveWriter::new(
-            std::io::BufWriter::new(file),
-            rig,
-            calibration,
-            true,
-        )
-        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        let file = staged.create(path)?;
+        let writer =
+            formation_tracker_cli::foxglove::FoxgloveWriter::new(file, rig, calibration, true)
+                .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
         Ok(Self {
             path: path.to_path_buf(),
             dt,

@@ -71,6 +71,11 @@ impl Staged {
         Ok(std::io::BufWriter::new(file))
     }
 
+    /// Whether `path` (its real name) was staged.
+    pub fn contains(&self, path: &Path) -> bool {
+        self.files.iter().any(|(_, p)| p == path)
+    }
+
     /// Moves every staged file onto its real name (after flushing it to disk), in the order
     /// they were staged.
     ///
