@@ -19,6 +19,7 @@ use formation_tracker::rig::RigError;
 use serde::Serialize;
 
 use super::CliError;
+use super::output::Staged;
 
 /// Arguments of `formation-tracker markers`.
 #[derive(Debug, ClapArgs)]
@@ -109,6 +110,7 @@ fn run_standard(args: &Args, name: &str, ids: &str) -> Result<(), CliError> {
         quiet_cells: 1,
     };
     super::prepare_out_dir(&args.out)?;
+    let mut staged = Staged::new();
     let size_m = [
         size_mm / 1000.0,
         cell_mm * f64::from(family.height_cells()) / 1000.0,
@@ -122,12 +124,10 @@ fn run_standard(args: &Args, name: &str, ids: &str) -> Result<(), CliError> {
         let png = format!("{stem}.png");
         let path = args.out.join(&png);
         let px_per_m = f64::from(args.px_per_cell) / (cell_mm / 1000.0);
-        write_png_at_scale(&path, &marker.into_gray_image(), px_per_m)
+        write_png_at_scale(&staged.path(&path), &marker.into_gray_image(), px_per_m)
             .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
         let svg = format!("{stem}.svg");
-        let path = args.out.join(&svg);
-        std::fs::write(&path, render_svg(family, code, cell_mm, 1)?)
-            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        staged.write(&args.out.join(&svg), render_svg(family, code, cell_mm, 1)?)?;
         entries.push(StandardEntry {
             dictionary: canonical,
             id,
@@ -137,9 +137,11 @@ fn run_standard(args: &Args, name: &str, ids: &str) -> Result<(), CliError> {
             size_m,
         });
     }
-    let path = args.out.join("markers.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&entries)? + "\n")
-        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    staged.write(
+        &args.out.join("markers.json"),
+        serde_json::to_string_pretty(&entries)? + "\n",
+    )?;
+    staged.commit()?;
     eprintln!(
         "markers: wrote {} {canonical} markers ({size_mm} mm) to {}",
         entries.len(),
@@ -191,6 +193,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         quiet_cells: 1,
     };
     super::prepare_out_dir(&args.out)?;
+    let mut staged = Staged::new();
     let family = rig.geometry.family()?;
     let size_m = rig.geometry.marker_size_m()?;
     let mut entries = Vec::new();
@@ -210,15 +213,13 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             let png = format!("{stem}.png");
             let path = args.out.join(&png);
             let px_per_m = f64::from(args.px_per_cell) / rig.geometry.cell_size_m;
-            write_png_at_scale(&path, &marker.into_gray_image(), px_per_m)
+            write_png_at_scale(&staged.path(&path), &marker.into_gray_image(), px_per_m)
                 .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
             let svg = format!("{stem}.svg");
-            let path = args.out.join(&svg);
-            std::fs::write(
-                &path,
+            staged.write(
+                &args.out.join(&svg),
                 render_svg(family, code, rig.geometry.cell_size_m * 1000.0, 1)?,
-            )
-            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+            )?;
             entries.push(Entry {
                 robot,
                 face,
@@ -231,9 +232,11 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             });
         }
     }
-    let path = args.out.join("markers.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&entries)? + "\n")
-        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    staged.write(
+        &args.out.join("markers.json"),
+        serde_json::to_string_pretty(&entries)? + "\n",
+    )?;
+    staged.commit()?;
     eprintln!(
         "markers: wrote {} markers ({} robots x {} faces) to {}",
         entries.len(),

@@ -19,6 +19,8 @@ use formation_sim::scenario_file::ScenarioSpec;
 use formation_tracker::filter::{FilterConfig, FilterDesign};
 
 use super::CliError;
+use super::output::Staged;
+use super::progress::errln;
 
 /// Size of every figure, pixels.
 const FIGURE_SIZE: (u32, u32) = (800, 600);
@@ -96,6 +98,18 @@ pub fn run(args: Args) -> Result<(), CliError> {
     }
 }
 
+/// The files `reproduce dukf` may write into its folder.
+const OUTPUTS: [&str; 8] = [
+    "series.csv",
+    "fig12.svg",
+    "fig12.png",
+    "fig13.svg",
+    "fig13.png",
+    "summary.json",
+    "series-smoothed.csv",
+    "summary-smoothed.json",
+];
+
 /// At most this many steps go into a figure: a longer run's figures show every k-th step
 /// (k a power of two), so that memory stays flat however long the scenario; series.csv
 /// always has every step.
@@ -133,6 +147,9 @@ fn run_dukf(a: &DukfArgs) -> Result<(), CliError> {
             filter_and_write(&a.out, simulation, &config, &filter, a.smooth)?
         }
         Some(file) => {
+            let outputs: Vec<_> = OUTPUTS.iter().map(|n| a.out.join(n)).collect();
+            let outputs: Vec<_> = outputs.iter().map(|p| ("--out", p.as_path())).collect();
+            super::output::refuse_inputs_as_outputs(&outputs, &[("--scenario", file)])?;
             let spec = ScenarioSpec::load(file).map_err(|e| e.to_string())?;
             eprintln!(
                 "reproduce dukf: scenario {}, seed {}{with_bias}, writing to {}",
@@ -178,7 +195,8 @@ fn filter_and_write(
 ) -> Result<(Summary, Option<Summary>), CliError> {
     let (seed, bias) = (scenario.seed, scenario.bias.is_some());
     let mut run = FilterRun::new(filter, scenario, true, smooth)?;
-    let mut series = SeriesFile::create(&out.join("series.csv"))?;
+    let mut staged = Staged::new();
+    let mut series = SeriesFile::create(&mut staged, &out.join("series.csv"))?;
     let mut tally = SummaryTally::default();
     let mut figure = Thinned::new(FIGURE_STEPS);
     // Every record, for the smoother's series (only with --smooth).
@@ -203,31 +221,38 @@ fn filter_and_write(
     let summary = tally.finish(seed, bias);
     let records = figure.into_vec();
     let fig12 = fig12_panels(&records);
-    write_svg(&out.join("fig12.svg"), &fig12, FIGURE_SIZE)?;
-    write_png(&out.join("fig12.png"), &fig12, FIGURE_SIZE)?;
+    write_svg(&staged.path(&out.join("fig12.svg")), &fig12, FIGURE_SIZE)?;
+    write_png(&staged.path(&out.join("fig12.png")), &fig12, FIGURE_SIZE)?;
     let fig13 = fig13_panels(&records);
-    write_svg(&out.join("fig13.svg"), &fig13, FIGURE_SIZE)?;
-    write_png(&out.join("fig13.png"), &fig13, FIGURE_SIZE)?;
+    write_svg(&staged.path(&out.join("fig13.svg")), &fig13, FIGURE_SIZE)?;
+    write_png(&staged.path(&out.join("fig13.png")), &fig13, FIGURE_SIZE)?;
     let json = serde_json::to_string_pretty(&summary)?;
-    write_file(&out.join("summary.json"), &(json + "\n"))?;
-    eprintln!(
-        "reproduce dukf: wrote series.csv, fig12.svg/png, fig13.svg/png, summary.json ({} steps)",
-        summary.steps
+    staged.write(&out.join("summary.json"), json + "\n")?;
+    let smoothed_summary = if smooth {
+        let smoothed = run.smoothed_records(&all)?;
+        let mut series = SeriesFile::create(&mut staged, &out.join("series-smoothed.csv"))?;
+        for r in &smoothed {
+            series.row(r)?;
+        }
+        series.finish()?;
+        let smoothed_summary = summarize(&smoothed, seed, bias);
+        let json = serde_json::to_string_pretty(&smoothed_summary)?;
+        staged.write(&out.join("summary-smoothed.json"), json + "\n")?;
+        Some(smoothed_summary)
+    } else {
+        None
+    };
+    staged.commit()?;
+    errln!(
+        "reproduce dukf: wrote series.csv, fig12.svg/png, fig13.svg/png, summary.json ({} steps){}",
+        summary.steps,
+        if smooth {
+            ", series-smoothed.csv, summary-smoothed.json"
+        } else {
+            ""
+        }
     );
-    if !smooth {
-        return Ok((summary, None));
-    }
-    let smoothed = run.smoothed_records(&all)?;
-    let mut series = SeriesFile::create(&out.join("series-smoothed.csv"))?;
-    for r in &smoothed {
-        series.row(r)?;
-    }
-    series.finish()?;
-    let smoothed_summary = summarize(&smoothed, seed, bias);
-    let json = serde_json::to_string_pretty(&smoothed_summary)?;
-    write_file(&out.join("summary-smoothed.json"), &(json + "\n"))?;
-    eprintln!("reproduce dukf: wrote series-smoothed.csv, summary-smoothed.json");
-    Ok((summary, Some(smoothed_summary)))
+    Ok((summary, smoothed_summary))
 }
 
 /// Every step while there are at most `cap`; past that every second one of those kept, and
@@ -271,10 +296,6 @@ impl Thinned {
     }
 }
 
-fn write_file(path: &Path, text: &str) -> Result<(), CliError> {
-    std::fs::write(path, text).map_err(|e| format!("cannot write {}: {e}", path.display()).into())
-}
-
 /// The per-step series as CSV, written one row at a time.
 struct SeriesFile {
     path: PathBuf,
@@ -282,12 +303,10 @@ struct SeriesFile {
 }
 
 impl SeriesFile {
-    fn create(path: &Path) -> Result<Self, CliError> {
-        let file = std::fs::File::create(path)
-            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    fn create(staged: &mut Staged, path: &Path) -> Result<Self, CliError> {
         let mut series = Self {
             path: path.to_owned(),
-            out: std::io::BufWriter::new(file),
+            out: staged.create(path)?,
         };
         series.write(SERIES_HEADER)?;
         Ok(series)

@@ -52,6 +52,7 @@ pub fn annotated(eval: &Evaluation, rig: &RigModel) -> Result<image::RgbImage, C
 /// Runs the five scenes and writes the outputs into `out`; returns the reports.
 pub fn run_paper_scenes(out: &Path) -> Result<Vec<SceneReport>, CliError> {
     super::prepare_out_dir(out)?;
+    let mut staged = super::output::Staged::new();
     let dict = Dictionary::paper();
     let rig = RigModel::reference();
     let mut detector = default_detector(dict);
@@ -69,23 +70,20 @@ pub fn run_paper_scenes(out: &Path) -> Result<Vec<SceneReport>, CliError> {
         )?;
         let path = out.join(format!("fig{}.png", fig.fig));
         annotated(&eval, &rig)?
-            .save_with_format(&path, image::ImageFormat::Png)
+            .save_with_format(staged.path(&path), image::ImageFormat::Png)
             .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
         let path = out.join(format!("fig{}-raw.png", fig.fig));
         eval.rendered
             .image
-            .save_with_format(&path, image::ImageFormat::Png)
+            .save_with_format(staged.path(&path), image::ImageFormat::Png)
             .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
         reports.push(eval.report);
     }
     let json = serde_json::to_string_pretty(&reports)? + "\n";
-    write(&out.join("scenes.json"), &json)?;
-    write(&out.join("scenes.md"), &scenes_markdown(&reports))?;
+    staged.write(&out.join("scenes.json"), json)?;
+    staged.write(&out.join("scenes.md"), scenes_markdown(&reports))?;
+    staged.commit()?;
     Ok(reports)
-}
-
-fn write(path: &Path, text: &str) -> Result<(), CliError> {
-    std::fs::write(path, text).map_err(|e| format!("cannot write {}: {e}", path.display()).into())
 }
 
 /// `scenes.md`: the settings, the per-robot table and the totals.
