@@ -244,6 +244,15 @@ impl FrameSource {
                 max: max_side,
             });
         }
+        // The luma plane as read (deep samples two bytes) and its grey copy.
+        let need = (width * height) as u64 * (header.colour.bytes_per_sample() as u64 + 1);
+        if need > crate::limits::max_buffer() {
+            return Err(bad(format!(
+                "header field W/H: a {width}x{height} frame needs {} to read, more than the {} an input may take (a quarter of --max-memory)",
+                formation_tracker::textfile::bytes_text(need),
+                formation_tracker::textfile::bytes_text(crate::limits::max_buffer()),
+            )));
+        }
         Ok(Self::new(
             Kind::Y4m {
                 reader: Box::new(crate::y4m::Reader::new(reader, header)),
@@ -390,7 +399,15 @@ fn jpeg_is_complete(bytes: &[u8]) -> bool {
 
 /// Decodes an image file into the grey buffer (see [`read_grey`]).
 fn load_image(path: &Path, grey: &mut GreyImage, max_side: usize) -> Result<(), String> {
-    let bytes = std::fs::read(path).map_err(|e| e.to_string())?;
+    // An image file larger than the memory budget cannot be decoded within it either.
+    let bytes = formation_tracker::textfile::read_bounded(path, crate::limits::max_buffer())
+        .map_err(|e| {
+            if e.kind() == std::io::ErrorKind::InvalidData {
+                format!("too large for an image file: {e} (a quarter of --max-memory)")
+            } else {
+                e.to_string()
+            }
+        })?;
     decode_image(&bytes, grey, max_side)
 }
 
@@ -413,22 +430,25 @@ pub(crate) fn decode_image(
     grey: &mut GreyImage,
     max_side: usize,
 ) -> Result<(), String> {
-    let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| e.to_string())?;
     let format = reader.format().ok_or(
         "not an image format we read (the content is neither PNG nor JPEG nor another format \
          the `image` crate knows)",
     )?;
+    // The header is read without the decoder's own limits, so that its size is reported
+    // in our words; the limits are set before anything is decoded.
+    reader.no_limits();
     // One decoder: the size from its header is checked before anything is decoded.
     let mut decoder = reader.into_decoder().map_err(|e| e.to_string())?;
     let (w, h) = image::ImageDecoder::dimensions(&decoder);
-    let (w, h) = (w as usize, h as usize);
-    if w == 0 || h == 0 || w > max_side || h > max_side {
-        return Err(format!(
-            "image size {w}x{h} is outside 1..={max_side} pixels a side (--max-side sets the limit)"
-        ));
-    }
+    check_decoded_size(w, h, image::ImageDecoder::total_bytes(&decoder), max_side)?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(max_side as u32);
+    limits.max_image_height = Some(max_side as u32);
+    limits.max_alloc = Some(crate::limits::max_buffer());
+    image::ImageDecoder::set_limits(&mut decoder, limits).map_err(|e| e.to_string())?;
     if format == image::ImageFormat::Jpeg && !jpeg_is_complete(bytes) {
         return Err("truncated JPEG: the file ends before its end-of-image marker".into());
     }
@@ -455,6 +475,29 @@ pub(crate) fn decode_image(
             }
         }
         other => out.copy_from_slice(other.to_luma8().as_raw()),
+    }
+    Ok(())
+}
+
+/// Refuses, from its header, an image of `w` x `h` pixels that is empty, larger than
+/// `max_side` a side, or whose decoded pixels (`decoded` bytes) and grey copy would not fit in
+/// [`crate::limits::max_buffer`].
+pub fn check_decoded_size(w: u32, h: u32, decoded: u64, max_side: usize) -> Result<(), String> {
+    let (wu, hu) = (w as usize, h as usize);
+    if wu == 0 || hu == 0 || wu > max_side || hu > max_side {
+        return Err(format!(
+            "image size {w}x{h} is outside 1..={max_side} pixels a side (--max-side sets the limit)"
+        ));
+    }
+    let need = decoded.saturating_add(u64::from(w) * u64::from(h));
+    let limit = crate::limits::max_buffer();
+    if need > limit {
+        return Err(format!(
+            "image size {w}x{h} needs {} decoded, more than the {} an input may take (a quarter of --max-memory {})",
+            formation_tracker::textfile::bytes_text(need),
+            formation_tracker::textfile::bytes_text(limit),
+            formation_tracker::textfile::bytes_text(crate::limits::max_memory()),
+        ));
     }
     Ok(())
 }

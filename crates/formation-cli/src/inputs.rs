@@ -40,6 +40,14 @@ pub enum InputsError {
         #[source]
         source: std::io::Error,
     },
+    /// What [`FollowerInputs::parse`] refused, in the named file.
+    #[error("{path}: {source}")]
+    InFile {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong in it.
+        source: Box<InputsError>,
+    },
     /// A required column is missing from the header (or both `frame` and `t` are present).
     #[error("follower inputs: header must have {what}")]
     Header {
@@ -130,11 +138,28 @@ impl FollowerInputs {
     /// # Errors
     /// Any [`InputsError`].
     pub fn from_path(path: &Path) -> Result<Self, InputsError> {
-        let text = std::fs::read_to_string(path).map_err(|source| InputsError::Io {
+        let bytes = formation_tracker::textfile::read_bounded(
+            path,
+            formation_tracker::textfile::MAX_TEXT_BYTES,
+        )
+        .map_err(|source| InputsError::Io {
             path: path.to_path_buf(),
             source,
         })?;
-        Self::parse(&text)
+        let text = String::from_utf8(bytes).map_err(|e| InputsError::Io {
+            path: path.to_path_buf(),
+            source: std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!(
+                    "not UTF-8 text (invalid byte at offset {})",
+                    e.utf8_error().valid_up_to()
+                ),
+            ),
+        })?;
+        Self::parse(&text).map_err(|e| InputsError::InFile {
+            path: path.to_path_buf(),
+            source: Box::new(e),
+        })
     }
 
     /// Parses CSV text (see the module documentation).

@@ -7,6 +7,7 @@
 //!   streamed.
 //! - [`mcap_out`], [`foxglove`]: an MCAP writer, and tracking results as Foxglove channels.
 //! - [`inputs`]: the follower's own inputs `(v2, w2)` and camera pan per frame, from a CSV.
+//! - [`limits`]: the run's memory budget (`--max-memory`) and the bounds every input meets.
 //!
 //! The subcommands themselves live beside `main.rs` in `cmd/`, one module per subcommand:
 //! each parses its arguments, calls the libraries (`formation-tracker`, `formation-sim`)
@@ -17,5 +18,6 @@ pub mod bag;
 pub mod foxglove;
 pub mod frames;
 pub mod inputs;
+pub mod limits;
 pub mod mcap_out;
 pub mod y4m;

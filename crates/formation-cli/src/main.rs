@@ -32,6 +32,12 @@ struct Cli {
     /// No progress on stderr (bar or periodic status lines); results and errors still print.
     #[arg(long, short, global = true)]
     quiet: bool,
+    /// The memory the run may use for its inputs: images, y4m frames and bag chunks larger
+    /// than a quarter of it are refused from their headers (1GiB, 512MiB, 64M or bytes; at
+    /// least 16MiB; docs/reliability.md).
+    #[arg(long, global = true, value_name = "SIZE", default_value = "1GiB",
+          value_parser = formation_tracker_cli::limits::parse_bytes)]
+    max_memory: u64,
     #[command(subcommand)]
     command: Command,
 }
@@ -59,6 +65,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     cmd::progress::set_quiet(cli.quiet);
+    formation_tracker_cli::limits::set_max_memory(cli.max_memory);
     let result: Result<(), cmd::CliError> = match cli.command {
         Command::Info => cmd::info::run(),
         Command::Markers(args) => cmd::markers::run(&args),

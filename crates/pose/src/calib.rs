@@ -201,12 +201,37 @@ impl Calibration {
         })
     }
 
-    /// Reads a calibration file (OpenCV or ROS YAML).
+    /// The largest calibration file read, bytes (1 MiB; real ones are under 2 KiB): a larger
+    /// file, or `/dev/zero`, is refused before it is read whole.
+    pub const MAX_FILE_BYTES: u64 = 1 << 20;
+
+    /// Reads a calibration file (OpenCV or ROS YAML) of at most [`Self::MAX_FILE_BYTES`].
+    ///
+    /// # Errors
+    /// [`CalibrationError::Io`] naming the file when it cannot be read or is too large;
+    /// otherwise what [`Self::from_yaml_str`] refuses.
     pub fn from_file(path: impl AsRef<Path>) -> Result<Self, CalibrationError> {
+        use std::io::Read as _;
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| CalibrationError::Io {
+        let io = |message: String| CalibrationError::Io {
             path: path.display().to_string(),
-            message: e.to_string(),
+            message,
+        };
+        let mut bytes = Vec::new();
+        std::fs::File::open(path)
+            .and_then(|f| f.take(Self::MAX_FILE_BYTES + 1).read_to_end(&mut bytes))
+            .map_err(|e| io(e.to_string()))?;
+        if bytes.len() as u64 > Self::MAX_FILE_BYTES {
+            return Err(io(format!(
+                "more than {} bytes, the limit for a calibration file",
+                Self::MAX_FILE_BYTES
+            )));
+        }
+        let text = String::from_utf8(bytes).map_err(|e| {
+            io(format!(
+                "not UTF-8 text (invalid byte at offset {})",
+                e.utf8_error().valid_up_to()
+            ))
         })?;
         Self::from_yaml_str(&text)
     }

@@ -21,9 +21,12 @@ use std::path::{Path, PathBuf};
 /// The 8 bytes that open and close every MCAP file.
 pub const MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";
 
-/// The largest record or decompressed chunk accepted, bytes (1 GiB): a corrupted length
-/// beyond this is an error before anything is allocated.
-pub const MAX_RECORD: u64 = 1 << 30;
+/// The largest record or decompressed chunk accepted, bytes: [`crate::limits::max_buffer`]
+/// (a quarter of `--max-memory`, at most 1 GiB). A declared length beyond it is an error
+/// before anything is allocated, and a chunk is never decompressed past its declared size.
+pub fn max_record() -> u64 {
+    crate::limits::max_buffer()
+}
 
 pub(crate) mod op {
     pub const HEADER: u8 = 0x01;
@@ -358,7 +361,7 @@ impl McapReader {
         }
         let n = usize::try_from(start - summary_start)
             .ok()
-            .filter(|n| *n as u64 <= MAX_RECORD)
+            .filter(|n| *n as u64 <= max_record())
             .ok_or_else(|| self.malformed("footer", start, "summary too large".into()))?;
         let mut bytes = vec![0u8; n];
         file.seek(SeekFrom::Start(summary_start))
@@ -506,11 +509,14 @@ impl McapReader {
                 self.file.seek_relative(skip).map_err(|e| self.io(e))?;
                 continue;
             }
-            if n > MAX_RECORD {
+            let limit = max_record();
+            if n > limit {
                 return Err(self.malformed(
                     "record",
                     at,
-                    format!("{n} bytes is more than the {MAX_RECORD}-byte limit"),
+                    format!(
+                        "{n} bytes is more than the {limit}-byte limit (a quarter of --max-memory)"
+                    ),
                 ));
             }
             // Read without zero-filling the buffer first.
@@ -591,11 +597,14 @@ impl McapReader {
         })();
         let (size, crc, compression, records) =
             parsed.map_err(|r| self.malformed("chunk", at, r))?;
-        if size > MAX_RECORD {
+        let limit = max_record();
+        if size > limit {
             return Err(self.malformed(
                 "chunk",
                 at,
-                format!("uncompressed size {size} is more than the {MAX_RECORD}-byte limit"),
+                format!(
+                    "uncompressed size {size} bytes is more than the {limit}-byte limit (a quarter of --max-memory)"
+                ),
             ));
         }
         let size = size as usize;

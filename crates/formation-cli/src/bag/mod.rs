@@ -13,7 +13,7 @@
 //! image topic's frames in `header.stamp` order through a reorder window of
 //! [`REORDER_WINDOW`] frames, each with the follower's inputs as of its stamp, and counts
 //! what was irregular in [`BagStats`]. Memory: one MCAP record plus one decompressed chunk
-//! (each at most [`mcap::MAX_RECORD`], in practice rosbag2's chunk size, about 1 MiB), plus
+//! (each at most [`mcap::max_record`], in practice rosbag2's chunk size, about 1 MiB), plus
 //! `REORDER_WINDOW + 1` grey frames, whatever the bag's size.
 
 pub mod cdr;
@@ -48,6 +48,14 @@ pub enum BagError {
         /// The I/O error.
         #[source]
         source: std::io::Error,
+    },
+    /// `metadata.yaml` names a file outside the bag folder, or cannot be read.
+    #[error("{path}: {reason}")]
+    Metadata {
+        /// The `metadata.yaml` file.
+        path: PathBuf,
+        /// What is wrong, naming the field and value.
+        reason: String,
     },
     /// A folder without `.mcap` files.
     #[error("{path} holds no .mcap file (a rosbag2 folder has metadata.yaml and its .mcap files)")]
@@ -103,6 +111,8 @@ pub struct Topic {
 #[derive(Debug, Clone)]
 pub struct Bag {
     files: Vec<PathBuf>,
+    /// Split files `metadata.yaml` lists that are not there.
+    missing: Vec<PathBuf>,
     topics: BTreeMap<String, Topic>,
 }
 
@@ -156,28 +166,95 @@ struct MetadataInfo {
     relative_file_paths: Option<Vec<String>>,
 }
 
-/// The split files a rosbag2 folder lists in `metadata.yaml`, else its `.mcap` files.
-fn folder_files(dir: &Path) -> Result<Vec<PathBuf>, BagError> {
-    let listed = std::fs::read_to_string(dir.join("metadata.yaml"))
-        .ok()
-        .and_then(|text| serde_saphyr::from_str::<Metadata>(&text).ok())
-        .and_then(|m| m.rosbag2_bagfile_information)
-        .and_then(|i| i.relative_file_paths)
-        .map(|paths| {
-            paths
-                .iter()
-                .map(|p| dir.join(p))
-                .filter(|p| p.is_file())
-                .collect::<Vec<_>>()
-        })
-        .filter(|v| !v.is_empty());
-    let files = listed.unwrap_or_else(|| mcap_files(dir));
-    if files.is_empty() {
-        return Err(BagError::NoMcap {
-            path: dir.to_path_buf(),
-        });
+/// The split files a rosbag2 folder lists in `metadata.yaml` (those present, and those
+/// missing), else its `.mcap` files. A listed path must stay inside the folder: absolute
+/// paths, `..` and links that lead out are refused.
+fn folder_files(dir: &Path) -> Result<(Vec<PathBuf>, Vec<PathBuf>), BagError> {
+    let metadata = dir.join("metadata.yaml");
+    let bad = |reason: String| BagError::Metadata {
+        path: metadata.clone(),
+        reason,
+    };
+    let listed = if metadata.exists() {
+        let bytes = formation_tracker::textfile::read_bounded(
+            &metadata,
+            formation_tracker::textfile::MAX_TEXT_BYTES,
+        )
+        .map_err(|e| bad(format!("cannot read: {e}")))?;
+        let text = String::from_utf8_lossy(&bytes);
+        let parsed: Metadata = serde_saphyr::from_str(&text).map_err(|e| {
+            bad(format!(
+                "not rosbag2 metadata: {}",
+                e.to_string().lines().next().unwrap_or("unreadable")
+            ))
+        })?;
+        parsed
+            .rosbag2_bagfile_information
+            .and_then(|i| i.relative_file_paths)
+            .filter(|v| !v.is_empty())
+    } else {
+        None
+    };
+    let Some(listed) = listed else {
+        let files = mcap_files(dir);
+        if files.is_empty() {
+            return Err(BagError::NoMcap {
+                path: dir.to_path_buf(),
+            });
+        }
+        return Ok((files, Vec::new()));
+    };
+    let root = std::fs::canonicalize(dir).map_err(|source| BagError::Open {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let (mut files, mut missing) = (Vec::new(), Vec::new());
+    for name in &listed {
+        let relative = Path::new(name);
+        let leaves = relative.is_absolute()
+            || relative.components().any(|c| {
+                !matches!(
+                    c,
+                    std::path::Component::Normal(_) | std::path::Component::CurDir
+                )
+            });
+        if leaves {
+            return Err(bad(format!(
+                "relative_file_paths: `{name}` is not a path inside the bag folder (refused)"
+            )));
+        }
+        let path = dir.join(relative);
+        match std::fs::canonicalize(&path) {
+            Ok(real) if !real.starts_with(&root) => {
+                return Err(bad(format!(
+                    "relative_file_paths: `{name}` leads outside the bag folder, to {} (refused)",
+                    real.display()
+                )));
+            }
+            Ok(real) if real.is_file() => files.push(path),
+            Ok(_) => {
+                return Err(bad(format!("relative_file_paths: `{name}` is not a file")));
+            }
+            Err(_) => missing.push(path),
+        }
     }
-    Ok(files)
+    if files.is_empty() {
+        return Err(bad(format!(
+            "none of the {} files it lists is there (missing: {})",
+            missing.len(),
+            names(&missing)
+        )));
+    }
+    Ok((files, missing))
+}
+
+/// `a.mcap, b.mcap`: the file names of `paths`.
+fn names(paths: &[PathBuf]) -> String {
+    paths
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 fn corrupt(source: McapError) -> BagError {
@@ -197,10 +274,10 @@ impl Bag {
             path: path.to_path_buf(),
             source,
         })?;
-        let files = if meta.is_dir() {
+        let (files, missing) = if meta.is_dir() {
             folder_files(path)?
         } else {
-            vec![path.to_path_buf()]
+            (vec![path.to_path_buf()], Vec::new())
         };
         let mut topics: BTreeMap<String, Topic> = BTreeMap::new();
         for file in &files {
@@ -245,7 +322,17 @@ impl Bag {
                 }
             }
         }
-        Ok(Self { files, topics })
+        Ok(Self {
+            files,
+            missing,
+            topics,
+        })
+    }
+
+    /// The split files `metadata.yaml` lists that are not in the folder (the others are
+    /// read; `track` reports these and exits with code 3).
+    pub fn missing_files(&self) -> &[PathBuf] {
+        &self.missing
     }
 
     /// The bag's files, in order.

@@ -69,6 +69,16 @@ pub fn load_rig(
     })
 }
 
+/// The calibration file `path` (`--camera`), every error naming the file.
+pub fn load_calibration(path: &std::path::Path) -> Result<pose::calib::Calibration, CliError> {
+    use pose::calib::{Calibration, CalibrationError};
+    Calibration::from_file(path).map_err(|e| match e {
+        // Already names the file.
+        CalibrationError::Io { .. } => e.into(),
+        e => format!("{}: {e}", path.display()).into(),
+    })
+}
+
 /// Creates the output directory `dir` if needed and checks that a file can be written into
 /// it, before any long work starts (a demo that renders for 11 s and then cannot write
 /// is a wasted run).

@@ -168,7 +168,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     let camera = args.camera.as_ref().ok_or(
         "--camera FILE is required for image folders and y4m input (a bag can give its own CameraInfo)",
     )?;
-    let calibration = Calibration::from_file(camera)?;
+    let calibration = super::load_calibration(camera)?;
     let dict = Dictionary::paper();
     let rig = super::load_rig(args.rig.as_deref(), dict)?;
     let mut frames = FrameSource::open_with_max_side(&args.input, args.max_side)?;

@@ -96,7 +96,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     let bag = Bag::open(&args.input)?;
     let image_topic = bag.image_topic(args.image_topic.as_deref())?;
     let calibration = match &args.camera {
-        Some(path) => Calibration::from_file(path)?,
+        Some(path) => super::load_calibration(path)?,
         None => {
             let topic = bag.camera_info_topic(&image_topic)?;
             let c = bag.calibration(&topic)?;
@@ -261,13 +261,27 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     if let Some(e) = &fatal {
         summary.push_str(&format!("; stopped: {e}"));
     }
+    let missing = bag.missing_files();
+    if !missing.is_empty() {
+        let names: Vec<String> = missing.iter().map(|p| p.display().to_string()).collect();
+        summary.push_str(&format!(
+            "; {} split file(s) listed in metadata.yaml are missing: {}",
+            missing.len(),
+            names.join(", ")
+        ));
+    }
     if processed == 0 {
         return Err(match fatal {
             Some(e) => e.into(),
             None => format!("nothing tracked: {summary}").into(),
         });
     }
-    if broken > 0 || bad_inputs > 0 || fatal.is_some() || s.out_of_order_dropped > 0 {
+    if broken > 0
+        || bad_inputs > 0
+        || fatal.is_some()
+        || s.out_of_order_dropped > 0
+        || !missing.is_empty()
+    {
         return Err(super::Partial(summary).into());
     }
     eprintln!("track: {summary}");
