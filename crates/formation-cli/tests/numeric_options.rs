@@ -18,7 +18,25 @@ fn non_finite_and_out_of_range_values_are_usage_errors() {
         ("--mount-height", "nan", "finite"),
         ("--mount-tilt", "nan", "finite"),
         ("--mount-offset", "-inf", "finite"),
-        ("--mount-offset", "-0.05", "zero or more"),
+        (
+            "--mount-offset",
+            "-0.05",
+            "not a camera offset (0 up to 100 m)",
+        ),
+        ("--mount-offset", "150", "not a camera offset"),
+        // Physics (#32): angles within pi (a hint when it looks like degrees), a camera
+        // above the ground and below 100 m, a tilt that looks ahead.
+        ("--pan", "30", "did you mean 30 degrees = 0.5236 rad"),
+        ("--pan", "1e308", "outside -pi to pi rad"),
+        (
+            "--mount-height",
+            "-1",
+            "not a camera height (above 0 and below 100 m)",
+        ),
+        ("--mount-height", "0", "not a camera height"),
+        ("--mount-height", "1e9", "not a camera height"),
+        ("--mount-tilt", "1e20", "outside -pi/2 to pi/2"),
+        ("--mount-tilt", "1.5707963267948966", "straight up or down"),
         ("--pan", "-nan", "finite"),
         ("--lost-after", "0", "above zero"),
         ("--fps", "1e300", "valid range"),
@@ -60,8 +78,8 @@ fn negative_values_need_no_equals_sign() {
             "-0.1",
             "--pan",
             "-0.2",
-            "--mount-height",
-            "-0.05",
+            "--mount-offset",
+            "-0",
             "frames",
         ],
     );

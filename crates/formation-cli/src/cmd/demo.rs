@@ -64,10 +64,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let mut config = match &args.scenario {
         Some(path) => {
             if args.robots != 2 {
-                return Err(format!(
+                return Err(super::Usage(format!(
                     "--robots {} with --scenario: a scenario file describes two robots (a leader and one follower)",
                     args.robots
-                )
+                ))
                 .into());
             }
             let spec = ScenarioSpec::load(path).map_err(|e| e.to_string())?;

@@ -222,7 +222,8 @@ fn dictionaries(
         out.push(rig.marker_dictionary().map_err(|e| e.to_string())?);
     }
     for n in names {
-        let d = fiducial::dictionary_by_name(n).map_err(|e| format!("--dictionary: {e}"))?;
+        let d = fiducial::dictionary_by_name(n)
+            .map_err(|e| super::Usage(format!("--dictionary {n}: {e}")))?;
         if !out.iter().any(|o| std::ptr::eq(*o, d)) {
             out.push(d);
         }

@@ -31,7 +31,7 @@ pub struct RobotArgs {
     #[arg(long, value_name = "FILE")]
     pub rig: Option<PathBuf>,
     /// Camera pan about the follower's vertical axis, radians, left positive.
-    #[arg(long, value_name = "RAD", value_parser = super::numbers::finite,
+    #[arg(long, value_name = "RAD", value_parser = super::numbers::angle,
           allow_hyphen_values = true)]
     pub pan: Option<f64>,
     /// Camera mount as `OFFSET,HEIGHT[,TILT]`: metres ahead of the follower's reference
@@ -53,15 +53,20 @@ pub struct RobotArgs {
 fn parse_mount(text: &str, pan: f64) -> Result<CameraMount, CliError> {
     let parts: Vec<&str> = text.split(',').map(str::trim).collect();
     if !(2..=3).contains(&parts.len()) {
-        return Err(format!("--mount {text}: expected OFFSET,HEIGHT or OFFSET,HEIGHT,TILT").into());
+        return Err(super::Usage(format!(
+            "--mount {text}: expected OFFSET,HEIGHT or OFFSET,HEIGHT,TILT (metres, metres, radians)"
+        ))
+        .into());
     }
     let mut v = [0.0; 3];
+    let checks: [(&str, fn(&str) -> Result<f64, String>); 3] = [
+        ("OFFSET", super::numbers::offset),
+        ("HEIGHT", super::numbers::height),
+        ("TILT", super::numbers::tilt),
+    ];
     for (i, p) in parts.iter().enumerate() {
-        v[i] = p
-            .parse::<f64>()
-            .ok()
-            .filter(|x| x.is_finite())
-            .ok_or_else(|| format!("--mount {text}: `{p}` is not a finite number"))?;
+        let (name, check) = checks[i];
+        v[i] = check(p).map_err(|e| super::Usage(format!("--mount {text}: {name} `{p}`: {e}")))?;
     }
     Ok(CameraMount {
         offset: v[0],
@@ -100,7 +105,10 @@ impl RobotStage {
         };
         let Some(path) = &args.camera else {
             if args.mount.is_some() || args.pan.is_some() || args.free_pose {
-                return Err("--mount, --pan and --free-pose need --camera FILE".into());
+                return Err(super::Usage(
+                    "--mount, --pan and --free-pose need --camera FILE".into(),
+                )
+                .into());
             }
             return Ok(None);
         };

@@ -46,7 +46,7 @@ pub struct Args {
     pub ids: Option<String>,
     /// With `--dictionary`: side of the black border, millimetres (default 100).
     #[arg(long = "size-mm", value_name = "MM", requires = "dictionary",
-          value_parser = super::numbers::finite)]
+          value_parser = super::numbers::positive, allow_hyphen_values = true)]
     pub size_mm: Option<f64>,
 }
 
@@ -70,7 +70,11 @@ struct StandardEntry {
 fn parse_ids(text: &str, len: usize) -> Result<Vec<usize>, CliError> {
     let mut out = Vec::new();
     for part in text.split(',').map(str::trim) {
-        let bad = || format!("--ids {text}: `{part}` is not an id or a range like 0-9");
+        let bad = || {
+            super::Usage(format!(
+                "--ids {text}: `{part}` is not an id or a range like 0-9 (from low to high)"
+            ))
+        };
         let (a, b) = match part.split_once('-') {
             Some((a, b)) => (a.trim(), b.trim()),
             None => (part, part),
@@ -81,10 +85,10 @@ fn parse_ids(text: &str, len: usize) -> Result<Vec<usize>, CliError> {
             return Err(bad().into());
         }
         if b >= len {
-            return Err(format!(
+            return Err(super::Usage(format!(
                 "--ids {text}: id {b} is beyond the dictionary's {len} ids (0-{})",
                 len - 1
-            )
+            ))
             .into());
         }
         out.extend(a..=b);
@@ -96,12 +100,13 @@ fn parse_ids(text: &str, len: usize) -> Result<Vec<usize>, CliError> {
 
 /// `markers --dictionary NAME --ids LIST [--size-mm N]`.
 fn run_standard(args: &Args, name: &str, ids: &str) -> Result<(), CliError> {
-    let dict = fiducial::dictionary_by_name(name).map_err(|e| format!("--dictionary: {e}"))?;
+    let dict = fiducial::dictionary_by_name(name)
+        .map_err(|e| super::Usage(format!("--dictionary {name}: {e}")))?;
     let canonical = dict.name().unwrap_or(fiducial::PAPER_NAME);
     let ids = parse_ids(ids, dict.len())?;
     let size_mm = args.size_mm.unwrap_or(100.0);
     if size_mm.is_nan() || size_mm <= 0.0 {
-        return Err(format!("--size-mm {size_mm}: must be positive").into());
+        return Err(super::Usage(format!("--size-mm {size_mm}: must be positive")).into());
     }
     let family = dict.family();
     let cell_mm = size_mm / f64::from(family.width_cells());
@@ -175,7 +180,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     let rig = super::load_rig(args.rig.as_deref(), Dictionary::paper())?;
     let dict = rig.marker_dictionary()?;
     if args.robots == 0 {
-        return Err("--robots must be at least 1".into());
+        return Err(super::Usage("--robots must be at least 1".into()).into());
     }
     let max = rig.max_robots(dict);
     if rig.markers.is_none() && args.robots > max {

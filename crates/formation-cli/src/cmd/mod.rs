@@ -124,16 +124,6 @@ pub mod numbers {
         }
     }
 
-    /// A finite number at or above zero.
-    pub fn non_negative(s: &str) -> Result<f64, String> {
-        let x = finite(s)?;
-        if x >= 0.0 {
-            Ok(x)
-        } else {
-            Err("must be zero or more".into())
-        }
-    }
-
     /// A finite number above zero.
     pub fn positive(s: &str) -> Result<f64, String> {
         let x = finite(s)?;
@@ -141,6 +131,64 @@ pub mod numbers {
             Ok(x)
         } else {
             Err("must be above zero".into())
+        }
+    }
+
+    /// An angle in radians within `[-pi, pi]`; a value that would be a plausible angle in
+    /// degrees says so (`--pan 30` is 30 rad, not 30 degrees).
+    pub fn angle(s: &str) -> Result<f64, String> {
+        within_pi(s, std::f64::consts::PI, "-pi to pi")
+    }
+
+    /// A camera tilt in radians, within `(-pi/2, pi/2)`: a camera on a robot looks forward,
+    /// up or down, never behind itself.
+    pub fn tilt(s: &str) -> Result<f64, String> {
+        let x = within_pi(s, std::f64::consts::FRAC_PI_2, "-pi/2 to pi/2")?;
+        if x.abs() >= std::f64::consts::FRAC_PI_2 {
+            return Err(format!(
+                "{x} rad is not inside -pi/2 to pi/2 (the camera would look straight up or down)"
+            ));
+        }
+        Ok(x)
+    }
+
+    fn within_pi(s: &str, bound: f64, range: &str) -> Result<f64, String> {
+        let x = finite(s)?;
+        if x.abs() <= bound {
+            return Ok(x);
+        }
+        let hint = if x.abs() <= 360.0 {
+            format!("; did you mean {x} degrees = {:.4} rad?", x.to_radians())
+        } else {
+            String::new()
+        };
+        Err(format!("{x} rad is outside {range} rad{hint}"))
+    }
+
+    /// Largest height or offset accepted, metres: a robot's camera is not 100 m up.
+    pub const MAX_METRES: f64 = 100.0;
+
+    /// A camera height above the ground, metres: above 0 and below [`MAX_METRES`].
+    pub fn height(s: &str) -> Result<f64, String> {
+        let x = finite(s)?;
+        if x > 0.0 && x < MAX_METRES {
+            Ok(x)
+        } else {
+            Err(format!(
+                "{x} m is not a camera height (above 0 and below {MAX_METRES} m)"
+            ))
+        }
+    }
+
+    /// A camera offset ahead of the axle, metres: 0 up to [`MAX_METRES`].
+    pub fn offset(s: &str) -> Result<f64, String> {
+        let x = finite(s)?;
+        if (0.0..MAX_METRES).contains(&x) {
+            Ok(x)
+        } else {
+            Err(format!(
+                "{x} m is not a camera offset (0 up to {MAX_METRES} m)"
+            ))
         }
     }
 

@@ -17,7 +17,7 @@ use super::progress::Progress;
 #[command(group(clap::ArgGroup::new("source").required(true).args(["paper_fig", "scene"])))]
 pub struct Args {
     /// One of the paper's configurations, Figs. 7 to 11 (spec section 6).
-    #[arg(long = "paper-fig", value_name = "N")]
+    #[arg(long = "paper-fig", value_name = "N", value_parser = clap::value_parser!(u8).range(7..=11))]
     pub paper_fig: Option<u8>,
     /// A scene file (YAML, or JSON when it ends in .json).
     #[arg(long, value_name = "FILE")]

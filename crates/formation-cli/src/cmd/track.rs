@@ -65,21 +65,22 @@ pub struct Args {
     /// One JSON object per frame instead of a text line.
     #[arg(long)]
     pub(super) json: bool,
-    /// Camera offset ahead of the follower's axle, metres (the paper's d).
+    /// Camera offset ahead of the follower's axle, metres (the paper's d), 0 to 100.
     #[arg(long, value_name = "M", default_value_t = CameraMount::default().offset,
-          value_parser = super::numbers::non_negative, allow_hyphen_values = true)]
+          value_parser = super::numbers::offset, allow_hyphen_values = true)]
     pub(super) mount_offset: f64,
-    /// Camera height above the ground, metres.
+    /// Camera height above the ground, metres, above 0 and below 100.
     #[arg(long, value_name = "M", default_value_t = CameraMount::default().height,
-          value_parser = super::numbers::finite, allow_hyphen_values = true)]
+          value_parser = super::numbers::height, allow_hyphen_values = true)]
     pub(super) mount_height: f64,
-    /// Camera tilt below the horizontal, radians.
+    /// Camera tilt below the horizontal, radians, between -pi/2 and pi/2.
     #[arg(long, value_name = "RAD", default_value_t = 0.0,
-          value_parser = super::numbers::finite, allow_hyphen_values = true)]
+          value_parser = super::numbers::tilt, allow_hyphen_values = true)]
     pub(super) mount_tilt: f64,
-    /// Camera pan (left positive), radians, when the inputs CSV has no `pan` column.
+    /// Camera pan (left positive), radians, between -pi and pi, when the inputs CSV has no
+    /// `pan` column.
     #[arg(long, value_name = "RAD", default_value_t = 0.0,
-          value_parser = super::numbers::finite, allow_hyphen_values = true)]
+          value_parser = super::numbers::angle, allow_hyphen_values = true)]
     pub(super) pan: f64,
     /// Accept frames whose size differs from the calibration's by scaling the intrinsics
     /// (frames resized from the calibrated camera's, same aspect ratio). Without it such
@@ -163,11 +164,17 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         return super::track_bag::run(args);
     }
     if args.image_topic.is_some() || args.inputs_topic.is_some() {
-        return Err("--image-topic and --inputs-topic are for bag input (.mcap)".into());
+        return Err(super::Usage(
+            "--image-topic and --inputs-topic are for bag input (.mcap)".into(),
+        )
+        .into());
     }
-    let camera = args.camera.as_ref().ok_or(
-        "--camera FILE is required for image folders and y4m input (a bag can give its own CameraInfo)",
-    )?;
+    let camera = args.camera.as_ref().ok_or_else(|| {
+        super::Usage(
+            "--camera FILE is required for image folders and y4m input (a bag can give its own CameraInfo)"
+                .into(),
+        )
+    })?;
     let calibration = super::load_calibration(camera)?;
     let dict = Dictionary::paper();
     let rig = super::load_rig(args.rig.as_deref(), dict)?;
