@@ -59,7 +59,8 @@ fn parse_mount(text: &str, pan: f64) -> Result<CameraMount, CliError> {
         .into());
     }
     let mut v = [0.0; 3];
-    let checks: [(&str, fn(&str) -> Result<f64, String>); 3] = [
+    type Check = fn(&str) -> Result<f64, String>;
+    let checks: [(&str, Check); 3] = [
         ("OFFSET", super::numbers::offset),
         ("HEIGHT", super::numbers::height),
         ("TILT", super::numbers::tilt),
