@@ -38,10 +38,15 @@ fn render_command_writes_png_and_truth() {
         .arg(dir.join("x.png"))
         .output()
         .unwrap();
-    assert!(!out.status.success());
+    // A usage error (#32): exit code 2, its one error line naming the value and the range.
+    assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(err.trim().lines().count(), 1, "{err}");
-    assert!(err.contains("7 to 11"), "{err}");
+    assert_eq!(
+        err.lines().filter(|l| l.contains("error")).count(),
+        1,
+        "{err}"
+    );
+    assert!(err.contains("`12`") && err.contains("7 to 11"), "{err}");
 }
 
 /// A render is long work for a large scene, so it is visible in a log: without a terminal it

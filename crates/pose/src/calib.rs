@@ -292,6 +292,11 @@ impl Calibration {
 /// of view would exceed 179.9 degrees; above, it would be under 0.06 degrees.
 const FOCAL_RANGE: std::ops::RangeInclusive<f64> = 1e-3..=1e3;
 
+/// The largest factor by which a lens's radial distortion may scale the ray through the
+/// image's farthest corner (distorted over undistorted radius, or angle for a fisheye), and
+/// the inverse of the smallest.
+const MAX_CORNER_SCALE: f64 = 2.5;
+
 /// Whether the intrinsics and distortion can describe a real camera for a `width x
 /// height` image: focal lengths in [`FOCAL_RANGE`] times the image side, the principal
 /// point within one image size of the image, and a radial distortion that is monotonic
@@ -347,7 +352,25 @@ fn check_lens(
         _ => ("normalised radius", ""),
     };
     match d.check_monotonic(corner_radius) {
-        Ok(()) => Ok(()),
+        // A lens bends the corner's ray by a modest factor (strong barrel distortion about
+        // 0.6, pincushion about 1.3); k2 = 1e6 squeezed a 72-degree view into 7 degrees and
+        // put a robot 2 m away at 14 m.
+        Ok(reached) => {
+            let scale = corner_radius / reached.max(f64::MIN_POSITIVE);
+            if (1.0 / MAX_CORNER_SCALE..=MAX_CORNER_SCALE).contains(&scale) {
+                Ok(())
+            } else {
+                Err(CalibrationError::BadField {
+                    field: "distortion_coefficients",
+                    reason: format!(
+                        "the {} radial distortion scales the image corner's ray by {scale:.3e} (a lens: {:.2} to {MAX_CORNER_SCALE}); coefficients {:?} are not a lens for this camera matrix",
+                        d.model(),
+                        1.0 / MAX_CORNER_SCALE,
+                        d.coefficients()
+                    ),
+                })
+            }
+        }
         Err(ProfileFault::FoldsBack(t)) => Err(CalibrationError::BadField {
             field: "distortion_coefficients",
             reason: format!(

@@ -502,8 +502,9 @@ impl Distortion {
     /// Whether the radial profile grows monotonically (so the model is invertible) from the
     /// axis out to a distorted normalised radius `corner` (an image's farthest corner):
     /// marches the profile in steps of `corner / 1000`, up to 100 times the corner radius
-    /// (polynomial models) or an angle of pi (fisheye).
-    pub(crate) fn check_monotonic(&self, corner: f64) -> Result<(), ProfileFault> {
+    /// (polynomial models) or an angle of pi (fisheye). Returns the undistorted radius
+    /// (fisheye: the angle) at which the profile reaches the corner, to within a step.
+    pub(crate) fn check_monotonic(&self, corner: f64) -> Result<f64, ProfileFault> {
         let step = corner / 1000.0;
         let limit = match self.model() {
             DistortionModel::Equidistant => std::f64::consts::PI,
@@ -513,7 +514,7 @@ impl Distortion {
         while t <= limit {
             let (value, slope) = self.radial_profile(t);
             if value >= corner {
-                return Ok(());
+                return Ok(t);
             }
             if slope.is_nan() || slope <= 0.0 {
                 return Err(ProfileFault::FoldsBack(t));

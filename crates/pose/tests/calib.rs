@@ -360,3 +360,33 @@ fn lens_sanity_checks_hold_for_every_model() {
         "{e}"
     );
 }
+
+/// Radial distortion that is monotonic but no lens (#32): `k2 = 1e6` squeezed a 72-degree view
+/// into 7 degrees and put a robot 2 m away at 14.3 m; `k2 = 1e300` gave no robot and no word.
+#[test]
+fn distortion_that_squeezes_or_stretches_the_view_is_refused() {
+    let camera = |k2: &str| {
+        format!(
+            "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 554.256, 0., 319.5, 0., 554.256, 239.5, 0., 0., 1. ]\ndistortion_coefficients: !!opencv-matrix\n   rows: 5\n   cols: 1\n   dt: d\n   data: [ 0., {k2}, 0., 0., 0. ]\n"
+        )
+    };
+    for (k2, shown) in [("1e6", "1000000.0"), ("1e300", "1e300"), ("1e3", "1000.0")] {
+        let e = Calibration::from_yaml_str(&camera(k2)).unwrap_err();
+        let text = e.to_string();
+        assert!(
+            matches!(
+                &e,
+                CalibrationError::BadField {
+                    field: "distortion_coefficients",
+                    ..
+                }
+            ) && text.contains("scales the image corner's ray by")
+                && text.contains(shown),
+            "k2 = {k2}: {text}"
+        );
+    }
+    // Ordinary lenses pass: mild pincushion and barrel.
+    for k2 in ["0.5", "-0.2", "2"] {
+        Calibration::from_yaml_str(&camera(k2)).unwrap();
+    }
+}

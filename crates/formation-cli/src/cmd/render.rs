@@ -17,7 +17,7 @@ use super::progress::Progress;
 #[command(group(clap::ArgGroup::new("source").required(true).args(["paper_fig", "scene"])))]
 pub struct Args {
     /// One of the paper's configurations, Figs. 7 to 11 (spec section 6).
-    #[arg(long = "paper-fig", value_name = "N", value_parser = clap::value_parser!(u8).range(7..=11))]
+    #[arg(long = "paper-fig", value_name = "N", value_parser = paper_fig)]
     pub paper_fig: Option<u8>,
     /// A scene file (YAML, or JSON when it ends in .json).
     #[arg(long, value_name = "FILE")]
@@ -31,6 +31,16 @@ pub struct Args {
     /// Where to write the ground truth (JSON).
     #[arg(long, value_name = "JSON")]
     pub truth: Option<PathBuf>,
+}
+
+/// A figure of the paper with a scene, 7 to 11.
+fn paper_fig(s: &str) -> Result<u8, String> {
+    match s.trim().parse::<u8>() {
+        Ok(n) if (7..=11).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "`{s}` is not one of the paper's scene figures, 7 to 11"
+        )),
+    }
 }
 
 /// Renders the scene and writes the image (and the truth).
