@@ -28,6 +28,14 @@ use std::path::{Path, PathBuf};
 
 use unicycle::Inputs;
 
+/// The largest follower speed accepted from odometry, m/s (`v2`, the inputs CSV and bag
+/// `Odometry`/`Twist`): a ground robot carrying a camera for this does not drive faster;
+/// `v = 1e300` reset the track every other frame.
+pub const MAX_SPEED: f64 = 20.0;
+
+/// The largest follower turn rate accepted from odometry, rad/s (`w2`).
+pub const MAX_TURN_RATE: f64 = 20.0;
+
 /// Errors reading a follower-inputs CSV. Line numbers count from 1.
 #[derive(Debug, thiserror::Error)]
 pub enum InputsError {
@@ -63,6 +71,18 @@ pub enum InputsError {
         column: String,
         /// The text found.
         value: String,
+    },
+    /// A value is a number but physically impossible for the follower.
+    #[error("follower inputs line {line}, column {column}: {value:?} is outside {range}")]
+    OutOfRange {
+        /// Line number.
+        line: usize,
+        /// Column name.
+        column: String,
+        /// The value.
+        value: f64,
+        /// The range allowed, with its unit.
+        range: &'static str,
     },
     /// A column name appears twice in the header.
     #[error("follower inputs: column `{column}` appears twice in the header")]
@@ -244,9 +264,27 @@ impl FollowerInputs {
                     value: k,
                 });
             }
+            let bounded = |col: usize, bound: f64, range: &'static str| {
+                let v = value(col)?;
+                if v.abs() <= bound {
+                    Ok(v)
+                } else {
+                    Err(InputsError::OutOfRange {
+                        line,
+                        column: names[col].to_string(),
+                        value: v,
+                        range,
+                    })
+                }
+            };
             let sample = InputSample {
-                inputs: Inputs::new(value(v_col)?, value(w_col)?),
-                pan: pan_col.map(value).transpose()?,
+                inputs: Inputs::new(
+                    bounded(v_col, MAX_SPEED, "-20 to 20 m/s (MAX_SPEED)")?,
+                    bounded(w_col, MAX_TURN_RATE, "-20 to 20 rad/s (MAX_TURN_RATE)")?,
+                ),
+                pan: pan_col
+                    .map(|c| bounded(c, std::f64::consts::PI, "-pi to pi rad"))
+                    .transpose()?,
             };
             rows.push((k, sample));
         }

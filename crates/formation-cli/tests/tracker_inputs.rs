@@ -107,3 +107,35 @@ proptest! {
         prop_assert_eq!(got, want);
     }
 }
+
+/// Odometry that no follower can have is refused, naming the file, line, column and value
+/// (#32: `v = 1e300` was accepted and reset the track every other frame).
+#[test]
+fn impossible_speeds_in_the_inputs_csv_are_refused() {
+    let dir = std::env::temp_dir().join(format!("ft-inputs-speed-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (row, column, says) in [
+        ("1,1e300,0", "v2", "1e300 is outside -20 to 20 m/s"),
+        ("1,0.5,-25", "w2", "-25.0 is outside -20 to 20 rad/s"),
+        ("1,0.5,0,30", "pan", "30.0 is outside -pi to pi rad"),
+    ] {
+        let path = dir.join(format!("{column}.csv"));
+        std::fs::write(
+            &path,
+            format!(
+                "frame,v2,w2,pan\n0,0,0,0\n{row}{}\n",
+                if column == "pan" { "" } else { ",0" }
+            ),
+        )
+        .unwrap();
+        let e = formation_tracker_cli::inputs::FollowerInputs::from_path(&path)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&path.display().to_string())
+                && e.contains(&format!("line 3, column {column}"))
+                && e.contains(says),
+            "{e}"
+        );
+    }
+}

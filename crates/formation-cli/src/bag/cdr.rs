@@ -321,7 +321,15 @@ impl TwistSample {
             }
         };
         if !v.is_finite() || !w.is_finite() {
-            return Err(format!("velocities ({v}, {w}) are not finite"));
+            return Err(format!(
+                "twist.linear.x = {v} m/s, twist.angular.z = {w} rad/s: not finite"
+            ));
+        }
+        use crate::inputs::{MAX_SPEED, MAX_TURN_RATE};
+        if v.abs() > MAX_SPEED || w.abs() > MAX_TURN_RATE {
+            return Err(format!(
+                "twist.linear.x = {v:?} m/s, twist.angular.z = {w:?} rad/s: outside +-{MAX_SPEED} m/s, +-{MAX_TURN_RATE} rad/s for a follower"
+            ));
         }
         Ok(Self { stamp_ns, v, w })
     }
@@ -458,6 +466,18 @@ mod tests {
         }
         let e = TwistSample::parse("geometry_msgs/msg/Twist", &w.finish()).unwrap_err();
         assert!(e.contains("not finite"), "{e}");
+        // Finite but no follower's (#32: v = 1e300 reset the track every other frame).
+        for (v, wz) in [(1e300, 0.0), (25.0, 0.0), (0.0, -21.0)] {
+            let mut w = CdrWriter::new();
+            for x in [v, 0.0, 0.0, 0.0, 0.0, wz] {
+                w.f64(x);
+            }
+            let e = TwistSample::parse("geometry_msgs/msg/Twist", &w.finish()).unwrap_err();
+            assert!(
+                e.contains("outside +-20 m/s, +-20 rad/s") && e.contains("twist.linear.x"),
+                "{e}"
+            );
+        }
         let mut w = CdrWriter::new();
         w.i32(-1);
         w.u32(0);
