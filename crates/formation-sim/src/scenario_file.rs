@@ -477,11 +477,76 @@ fn field(field: &str, reason: impl Into<String>) -> ScenarioFileError {
     }
 }
 
+/// The largest distance, offset or separation in a scenario, metres.
+const MAX_METRES: f64 = 100.0;
+
+/// The largest coordinate of a pose, metres (10 km from the origin).
+const MAX_POSITION: f64 = 1e4;
+
+/// The smallest separation between the leader and the follower's camera, metres: the
+/// robots' own size.
+const MIN_SEPARATION: f64 = 0.3;
+
+/// A position within [`MAX_POSITION`] of the origin.
+fn position(name: &str, x: f64, y: f64) -> Result<(), ScenarioFileError> {
+    if x.abs() <= MAX_POSITION && y.abs() <= MAX_POSITION {
+        Ok(())
+    } else {
+        Err(field(
+            name,
+            format!("({x:?}, {y:?}) m: coordinates are within {MAX_POSITION} m of the origin"),
+        ))
+    }
+}
+
+/// An angle in radians within +-pi; a value that could be degrees says so.
+fn angle(name: &str, v: f64) -> Result<(), ScenarioFileError> {
+    if v.abs() <= std::f64::consts::PI {
+        return Ok(());
+    }
+    let hint = if v.abs() <= 360.0 {
+        format!("; did you mean {v} degrees = {:.4} rad?", v.to_radians())
+    } else {
+        String::new()
+    };
+    Err(field(name, format!("{v:?} rad is outside -pi to pi{hint}")))
+}
+
+/// `[l12, alpha12, beta12]`-shaped values (noise deviations, biases): metres up to
+/// [`MAX_METRES`] / 10, radians up to pi.
+fn measurement_scale(name: &str, v: &[f64; 3]) -> Result<(), ScenarioFileError> {
+    let bounds = [
+        MAX_METRES / 10.0,
+        std::f64::consts::PI,
+        std::f64::consts::PI,
+    ];
+    for (i, (x, b)) in v.iter().zip(bounds).enumerate() {
+        if *x > b {
+            return Err(field(
+                &format!("{name}[{i}]"),
+                format!(
+                    "{x:?}: at most {b:.4} ({})",
+                    if i == 0 { "m" } else { "rad" }
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 fn finite(name: &str, values: &[f64]) -> Result<(), ScenarioFileError> {
     if values.iter().all(|v| v.is_finite()) {
         Ok(())
     } else {
-        Err(field(name, "every value must be finite"))
+        let (i, v) = values
+            .iter()
+            .enumerate()
+            .find(|(_, v)| !v.is_finite())
+            .map_or((0, f64::NAN), |(i, v)| (i, *v));
+        Err(field(
+            &format!("{name}[{i}]"),
+            format!("{v:?}: every value must be finite"),
+        ))
     }
 }
 
@@ -534,12 +599,42 @@ impl ScenarioSpec {
                 ),
             ));
         }
-        finite("follower", &self.follower)?;
-        finite("leader", &self.leader)?;
+        if self.camera_offset > MAX_METRES {
+            return Err(field(
+                "camera_offset",
+                format!(
+                    "{:?} m: a camera offset is below {MAX_METRES} m",
+                    self.camera_offset
+                ),
+            ));
+        }
+        for (name, pose) in [("follower", &self.follower), ("leader", &self.leader)] {
+            finite(name, pose)?;
+            position(name, pose[0], pose[1])?;
+            angle(&format!("{name}[2]"), pose[2])?;
+        }
+        // The leader must stand ahead of the follower's camera, apart from it: a leader
+        // placed on the follower gave exit 0 with nonsense.
+        let [fx, fy, ft] = self.follower;
+        let (cx, cy) = (
+            fx + self.camera_offset * ft.cos(),
+            fy + self.camera_offset * ft.sin(),
+        );
+        let separation = (self.leader[0] - cx).hypot(self.leader[1] - cy);
+        if !(MIN_SEPARATION..=MAX_METRES).contains(&separation) {
+            return Err(field(
+                "leader",
+                format!(
+                    "({:?}, {:?}) is {separation:.3} m from the follower's camera at ({cx:.3}, {cy:.3}); robots stand {MIN_SEPARATION} to {MAX_METRES} m apart",
+                    self.leader[0], self.leader[1]
+                ),
+            ));
+        }
         finite("noise_std", &self.noise_std)?;
         if self.noise_std.iter().any(|&s| s <= 0.0) {
             return Err(field("noise_std", "every deviation must be > 0"));
         }
+        measurement_scale("noise_std", &self.noise_std)?;
         for (name, terms) in [
             ("leader_inputs.v", &self.leader_inputs.v),
             ("leader_inputs.w", &self.leader_inputs.w),
@@ -555,15 +650,46 @@ impl ScenarioSpec {
                 &name,
                 &[s.at, s.l12.unwrap_or(1.0), s.alpha12.unwrap_or(0.0)],
             )?;
-            if s.l12.is_some_and(|l| l <= 0.0) {
-                return Err(field(&name, "l12 must be > 0"));
+            if let Some(l) = s.l12
+                && !(MIN_SEPARATION..=MAX_METRES).contains(&l)
+            {
+                return Err(field(
+                    &format!("{name}.l12"),
+                    format!("{l:?} m: a separation is {MIN_SEPARATION} to {MAX_METRES} m"),
+                ));
+            }
+            if let Some(a) = s.alpha12 {
+                angle(&format!("{name}.alpha12"), a)?;
+            }
+            if !(0.0..=self.duration).contains(&s.at) {
+                return Err(field(
+                    &format!("{name}.at"),
+                    format!(
+                        "{:?} s: must lie within the run, 0 to {} s",
+                        s.at, self.duration
+                    ),
+                ));
             }
         }
         if let Some(b) = &self.bias {
             finite("bias", b)?;
+            measurement_scale("bias", &b.map(f64::abs))?;
         }
         if let Some(x0) = &self.filter_x0 {
             finite("filter_x0", x0)?;
+            position("filter_x0", x0[0], x0[1])?;
+            angle("filter_x0[2]", x0[2])?;
+            if !(MIN_SEPARATION..=MAX_METRES).contains(&x0[3]) {
+                return Err(field(
+                    "filter_x0[3]",
+                    format!(
+                        "l12 = {:?} m: a separation is {MIN_SEPARATION} to {MAX_METRES} m",
+                        x0[3]
+                    ),
+                ));
+            }
+            angle("filter_x0[4]", x0[4])?;
+            angle("filter_x0[5]", x0[5])?;
         }
         self.vision.check(1.0 / self.frame_rate)?;
         Ok(())
@@ -717,6 +843,67 @@ mod tests {
             ),
         ] {
             let bad = MINIMAL.replace(from, to);
+            let err = ScenarioSpec::parse(&bad, false, Path::new("x.yaml"))
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains(what), "{to}: {err}");
+        }
+    }
+
+    /// #32: a value of 1e308 reached the filter ("IMM model 0 ... overflowed", the field not
+    /// named), and a leader placed on the follower gave exit 0 with nonsense. Every numeric
+    /// field class is now bounded at parse time, and the message names the field.
+    #[test]
+    fn values_no_scenario_has_are_refused_naming_the_field() {
+        let with_x0 = format!(
+            "{MINIMAL}filter_x0: [1.5, 0.25, 0.0, 1.047, 0.233, 0.232]\nbias: [0, 0, 0]\nsetpoints: [{{at: 0.5, l12: 1.2}}]\n"
+        );
+        ScenarioSpec::parse(&with_x0, false, Path::new("x.yaml")).unwrap();
+        for (from, to, what) in [
+            (
+                "camera_offset: 0.5",
+                "camera_offset: 1e308",
+                "`camera_offset`",
+            ),
+            (
+                "follower: [0, 0, 0]",
+                "follower: [1e308, 0, 0]",
+                "`follower`",
+            ),
+            (
+                "follower: [0, 0, 0]",
+                "follower: [0, 0, 30]",
+                "did you mean 30 degrees",
+            ),
+            (
+                "leader: [1.5, 0.25, 0]",
+                "leader: [0.5, 0.0, 0]",
+                "0.000 m from the follower's camera",
+            ),
+            ("leader: [1.5, 0.25, 0]", "leader: [1e5, 0, 0]", "`leader`"),
+            (
+                "noise_std: [0.07, 0.03, 0.03]",
+                "noise_std: [1e308, 0.03, 0.03]",
+                "`noise_std[0]`",
+            ),
+            (
+                "noise_std: [0.07, 0.03, 0.03]",
+                "noise_std: [0.07, 7, 0.03]",
+                "`noise_std[1]`",
+            ),
+            ("bias: [0, 0, 0]", "bias: [0, 0, 1e308]", "`bias[2]`"),
+            ("bias: [0, 0, 0]", "bias: [0, .nan, 0]", "`bias[1]`"),
+            (
+                "1.047, 0.233, 0.232]",
+                "1e308, 0.233, 0.232]",
+                "`filter_x0[3]`",
+            ),
+            ("0.0, 1.047", "1e308, 1.047", "`filter_x0[2]`"),
+            ("l12: 1.2", "l12: 1e308", "`setpoints[0].l12`"),
+            ("at: 0.5", "at: 1e308", "`setpoints[0].at`"),
+        ] {
+            let bad = with_x0.replace(from, to);
+            assert_ne!(bad, with_x0, "{from}");
             let err = ScenarioSpec::parse(&bad, false, Path::new("x.yaml"))
                 .unwrap_err()
                 .to_string();
