@@ -493,7 +493,12 @@ fn matrix_data<'a>(
     if let Some(i) = data.iter().position(|v| !v.is_finite()) {
         return Err(CalibrationError::BadField {
             field,
-            reason: format!("value {i} is not finite"),
+            reason: format!(
+                "data[{i}] (row {}, column {}) is {:?}, not a finite number",
+                i / cols.max(1),
+                i % cols.max(1),
+                data[i]
+            ),
         });
     }
     Ok(data)

@@ -390,3 +390,15 @@ fn distortion_that_squeezes_or_stretches_the_view_is_refused() {
         Calibration::from_yaml_str(&camera(k2)).unwrap();
     }
 }
+
+/// A non-finite matrix entry names its element and value (#32: "value 0 is not finite", where
+/// 0 was the element's index).
+#[test]
+fn a_non_finite_entry_names_its_element_and_value() {
+    let text = "image_width: 640\nimage_height: 480\ncamera_matrix:\n  rows: 3\n  cols: 3\n  data: [554.0, 0.0, .nan, 0.0, 554.0, 239.5, 0.0, 0.0, 1.0]\ndistortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [0, 0, 0, 0, 0]\n";
+    let e = Calibration::from_yaml_str(text).unwrap_err().to_string();
+    assert!(
+        e.contains("camera_matrix") && e.contains("data[2] (row 0, column 2) is NaN"),
+        "{e}"
+    );
+}
