@@ -13,6 +13,7 @@
 //! each parses its arguments, calls the libraries (`formation-tracker`, `formation-sim`)
 //! and writes files; `main.rs` reports an error as one line with a non-zero exit code.
 #![deny(missing_docs)]
+#![deny(clippy::print_stderr)]
 
 pub mod bag;
 pub mod foxglove;

@@ -3,6 +3,8 @@
 //! Each subcommand lives in its own module under `cmd/`; this file only parses arguments,
 //! dispatches, and reports an error as one clear line on stderr with a non-zero exit code.
 
+#![deny(clippy::print_stderr)] // stderr goes through cmd::progress::errln! (a closed stderr must not panic)
+
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};

@@ -265,7 +265,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         {
             Ok(grey) => grey,
             Err(err) => {
-                eprintln!("formation-tracker: error: {}: {err}", path.display());
+                super::progress::errln!("formation-tracker: error: {}: {err}", path.display());
                 failed += 1;
                 continue;
             }
@@ -274,7 +274,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         let view = match GrayView::new(&grey.data, w, h) {
             Ok(v) => v,
             Err(err) => {
-                eprintln!("formation-tracker: error: {}: {err}", path.display());
+                super::progress::errln!("formation-tracker: error: {}: {err}", path.display());
                 failed += 1;
                 continue;
             }
@@ -306,7 +306,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
                         .collect(),
                 ),
                 Err(err) => {
-                    eprintln!("formation-tracker: error: {}: {err}", path.display());
+                    super::progress::errln!("formation-tracker: error: {}: {err}", path.display());
                     failed += 1;
                     continue;
                 }
@@ -321,7 +321,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             let calibration = match stage.calibration_for(w as u32, h as u32) {
                 Ok(c) => c,
                 Err(err) => {
-                    eprintln!("formation-tracker: error: {}: {err}", path.display());
+                    super::progress::errln!("formation-tracker: error: {}: {err}", path.display());
                     failed += 1;
                     continue;
                 }
@@ -330,7 +330,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
                 match super::marker_pose::marker_pose(&calibration, &sizes, d.index, &d.corners) {
                     Ok(pose) => m.pose = pose,
                     Err(reason) => {
-                        eprintln!("formation-tracker: warning: {reason}");
+                        super::progress::errln!("formation-tracker: warning: {reason}");
                         rejected.push(RejectedOut {
                             robot: None,
                             marker: Some(d.index),

@@ -168,7 +168,7 @@ impl RobotStage {
             .collect();
         let found = measure_robots(&observations, &self.rig, &solver, &self.mount, &self.config);
         for f in &found.failures {
-            eprintln!("formation-tracker: warning: {f}");
+            super::progress::errln!("formation-tracker: warning: {f}");
         }
         Ok((found.robots, found.failures))
     }

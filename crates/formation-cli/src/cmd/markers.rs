@@ -147,7 +147,7 @@ fn run_standard(args: &Args, name: &str, ids: &str) -> Result<(), CliError> {
         serde_json::to_string_pretty(&entries)? + "\n",
     )?;
     staged.commit()?;
-    eprintln!(
+    super::progress::errln!(
         "markers: wrote {} {canonical} markers ({size_mm} mm) to {}",
         entries.len(),
         args.out.display()
@@ -242,7 +242,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         serde_json::to_string_pretty(&entries)? + "\n",
     )?;
     staged.commit()?;
-    eprintln!(
+    super::progress::errln!(
         "markers: wrote {} markers ({} robots x {} faces) to {}",
         entries.len(),
         args.robots,

@@ -106,7 +106,7 @@ impl Progress {
             && last.elapsed() >= self.every
         {
             self.status = Some(Instant::now());
-            eprintln!("{}", self.status_line());
+            errln!("{}", self.status_line());
         }
     }
 
@@ -131,7 +131,7 @@ impl Progress {
     pub fn println(&self, message: &str) {
         match &self.bar {
             Some(bar) => bar.println(message),
-            None => eprintln!("{message}"),
+            None => errln!("{message}"),
         }
     }
 

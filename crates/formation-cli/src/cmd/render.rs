@@ -98,7 +98,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         .iter()
         .map(|r| r.faces.iter().filter(|f| f.readable).count())
         .sum();
-    eprintln!(
+    super::progress::errln!(
         "render: wrote {} ({} robots, {readable} readable faces)",
         args.out.display(),
         rendered.truth.robots.len()

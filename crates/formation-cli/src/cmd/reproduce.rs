@@ -131,7 +131,7 @@ fn run_dukf(a: &DukfArgs) -> Result<(), CliError> {
     };
     let (summary, smoothed) = match &a.scenario {
         None => {
-            eprintln!(
+            super::progress::errln!(
                 "reproduce dukf: seed {}{with_bias}, writing to {}",
                 a.seed,
                 a.out.display()
@@ -151,7 +151,7 @@ fn run_dukf(a: &DukfArgs) -> Result<(), CliError> {
             let outputs: Vec<_> = outputs.iter().map(|p| ("--out", p.as_path())).collect();
             super::output::refuse_inputs_as_outputs(&outputs, &[("--scenario", file)])?;
             let spec = ScenarioSpec::load(file).map_err(|e| e.to_string())?;
-            eprintln!(
+            super::progress::errln!(
                 "reproduce dukf: scenario {}, seed {}{with_bias}, writing to {}",
                 file.display(),
                 a.seed,

@@ -58,7 +58,7 @@ pub fn run_paper_scenes(out: &Path) -> Result<Vec<SceneReport>, CliError> {
     let mut detector = default_detector(dict);
     let mut reports = Vec::new();
     for fig in &PAPER_FIGURES {
-        eprintln!("reproduce paper-scenes: Fig. {}", fig.fig);
+        super::progress::errln!("reproduce paper-scenes: Fig. {}", fig.fig);
         let spec = paper_scene(fig.fig)?;
         let eval = evaluate_scene(
             &spec,
@@ -110,7 +110,7 @@ pub fn scenes_markdown(reports: &[SceneReport]) -> String {
 pub fn run(args: &Args) -> Result<(), CliError> {
     let reports = run_paper_scenes(&args.out)?;
     super::write_stdout(format_args!("{}", markdown_summary(&summarize(&reports))))?;
-    eprintln!(
+    super::progress::errln!(
         "reproduce paper-scenes: wrote fig7..fig11 (.png, -raw.png), scenes.md, scenes.json to {}",
         args.out.display()
     );

@@ -183,7 +183,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     let inputs = match &args.inputs {
         Some(path) => Some(FollowerInputs::from_path(path)?),
         None => {
-            eprintln!(
+            super::progress::errln!(
                 "track: no --inputs: assuming the follower stands still (v2 = w2 = 0, pan {})",
                 args.pan
             );
@@ -303,7 +303,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     if broken > 0 || frames.truncated() {
         return Err(super::Partial(summary).into());
     }
-    eprintln!("track: {summary}");
+    super::progress::errln!("track: {summary}");
     Ok(())
 }
 
@@ -342,7 +342,9 @@ fn frame_rate(args: &Args, frames: &FrameSource) -> Result<f64, CliError> {
         (Some(f), _) => f,
         (None, Some(f)) => f,
         (None, None) => {
-            eprintln!("track: no --fps and no frame rate in the input: assuming 30 frames/s");
+            super::progress::errln!(
+                "track: no --fps and no frame rate in the input: assuming 30 frames/s"
+            );
             30.0
         }
     };

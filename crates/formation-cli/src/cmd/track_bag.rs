@@ -100,7 +100,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         None => {
             let topic = bag.camera_info_topic(&image_topic)?;
             let c = bag.calibration(&topic)?;
-            eprintln!("track: calibration from {topic} ({}x{})", c.width, c.height);
+            super::progress::errln!("track: calibration from {topic} ({}x{})", c.width, c.height);
             c
         }
     };
@@ -117,12 +117,12 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         bag.inputs_topic(args.inputs_topic.as_deref())?
     };
     match (&csv, &inputs_topic) {
-        (None, None) => eprintln!(
+        (None, None) => super::progress::errln!(
             "track: no --inputs and no odometry or twist topic in the bag: assuming the follower \
              stands still (v2 = w2 = 0, pan {})",
             args.pan
         ),
-        (None, Some(topic)) => eprintln!("track: follower inputs from {topic}"),
+        (None, Some(topic)) => super::progress::errln!("track: follower inputs from {topic}"),
         _ => {}
     }
     let mut frames = bag.frames(&image_topic, inputs_topic.as_deref(), args.max_side);
@@ -284,7 +284,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     {
         return Err(super::Partial(summary).into());
     }
-    eprintln!("track: {summary}");
+    super::progress::errln!("track: {summary}");
     Ok(())
 }
 
@@ -296,7 +296,9 @@ fn bag_fps(args: &Args, period_s: Option<f64>) -> Result<f64, CliError> {
         // is rounded to 0.001 frames/s, as a frame rate is written.
         (None, Some(p)) => (1.0 / p * 1000.0).round() / 1000.0,
         (None, None) => {
-            eprintln!("track: no --fps and a single frame in the bag: assuming 30 frames/s");
+            super::progress::errln!(
+                "track: no --fps and a single frame in the bag: assuming 30 frames/s"
+            );
             30.0
         }
     };
