@@ -87,4 +87,26 @@ fn reproduce_dukf_memory_does_not_grow_with_the_duration() {
         "peak memory grew from {short} kB (200 s) to {long} kB (2000 s)"
     );
     assert!(!dir.join("long/series-smoothed.csv").exists());
+    // --smooth keeps every step: what would not fit in --max-memory is refused up front.
+    let out = Command::new(env!("CARGO_BIN_EXE_formation-tracker"))
+        .args([
+            "--max-memory",
+            "64MiB",
+            "reproduce",
+            "dukf",
+            "--smooth",
+            "--scenario",
+        ])
+        .arg(scenario(&dir, 2000))
+        .arg("--out")
+        .arg(dir.join("smooth"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("--smooth keeps every step: 60000 steps need about 171.7 MiB, more than --max-memory 64 MiB"),
+        "{stderr}"
+    );
+    assert!(!dir.join("smooth/series.csv").exists());
 }
