@@ -272,3 +272,20 @@ fn a_chunk_declaring_more_than_the_budget_is_refused_before_it_is_decompressed()
     );
     assert_eq!(ok.status.code(), Some(0), "{}", stderr(&ok));
 }
+
+/// A bag cut before its first channel says so (#32: it said "no image topic; topics: none").
+#[test]
+fn a_bag_cut_before_its_first_channel_says_where() {
+    let d = dir("cut");
+    let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/bags/demo_lz4.mcap");
+    let bytes = std::fs::read(fixture).unwrap();
+    std::fs::write(d.join("cut.mcap"), &bytes[..300]).unwrap();
+    let out = common::run(&d, &["track", "cut.mcap"]);
+    let e = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{e}");
+    assert!(
+        e.contains("cut.mcap is truncated: it ends inside a record at byte"),
+        "{e}"
+    );
+    assert!(!e.contains("topics: none"), "{e}");
+}

@@ -280,6 +280,7 @@ impl Bag {
             (vec![path.to_path_buf()], Vec::new())
         };
         let mut topics: BTreeMap<String, Topic> = BTreeMap::new();
+        let mut scan_error: Option<McapError> = None;
         for file in &files {
             let mut reader = McapReader::open(file).map_err(corrupt)?;
             let mut add = |schemas: &BTreeMap<u16, mcap::Schema>,
@@ -314,13 +315,25 @@ impl Bag {
                             Ok(Some(m)) => *counts.entry(m.channel_id).or_default() += 1,
                             Ok(None) => break,
                             // A broken file: the topics seen so far are known; the stream
-                            // reports the error where it happens.
-                            Err(_) => break,
+                            // reports the error where it happens. A file broken before
+                            // any channel is kept to explain an empty bag.
+                            Err(e) => {
+                                if reader.channels().is_empty() && scan_error.is_none() {
+                                    scan_error = Some(e);
+                                }
+                                break;
+                            }
                         }
                     }
                     add(reader.schemas(), reader.channels(), Some(&counts));
                 }
             }
+        }
+        // "no image topic; topics: none" said nothing of a bag cut before its first channel.
+        if topics.is_empty()
+            && let Some(e) = scan_error
+        {
+            return Err(corrupt(e));
         }
         Ok(Self {
             files,

@@ -175,6 +175,15 @@ fn check_distortion_model(model: &str) -> Result<(), String> {
 /// length), as one line.
 pub fn calibration(info: &CameraInfo) -> Result<pose::calib::Calibration, String> {
     check_distortion_model(&info.distortion_model)?;
+    // A NaN or infinity would be written as text YAML cannot read as a number, and reported
+    // as "not valid YAML": name the field and the element instead.
+    for (field, values) in [("k", &info.k[..]), ("d", &info.d[..])] {
+        if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            return Err(format!(
+                "CameraInfo field `{field}[{i}]` is {v:?}, not a finite number"
+            ));
+        }
+    }
     let list = |v: &[f64]| {
         v.iter()
             .map(|x| format!("{x:?}"))
@@ -248,6 +257,17 @@ mod tests {
     fn zero_focal_length_is_an_error() {
         let e = calibration(&info("plumb_bob", 0.0)).unwrap_err();
         assert!(e.contains("focal"), "{e}");
+    }
+
+    /// #32: a NaN in CameraInfo was reported as "not valid YAML".
+    #[test]
+    fn a_non_finite_camera_info_value_names_its_field() {
+        let e = calibration(&info("plumb_bob", f64::NAN)).unwrap_err();
+        assert_eq!(e, "CameraInfo field `k[0]` is NaN, not a finite number");
+        let mut bad = info("plumb_bob", 500.0);
+        bad.d[1] = f64::INFINITY;
+        let e = calibration(&bad).unwrap_err();
+        assert_eq!(e, "CameraInfo field `d[1]` is inf, not a finite number");
     }
 
     fn raw<'a>(encoding: &str, w: u32, h: u32, bpp: u32, data: &'a [u8]) -> Image<'a> {
