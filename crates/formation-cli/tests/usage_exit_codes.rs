@@ -118,6 +118,25 @@ fn usage_errors_exit_2_and_name_the_option_and_value() {
         ),
         (&["markers", "--out", "m", "--robots", "0"], "--robots"),
         (
+            &["markers", "--out", "m", "--robots", "100000"],
+            "--robots 100000 is more than",
+        ),
+        (
+            &["markers", "--out", "m", "--px-per-cell", "0"],
+            "--px-per-cell",
+        ),
+        (
+            &[
+                "detect",
+                "--camera",
+                "camera.yaml",
+                "--marker-size",
+                "1e308",
+                "frames/f0.png",
+            ],
+            "not a printed marker's",
+        ),
+        (
             &["render", "--paper-fig", "12", "--out", "x.png"],
             "--paper-fig",
         ),

@@ -40,8 +40,16 @@ pub fn parse_marker_size(s: &str) -> Result<MarkerSize, String> {
         None => (None, s),
     };
     let side = |t: &str| {
-        super::numbers::positive(t)
-            .map_err(|e| format!("marker size `{t}` {e} (metres, e.g. 0.065 or 12=0.15)"))
+        let m = super::numbers::positive(t)
+            .map_err(|e| format!("marker size `{t}` {e} (metres, e.g. 0.065 or 12=0.15)"))?;
+        // A printed marker is between a millimetre and 100 m (1e308 made every pose fail).
+        if (1e-3..=super::numbers::MAX_METRES).contains(&m) {
+            Ok(m)
+        } else {
+            Err(format!(
+                "marker size `{t}` m is not a printed marker's (1 mm to 100 m; metres, e.g. 0.065)"
+            ))
+        }
     };
     let (width, height) = match size.split_once(['x', 'X']) {
         Some((w, h)) => (side(w)?, side(h)?),

@@ -35,7 +35,8 @@ pub struct Args {
     #[arg(long, value_name = "FILE")]
     pub rig: Option<PathBuf>,
     /// Pixels per marker cell in the PNGs.
-    #[arg(long = "px-per-cell", default_value_t = 20)]
+    #[arg(long = "px-per-cell", default_value_t = 20,
+          value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub px_per_cell: u32,
     /// Print standard markers instead of the rig's: a dictionary by name (case-insensitive,
     /// e.g. `DICT_4X4_50`, `DICT_APRILTAG_36h11`, `tag36h11`), with `--ids`.
@@ -184,13 +185,13 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     }
     let max = rig.max_robots(dict);
     if rig.markers.is_none() && args.robots > max {
-        return Err(format!(
+        return Err(super::Usage(format!(
             "--robots {} is more than the {max} robots the dictionary supports ({} codes, {} \
              faces each)",
             args.robots,
             dict.len(),
             rig.faces.len()
-        )
+        ))
         .into());
     }
     let options = RenderOptions {
