@@ -214,7 +214,8 @@ impl SceneSpec {
         Self::from_text(&text, json, &path.display().to_string())
     }
 
-    /// Checks the fields a renderer would otherwise reject with a less precise message.
+    /// Checks the fields a renderer would otherwise reject with a less precise message, and
+    /// the physics: a mount a robot can have, headings within +-pi, no robot on the camera.
     pub fn validate(&self) -> Result<(), SceneError> {
         let c = &self.camera;
         if c.width == 0 || c.height == 0 || c.width > 8192 || c.height > 8192 {
@@ -251,14 +252,35 @@ impl SceneSpec {
             }
         }
         let m = &self.mount;
-        for (name, v) in [
-            ("mount.offset", m.offset),
-            ("mount.height", m.height),
-            ("mount.pan", m.pan),
-            ("mount.tilt", m.tilt),
+        let (pi, half_pi) = (std::f64::consts::PI, std::f64::consts::FRAC_PI_2);
+        for (name, v, ok, range) in [
+            (
+                "mount.offset",
+                m.offset,
+                (0.0..100.0).contains(&m.offset),
+                "0 up to 100 m",
+            ),
+            (
+                "mount.height",
+                m.height,
+                m.height > 0.0 && m.height < 100.0,
+                "above 0 and below 100 m",
+            ),
+            ("mount.pan", m.pan, m.pan.abs() <= pi, "-pi to pi rad"),
+            (
+                "mount.tilt",
+                m.tilt,
+                m.tilt.abs() < half_pi,
+                "inside -pi/2 to pi/2 rad",
+            ),
         ] {
-            if !v.is_finite() || v.abs() > 100.0 {
-                return Err(field(name, format!("must be finite and small, got {v}")));
+            if !ok {
+                let hint = if name.ends_with("pan") || name.ends_with("tilt") {
+                    degrees_hint(v)
+                } else {
+                    String::new()
+                };
+                return Err(field(name, format!("{v:?} is outside {range}{hint}")));
             }
         }
         let p = &self.camera_robot;
@@ -295,6 +317,39 @@ impl SceneSpec {
                     ));
                 }
             }
+            if rb.theta.abs() > std::f64::consts::PI {
+                return Err(field(
+                    format!("robots[{i}].theta"),
+                    format!(
+                        "{:?} rad is outside -pi to pi{}",
+                        rb.theta,
+                        degrees_hint(rb.theta)
+                    ),
+                ));
+            }
+            // A robot on the camera is no scene (it was rendered as nonsense with exit 0).
+            let (hs, hc) = p.theta.sin_cos();
+            let camera = (p.x + m.offset * hc, p.y + m.offset * hs);
+            let apart = (rb.x - camera.0).hypot(rb.y - camera.1);
+            if apart < MIN_CAMERA_DISTANCE {
+                return Err(field(
+                    format!("robots[{i}]"),
+                    format!(
+                        "({:?}, {:?}) is {apart:.3} m from the camera at ({:.3}, {:.3}); a robot stands at least {MIN_CAMERA_DISTANCE} m from it",
+                        rb.x, rb.y, camera.0, camera.1
+                    ),
+                ));
+            }
+        }
+        if p.theta.abs() > std::f64::consts::PI {
+            return Err(field(
+                "camera_robot.theta",
+                format!(
+                    "{:?} rad is outside -pi to pi{}",
+                    p.theta,
+                    degrees_hint(p.theta)
+                ),
+            ));
         }
         Ok(())
     }
@@ -639,4 +694,15 @@ pub fn render_scene_exposure(
             )
         })?;
     Ok(RenderedScene { image, truth })
+}
+/// The closest a robot may stand to the camera's optical centre in a scene, metres.
+const MIN_CAMERA_DISTANCE: f64 = 0.3;
+
+/// `; did you mean 30 degrees = 0.5236 rad?` for an angle that could be in degrees.
+fn degrees_hint(v: f64) -> String {
+    if v.abs() <= 360.0 && v.abs() > std::f64::consts::PI {
+        format!("; did you mean {v} degrees = {:.4} rad?", v.to_radians())
+    } else {
+        String::new()
+    }
 }

@@ -188,15 +188,25 @@ fn bad_scene_files_name_the_field() {
         bad("render: {noise_sigma: -1}\nrobots: []"),
         "render.noise_sigma"
     );
-    // A leader on top of the camera has no formation variables: an error, not NaN.
-    let spec = SceneSpec::from_text(
-        "robots: [{robot: 1, x: 0, y: 0, theta: 0}]",
-        false,
-        "s.yaml",
-    )
-    .unwrap();
-    let r = render_scene(&spec, &RigModel::reference(), Dictionary::paper());
-    assert!(matches!(r, Err(SceneError::Measurement(_))), "{r:?}");
+    // A leader on top of the camera has no formation variables: refused when the file is
+    // read, naming the robot (#32; it used to fail only when rendered).
+    assert_eq!(
+        bad("robots: [{robot: 1, x: 0, y: 0, theta: 0}]"),
+        "robots[0]"
+    );
+    // A mount no robot has, and angles that look like degrees.
+    assert_eq!(
+        bad("mount: {offset: 0.5, height: -1, pan: 0, tilt: 0}\nrobots: []"),
+        "mount.height"
+    );
+    assert_eq!(
+        bad("mount: {offset: 0.5, height: 0.3, pan: 0, tilt: 2}\nrobots: []"),
+        "mount.tilt"
+    );
+    assert_eq!(
+        bad("robots: [{robot: 1, x: 1, y: 0, theta: 90}]"),
+        "robots[0].theta"
+    );
 }
 
 /// Equal up to the last bit of the floats (serde_json's default float parsing may round the
