@@ -48,6 +48,22 @@ pub fn requested() -> Option<i32> {
     }
 }
 
+/// `Err(`[`Interrupted`]`)` when a signal asked the command to stop; `done` says what was
+/// done and kept.
+///
+/// # Errors
+/// [`Interrupted`], if a signal came.
+pub fn stopped(done: impl FnOnce() -> String) -> Result<(), super::CliError> {
+    match requested() {
+        Some(signal) => Err(Interrupted {
+            signal,
+            done: done(),
+        }
+        .into()),
+        None => Ok(()),
+    }
+}
+
 /// The command stopped early on a signal, after finishing its frame and closing its outputs.
 #[derive(Debug, thiserror::Error)]
 #[error("interrupted by {name}: {done}", name = signal_name(*.signal))]

@@ -143,11 +143,7 @@ fn run_standard(args: &Args, name: &str, ids: &str) -> Result<(), CliError> {
             size_m,
         });
     }
-    staged.write(
-        &args.out.join("markers.json"),
-        serde_json::to_string_pretty(&entries)? + "\n",
-    )?;
-    staged.commit()?;
+    write_index(staged, &args.out, &entries)?;
     super::progress::errln!(
         "markers: wrote {} {canonical} markers ({size_mm} mm) to {}",
         entries.len(),
@@ -238,11 +234,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             });
         }
     }
-    staged.write(
-        &args.out.join("markers.json"),
-        serde_json::to_string_pretty(&entries)? + "\n",
-    )?;
-    staged.commit()?;
+    write_index(staged, &args.out, &entries)?;
     super::progress::errln!(
         "markers: wrote {} markers ({} robots x {} faces) to {}",
         entries.len(),
@@ -251,6 +243,19 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         args.out.display()
     );
     Ok(())
+}
+
+/// Writes `markers.json` (the index of the markers staged) and renames every file into place.
+fn write_index(
+    mut staged: Staged,
+    out: &Path,
+    entries: &[impl serde::Serialize],
+) -> Result<(), CliError> {
+    staged.write(
+        &out.join("markers.json"),
+        serde_json::to_string_pretty(entries)? + "\n",
+    )?;
+    staged.commit()
 }
 
 /// Writes a grey PNG whose `pHYs` chunk says `px_per_m` pixels per metre, so that printing

@@ -284,13 +284,9 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     if let Some(w) = mcap {
         w.finish(processed > 0)?;
     }
-    if let Some(signal) = super::interrupt::requested() {
-        return Err(super::interrupt::Interrupted {
-            signal,
-            done: format!("{processed} frames tracked and written, {broken} broken"),
-        }
-        .into());
-    }
+    super::interrupt::stopped(|| {
+        format!("{processed} frames tracked and written, {broken} broken")
+    })?;
     let truncated = if frames.truncated() {
         "; the stream ended inside a frame (truncated), which was dropped"
     } else {

@@ -246,13 +246,9 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     if let Some(w) = mcap {
         w.finish(processed > 0)?;
     }
-    if let Some(signal) = super::interrupt::requested() {
-        return Err(super::interrupt::Interrupted {
-            signal,
-            done: format!("{processed} frames tracked and written, {broken} broken"),
-        }
-        .into());
-    }
+    super::interrupt::stopped(|| {
+        format!("{processed} frames tracked and written, {broken} broken")
+    })?;
     let s = frames.stats();
     let mut summary = format!(
         "{processed} frames tracked, {broken} broken; bag: {} image messages, {} reordered, {} out of order (dropped), {} missing, {} irregular intervals, {} late input messages, {bad_inputs} unreadable input messages",
