@@ -4,10 +4,10 @@
 
 #![allow(clippy::unwrap_used)] // Tests may unwrap (house rules).
 
-use std::io::{BufRead as _, BufReader};
+mod common;
+
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
-use std::sync::mpsc;
 use std::time::Duration;
 
 #[test]
@@ -41,17 +41,7 @@ fn demo_estimates_a_long_rendering_before_it_starts() {
         .spawn()
         .unwrap();
     let stderr = child.stderr.take().unwrap();
-    let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stderr).lines() {
-            let Ok(line) = line else { break };
-            let done = line.contains("estimated");
-            let _ = tx.send(line);
-            if done {
-                break;
-            }
-        }
-    });
+    let rx = common::lines_of(stderr);
     // The estimate comes from a probe of about 2e6 rays: well within 30 s even in a debug
     // build on a loaded machine (the first frame itself takes about a minute).
     let mut seen = Vec::new();

@@ -5,10 +5,9 @@
 
 mod common;
 
-use std::io::{BufRead as _, BufReader, Write as _};
+use std::io::Write as _;
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
-use std::sync::mpsc;
 use std::time::Duration;
 
 use formation_tracker_cli::bag::mcap::McapReader;
@@ -89,25 +88,19 @@ fn track_is_stopped_cleanly_by(sig: &str, code: i32) {
     stdin.write_all(&frames[1]).unwrap();
     stdin.flush().unwrap();
     let stdout = child.stdout.take().unwrap();
-    let (tx, rx) = mpsc::channel();
-    let reader = std::thread::spawn(move || {
-        let mut lines = Vec::new();
-        for line in BufReader::new(stdout).lines() {
-            let line = line.unwrap();
-            let _ = tx.send(());
-            lines.push(line);
-        }
-        lines
-    });
+    let rx = common::lines_of(stdout);
     // The first frame's line is out: the run is in its loop.
-    rx.recv_timeout(Duration::from_secs(60))
-        .expect("no output line");
+    let mut lines = vec![
+        rx.recv_timeout(Duration::from_secs(60))
+            .expect("no output line"),
+    ];
     signal(&child, sig);
     // The blocked read sees the flag at the next frame: hand one over, then end the input.
     let _ = stdin.write_all(&frames[2]);
     drop(stdin);
     let status = child.wait().unwrap();
-    let lines = reader.join().unwrap();
+    // The reader thread ends with the pipe: the rest of the lines.
+    lines.extend(rx.iter());
     let mut stderr = String::new();
     std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut stderr).unwrap();
     assert_eq!(status.code(), Some(code), "{stderr}");
@@ -330,13 +323,7 @@ fn an_interrupted_demo_leaves_the_earlier_folder_as_it_was() {
         .spawn()
         .unwrap();
     let stderr = child.stderr.take().unwrap();
-    let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stderr).lines() {
-            let Ok(line) = line else { break };
-            let _ = tx.send(line);
-        }
-    });
+    let rx = common::lines_of(stderr);
     let mut lines = Vec::new();
     loop {
         let line = rx

@@ -117,3 +117,19 @@ pub fn reference_clip(name: &str, frames: usize) -> Clip {
     std::fs::write(dir.join("camera.yaml"), CAMERA).unwrap();
     Clip { dir, images, truth }
 }
+
+/// The lines of `reader` (a child's stdout or stderr) as they come, read on a thread of their
+/// own, so that a test can wait for a line with a timeout instead of sleeping.
+pub fn lines_of(reader: impl std::io::Read + Send + 'static) -> std::sync::mpsc::Receiver<String> {
+    use std::io::BufRead as _;
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in std::io::BufReader::new(reader).lines() {
+            let Ok(line) = line else { break };
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    rx
+}
