@@ -92,6 +92,7 @@ fn main() -> ExitCode {
             ExitCode::from(cmd::EXIT_PARTIAL)
         }
         Err(err) => {
+            cmd::remove_created_dirs();
             let (code, kind) = if let Some(i) = err.downcast_ref::<cmd::interrupt::Interrupted>() {
                 (i.exit_code(), "stopped")
             } else if err.downcast_ref::<cmd::Usage>().is_some() {

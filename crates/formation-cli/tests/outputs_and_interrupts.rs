@@ -348,4 +348,25 @@ fn an_interrupted_demo_leaves_the_earlier_folder_as_it_was() {
         "{lines:?}"
     );
     assert_eq!(snapshot(&out), before, "the folder changed");
+    // Into a folder that did not exist: nothing is left, not even the empty folders.
+    let fresh = dir.join("new/nested");
+    let mut child = exe()
+        .args(["demo", "--seed", "2", "--scenario"])
+        .arg(short_scenario(&dir, 8.0))
+        .arg("--out")
+        .arg(&fresh)
+        .env("FORMATION_TRACKER_STATUS_SECS", "0")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let rx = common::lines_of(child.stderr.take().unwrap());
+    while !rx
+        .recv_timeout(Duration::from_secs(60))
+        .expect("no progress line")
+        .starts_with("demo: 2/")
+    {}
+    signal(&child, "INT");
+    assert_eq!(child.wait().unwrap().code(), Some(130));
+    assert!(!dir.join("new").exists(), "an empty output folder was left");
 }

@@ -85,11 +85,36 @@ pub fn load_calibration(path: &std::path::Path) -> Result<pose::calib::Calibrati
 pub fn prepare_out_dir(dir: &std::path::Path) -> Result<(), CliError> {
     let fail =
         |e: std::io::Error| format!("cannot write to output directory {}: {e}", dir.display());
+    // The folders this creates, outermost first, so that a failed run can take them back.
+    let mut missing: Vec<std::path::PathBuf> = dir
+        .ancestors()
+        .take_while(|d| !d.as_os_str().is_empty() && !d.exists())
+        .map(std::path::Path::to_path_buf)
+        .collect();
+    missing.reverse();
     std::fs::create_dir_all(dir).map_err(fail)?;
+    if let Ok(mut created) = CREATED_DIRS.lock() {
+        created.extend(missing);
+    }
     let probe = dir.join(format!(".formation-tracker-probe-{}", std::process::id()));
     std::fs::write(&probe, b"").map_err(fail)?;
     std::fs::remove_file(&probe).map_err(fail)?;
     Ok(())
+}
+
+/// The output folders [`prepare_out_dir`] created in this run, outermost first.
+static CREATED_DIRS: std::sync::Mutex<Vec<std::path::PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+/// Removes the output folders this run created that are still empty (innermost first): a
+/// run that fails or is interrupted writes nothing, not even an empty folder. `main` calls it
+/// on every error.
+pub fn remove_created_dirs() {
+    if let Ok(mut created) = CREATED_DIRS.lock() {
+        for dir in created.drain(..).rev() {
+            // Fails, as wanted, when the folder holds anything.
+            let _ = std::fs::remove_dir(dir);
+        }
+    }
 }
 
 /// [`prepare_out_dir`] for the directory an output file goes into.
