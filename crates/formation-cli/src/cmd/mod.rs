@@ -187,7 +187,17 @@ pub mod numbers {
         } else {
             String::new()
         };
-        Err(format!("{x} rad is outside {range} rad{hint}"))
+        Err(format!("{} rad is outside {range} rad{hint}", short(x)))
+    }
+
+    /// `x` for a message: plain when it reads well, else in exponent form (`1e308`, not
+    /// three hundred digits).
+    pub fn short(x: f64) -> String {
+        if x != 0.0 && !(1e-4..1e6).contains(&x.abs()) {
+            format!("{x:e}")
+        } else {
+            format!("{x}")
+        }
     }
 
     /// Largest height or offset accepted, metres: a robot's camera is not 100 m up.
