@@ -8,7 +8,6 @@ use clap::Args as ClapArgs;
 use formation_sim::demo::{DemoConfig, DemoError, DemoFrame, DemoRun, DemoSummary, run_demo_until};
 use formation_sim::plot::{fig12_panels, fig13_panels, shade, write_png, write_svg};
 use formation_sim::reproduce::StepRecord;
-use formation_sim::scenario_file::ScenarioSpec;
 
 use super::CliError;
 use super::output::Staged;
@@ -70,7 +69,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 ))
                 .into());
             }
-            let spec = ScenarioSpec::load(path).map_err(|e| e.to_string())?;
+            let spec = super::load_scenario(path)?;
             DemoConfig {
                 closed_loop: args.closed_loop,
                 ..DemoConfig::from_scenario(&spec)
