@@ -145,7 +145,7 @@ fn bad_robot_options_are_one_line_errors() {
         (vec!["--camera", "CAM", "--mount", "0.5"], "--mount"),
         (
             vec!["--camera", "CAM", "--mount", "0.5,x"],
-            "not a finite number",
+            "--mount 0.5,x: HEIGHT `x`: `x` is not a number",
         ),
         (
             vec!["--camera", "CAM", "--rig", "no-such-rig.yaml"],
