@@ -135,7 +135,7 @@ mod tests {
         let e = read(&big).unwrap_err();
         assert!(
             e.to_string()
-                .contains("2 GiB is more than the 16 MiB limit"),
+                .contains("it holds 2 GiB, over the 16 MiB limit"),
             "{e}"
         );
         std::fs::write(&big, "a: 1\n").unwrap();
