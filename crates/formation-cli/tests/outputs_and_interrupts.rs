@@ -201,6 +201,24 @@ fn an_output_that_is_an_input_is_refused_before_any_work() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(!d.join("x.png").exists());
+    // markers writes markers.json into --out: never onto the rig it reads.
+    let rig = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fixtures/rigs/reference.yaml"
+    ))
+    .unwrap();
+    std::fs::write(d.join("markers.json"), &rig).unwrap();
+    let out = common::run(d, &["markers", "--rig", "markers.json", "--out", "."]);
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        std::fs::read_to_string(d.join("markers.json")).unwrap(),
+        rig
+    );
 }
 
 #[test]

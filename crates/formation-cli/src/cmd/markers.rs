@@ -171,6 +171,11 @@ struct Entry {
 
 /// Writes the markers and `markers.json`.
 pub fn run(args: &Args) -> Result<(), CliError> {
+    if let Some(rig) = &args.rig {
+        // markers.json (and the images) go into --out: never onto the rig file read.
+        let index = args.out.join("markers.json");
+        super::output::refuse_inputs_as_outputs(&[("--out", &index)], &[("--rig", rig)])?;
+    }
     if let (Some(name), Some(ids)) = (&args.dictionary, &args.ids) {
         return run_standard(args, name, ids);
     }
