@@ -763,8 +763,8 @@ impl ScenarioSpec {
     }
 
     /// The filter configuration: [`Self::filter_x0`] with the reference tuning and the
-    /// IMM design (the design `reproduce dukf` runs; the tracker's default is the dual UKF,
-    /// see `formation_tracker::filter`).
+    /// IMM design (the design `reproduce dukf` runs, and the tracker's default too:
+    /// `formation_tracker::tracker::TrackerConfig::reference`).
     pub fn filter_config(&self) -> FilterConfig {
         let mut config = FilterConfig::new(
             self.camera_offset,
