@@ -53,6 +53,15 @@ use crate::scene::CameraSpec;
 /// Errors of reading a scenario file.
 #[derive(Debug, thiserror::Error)]
 pub enum ScenarioFileError {
+    /// A field of the file `path` has a value the simulation cannot use ([`Self::Field`],
+    /// from [`ScenarioSpec::load`], which knows the file).
+    #[error("{}: {source}", path.display())]
+    InFile {
+        /// The file.
+        path: PathBuf,
+        /// The field's error.
+        source: Box<ScenarioFileError>,
+    },
     /// The file could not be read.
     #[error("cannot read scenario file {path}: {source}")]
     Io {
@@ -574,7 +583,13 @@ impl ScenarioSpec {
             path: path.to_path_buf(),
             source,
         })?;
-        Self::parse(&text, json, path)
+        Self::parse(&text, json, path).map_err(|e| match e {
+            ScenarioFileError::Field { .. } => ScenarioFileError::InFile {
+                path: path.to_path_buf(),
+                source: Box::new(e),
+            },
+            e => e,
+        })
     }
 
     fn check(&self) -> Result<(), ScenarioFileError> {
@@ -909,6 +924,32 @@ mod tests {
                 .to_string();
             assert!(err.contains(what), "{to}: {err}");
         }
+    }
+
+    /// A field error of a file names the file (#32: it named only the field).
+    #[test]
+    fn field_errors_of_a_file_name_the_file() {
+        let path = std::env::temp_dir().join(format!("ft-scenario-{}.yaml", std::process::id()));
+        std::fs::write(
+            &path,
+            MINIMAL.replace("leader: [1.5, 0.25, 0]", "leader: [0.5, 0, 0]"),
+        )
+        .unwrap();
+        let err = ScenarioSpec::load(&path).unwrap_err();
+        let _ = std::fs::remove_file(&path);
+        assert!(
+            matches!(&err, ScenarioFileError::InFile { source, .. }
+                if matches!(**source, ScenarioFileError::Field { .. })),
+            "{err:?}"
+        );
+        let text = err.to_string();
+        assert!(
+            text.starts_with(&format!(
+                "{}: scenario file: field `leader`",
+                path.display()
+            )),
+            "{text}"
+        );
     }
 
     #[test]

@@ -38,6 +38,15 @@ pub const MIN_WIDTH_PX: f64 = 14.0;
 /// What is wrong with a scene.
 #[derive(Debug, Error)]
 pub enum SceneError {
+    /// A field of the file `path` is out of range ([`Self::Field`], from
+    /// [`SceneSpec::load`], which knows the file).
+    #[error("{path}: {source}")]
+    InFile {
+        /// The file.
+        path: String,
+        /// The field's error.
+        source: Box<SceneError>,
+    },
     /// The file could not be read.
     #[error("cannot read scene file {path}: {source}")]
     Io {
@@ -211,7 +220,14 @@ impl SceneSpec {
             path: path.display().to_string(),
             source,
         })?;
-        Self::from_text(&text, json, &path.display().to_string())
+        let name = path.display().to_string();
+        Self::from_text(&text, json, &name).map_err(|e| match e {
+            SceneError::Field { .. } => SceneError::InFile {
+                path: name,
+                source: Box::new(e),
+            },
+            e => e,
+        })
     }
 
     /// Checks the fields a renderer would otherwise reject with a less precise message, and

@@ -244,3 +244,18 @@ proptest::proptest! {
         }
     }
 }
+
+/// A field error of a scene file names the file (#32: it named only the field).
+#[test]
+fn field_errors_of_a_scene_file_name_the_file() {
+    let path = std::env::temp_dir().join(format!("ft-scene-{}.yaml", std::process::id()));
+    std::fs::write(&path, "robots: [{robot: 1, x: 0, y: 0, theta: 0}]\n").unwrap();
+    let err = SceneSpec::load(&path).unwrap_err();
+    let _ = std::fs::remove_file(&path);
+    assert!(matches!(&err, SceneError::InFile { .. }), "{err:?}");
+    assert!(
+        err.to_string()
+            .starts_with(&format!("{}: scene: field `robots[0]`", path.display())),
+        "{err}"
+    );
+}

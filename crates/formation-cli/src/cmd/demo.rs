@@ -69,7 +69,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 ))
                 .into());
             }
-            let spec = super::load_scenario(path)?;
+            let spec = formation_sim::scenario_file::ScenarioSpec::load(path)?;
             DemoConfig {
                 closed_loop: args.closed_loop,
                 ..DemoConfig::from_scenario(&spec)
@@ -145,21 +145,16 @@ pub fn run(args: Args) -> Result<(), CliError> {
         || super::interrupt::requested().is_some(),
     );
     progress.finish();
-    let run = match run {
-        Err(DemoError::Stopped { step, steps }) => {
-            let signal = super::interrupt::requested().unwrap_or(2);
-            return Err(super::interrupt::Interrupted {
-                signal,
-                done: format!(
-                    "{step} of {} steps rendered; nothing written, {} left as it was",
-                    steps + 1,
-                    args.out.display()
-                ),
-            }
-            .into());
-        }
-        other => other?,
-    };
+    if let Err(DemoError::Stopped { step, steps }) = &run {
+        super::interrupt::stopped(|| {
+            format!(
+                "{step} of {} steps rendered; nothing written, {} left as it was",
+                steps + 1,
+                args.out.display()
+            )
+        })?;
+    }
+    let run = run?;
     let frames_staged = saver.map(FrameSaver::finish).transpose()?;
     mcap.finish()?;
     super::prepare_out_dir(&args.out.join("frames"))?;
@@ -217,10 +212,6 @@ fn stale_outputs(out: &Path, staged: &Staged) -> Vec<PathBuf> {
     stale
 }
 
-fn write_file(staged: &mut Staged, path: &Path, bytes: &[u8]) -> Result<(), CliError> {
-    staged.write(path, bytes)
-}
-
 fn write_outputs(
     staged: &mut Staged,
     out: &Path,
@@ -229,8 +220,8 @@ fn write_outputs(
     dt: f64,
 ) -> Result<(), CliError> {
     let json = serde_json::to_string_pretty(&run.summary)? + "\n";
-    write_file(staged, &out.join("summary.json"), json.as_bytes())?;
-    write_file(staged, &out.join("series.csv"), series_csv(run).as_bytes())?;
+    staged.write(&out.join("summary.json"), json)?;
+    staged.write(&out.join("series.csv"), series_csv(run))?;
     // Figs. 12-13 for every pair: robot 2's as fig12/fig13, robot k's as figNN-robotK.
     for (i, trace) in run.traces.iter().enumerate() {
         let records: Vec<StepRecord> = trace.records.iter().map(|r| r.step.clone()).collect();

@@ -69,26 +69,6 @@ pub fn load_rig(
     })
 }
 
-/// The scenario file `path` (`--scenario`), every error naming the file.
-pub fn load_scenario(
-    path: &std::path::Path,
-) -> Result<formation_sim::scenario_file::ScenarioSpec, CliError> {
-    use formation_sim::scenario_file::{ScenarioFileError, ScenarioSpec};
-    ScenarioSpec::load(path).map_err(|e| match e {
-        ScenarioFileError::Field { .. } => format!("{}: {e}", path.display()).into(),
-        e => e.into(),
-    })
-}
-
-/// The scene file `path` (`--scene`), every error naming the file.
-pub fn load_scene(path: &std::path::Path) -> Result<formation_sim::scene::SceneSpec, CliError> {
-    use formation_sim::scene::{SceneError, SceneSpec};
-    SceneSpec::load(path).map_err(|e| match e {
-        SceneError::Field { .. } => format!("{}: {e}", path.display()).into(),
-        e => e.into(),
-    })
-}
-
 /// The calibration file `path` (`--camera`), every error naming the file.
 pub fn load_calibration(path: &std::path::Path) -> Result<pose::calib::Calibration, CliError> {
     use pose::calib::{Calibration, CalibrationError};

@@ -7,7 +7,7 @@ use std::sync::Mutex;
 use clap::Args as ClapArgs;
 use fiducial::Dictionary;
 use formation_sim::paper::paper_scene;
-use formation_sim::scene::render_scene_with_progress;
+use formation_sim::scene::{SceneSpec, render_scene_with_progress};
 
 use super::CliError;
 use super::progress::Progress;
@@ -61,7 +61,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     let rig = super::load_rig(args.rig.as_deref(), dict)?;
     let spec = match (&args.paper_fig, &args.scene) {
         (Some(fig), _) => paper_scene(*fig)?,
-        (None, Some(path)) => super::load_scene(path)?,
+        (None, Some(path)) => SceneSpec::load(path)?,
         (None, None) => return Err("give --paper-fig N or --scene FILE".into()),
     };
     super::prepare_out_file(&args.out)?;

@@ -15,6 +15,7 @@ use formation_sim::reproduce::{
 use formation_sim::scenario::{
     Sample, ScenarioConfig, ScenarioError, Simulation, reference_leader_inputs,
 };
+use formation_sim::scenario_file::ScenarioSpec;
 use formation_tracker::filter::{FilterConfig, FilterDesign};
 
 use super::CliError;
@@ -153,7 +154,7 @@ fn run_dukf(a: &DukfArgs) -> Result<(), CliError> {
             let outputs: Vec<_> = OUTPUTS.iter().map(|n| a.out.join(n)).collect();
             let outputs: Vec<_> = outputs.iter().map(|p| ("--out", p.as_path())).collect();
             super::output::refuse_inputs_as_outputs(&outputs, &[("--scenario", file)])?;
-            let spec = super::load_scenario(file)?;
+            let spec = ScenarioSpec::load(file)?;
             super::progress::errln!(
                 "reproduce dukf: scenario {}, seed {}{with_bias}, writing to {}",
                 file.display(),
