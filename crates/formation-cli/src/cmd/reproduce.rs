@@ -135,7 +135,7 @@ fn run_dukf(a: &DukfArgs) -> Result<(), CliError> {
     };
     let (summary, smoothed) = match &a.scenario {
         None => {
-            super::progress::errln!(
+            errln!(
                 "reproduce dukf: seed {}{with_bias}, writing to {}",
                 a.seed,
                 a.out.display()
@@ -155,7 +155,7 @@ fn run_dukf(a: &DukfArgs) -> Result<(), CliError> {
             let outputs: Vec<_> = outputs.iter().map(|p| ("--out", p.as_path())).collect();
             super::output::refuse_inputs_as_outputs(&outputs, &[("--scenario", file)])?;
             let spec = ScenarioSpec::load(file)?;
-            super::progress::errln!(
+            errln!(
                 "reproduce dukf: scenario {}, seed {}{with_bias}, writing to {}",
                 file.display(),
                 a.seed,
