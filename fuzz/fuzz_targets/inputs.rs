@@ -1,10 +1,10 @@
 //! Arbitrary bytes as the follower-inputs CSV: never a panic, and what is accepted is usable. The body is
-//! shared with the stable proptest `crates/formation-cli/tests/parsers_fuzz.rs`.
+//! shared with the stable proptest `crates/formation-io/tests/parsers_fuzz.rs`.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
 
-#[path = "../../crates/formation-cli/tests/fuzz_body/inputs.rs"]
+#[path = "../../crates/formation-io/tests/fuzz_body/inputs.rs"]
 mod body;
 
 fuzz_target!(|data: &[u8]| body::run(data));

@@ -38,7 +38,7 @@ struct Cli {
     /// than a quarter of it are refused from their headers (1GiB, 512MiB, 64M or bytes; at
     /// least 16MiB; docs/reliability.md).
     #[arg(long, global = true, value_name = "SIZE", default_value = "1GiB",
-          value_parser = formation_tracker_cli::limits::parse_bytes)]
+          value_parser = formation_io::limits::parse_bytes)]
     max_memory: u64,
     #[command(subcommand)]
     command: Command,
@@ -67,7 +67,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     cmd::progress::set_quiet(cli.quiet);
-    formation_tracker_cli::limits::set_max_memory(cli.max_memory);
+    formation_io::limits::set_max_memory(cli.max_memory);
     let result: Result<(), cmd::CliError> = match cli.command {
         Command::Info => cmd::info::run(),
         Command::Markers(args) => cmd::markers::run(&args),

@@ -7,9 +7,9 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use formation_tracker_cli::bag::cdr::{CdrWriter, mono8_image};
-use formation_tracker_cli::bag::mcap::McapReader;
-use formation_tracker_cli::mcap_out::McapWriter;
+use formation_io::bag::cdr::{CdrWriter, mono8_image};
+use formation_io::bag::mcap::McapReader;
+use formation_io::mcap_out::McapWriter;
 
 fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/bags")

@@ -122,7 +122,7 @@ fn rig_file_chooses_the_faces_and_the_codes() {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("markers.json")).unwrap()).unwrap();
     let dict = Dictionary::paper();
-    let model = RigModel::load(&rig, dict).unwrap();
+    let model = formation_io::rigfile::load(&rig, dict).unwrap();
     let entries = json.as_array().unwrap();
     // Only the (robot, face) pairs of the rig's table, each with its own code.
     let expected: Vec<(u32, u8)> = (1..=3)

@@ -10,7 +10,7 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
-use formation_tracker_cli::bag::mcap::McapReader;
+use formation_io::bag::mcap::McapReader;
 
 fn exe() -> Command {
     Command::new(env!("CARGO_BIN_EXE_formation-tracker"))

@@ -38,8 +38,8 @@
 
 use std::path::{Path, PathBuf};
 
+use formation_io::textfile;
 use formation_tracker::filter::{FilterConfig, FilterDesign};
-use formation_tracker::textfile;
 use serde::Deserialize;
 use unicycle::{Inputs, PolarState, Pose};
 

@@ -23,10 +23,10 @@ use nalgebra::{Point2, Point3, Vector3};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+use formation_io::textfile;
 use formation_tracker::mount::{self, CameraMount, MeasurementError};
 use formation_tracker::rig::RigError;
 use formation_tracker::rig::RigModel;
-use formation_tracker::textfile;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use unicycle::Pose;
 

@@ -12,12 +12,11 @@ use formation_sim::evaluate::{
     MAX_DISTANCE_ERROR_PCT, MAX_HEADING_ERROR_DEG, default_detector, evaluate_scene,
 };
 use formation_sim::paper::{PAPER_FIGURES, paper_scene, random_scene};
-use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotConfig;
 
 #[test]
 fn tag36h11_rig_is_read_and_measured_end_to_end() {
-    let rig = RigModel::load(
+    let rig = formation_io::rigfile::load(
         &PathBuf::from(env!("CARGO_MANIFEST_DIR"))
             .join("../../fixtures/rigs/octagon-tag36h11.yaml"),
         Dictionary::paper(),

@@ -241,7 +241,7 @@ fn one_face_reports_its_ambiguity_and_unknown_codes_are_set_aside() {
     // Entry 99 is robot 20's face 5 in the reference table: measured as its own robot.
     assert!(found.robots.iter().any(|m| m.robot == 20));
     // A rig whose table lists only robot 1 puts entry 99 aside as unknown.
-    let small = RigModel::from_text(
+    let small = formation_io::rigfile::from_text(
         "markers: [{robot: 1, face: 3, index: 2}]",
         false,
         "<t>",

@@ -105,7 +105,7 @@ fn scene_files_match_and_custom_rigs_render() {
     assert_eq!(panned.robots.len(), 3);
     assert!(check_faces_decode(&panned, &RigModel::reference()) >= 3);
     // A custom rig and marker table: robots 1 and 2 of the panned scene show entries 40-52.
-    let rig = RigModel::load(
+    let rig = formation_io::rigfile::load(
         &PathBuf::from(env!("CARGO_MANIFEST_DIR"))
             .join("../../fixtures/rigs/three-faces-custom-codes.yaml"),
         Dictionary::paper(),

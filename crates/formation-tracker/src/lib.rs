@@ -9,8 +9,8 @@
 //!
 //! - [`rig`]: the leader's marker rig: the reference octagon of five marker faces
 //!   (spec 3.3), the 3D corners of each marker in the leader's body frame, and the mapping
-//!   between `(robot, face)` and dictionary entries ([`rig::RigModel`]), with rig files
-//!   (YAML/JSON, feature `files`) whose errors name the bad field.
+//!   between `(robot, face)` and dictionary entries ([`rig::RigModel`]); rig files
+//!   (YAML/JSON) are read by `formation-io`.
 //! - [`mount`]: the camera mount on the follower and the measurement transform of spec 2.5,
 //!   from a leader's pose in the camera frame to `(l12, alpha12, beta12)` and their
 //!   covariance.
@@ -40,8 +40,5 @@ pub mod guided;
 pub mod mount;
 pub mod pipeline;
 pub mod rig;
-pub mod rigfile;
 pub mod robots;
-#[cfg(feature = "files")]
-pub mod textfile;
 pub mod tracker;

@@ -16,6 +16,8 @@
 //! seeded RNG.
 #![deny(missing_docs)]
 
+pub mod edits;
+
 use std::sync::Arc;
 
 use nalgebra::{Isometry3, Matrix3, Point2, Point3, Vector3};

@@ -539,8 +539,7 @@ struct McapSaver {
     dt: f64,
     mount: formation_tracker::mount::CameraMount,
     pipeline: formation_tracker::pipeline::Pipeline,
-    writer:
-        Option<formation_tracker_cli::foxglove::FoxgloveWriter<std::io::BufWriter<std::fs::File>>>,
+    writer: Option<formation_io::foxglove::FoxgloveWriter<std::io::BufWriter<std::fs::File>>>,
     error: Option<String>,
 }
 
@@ -570,9 +569,8 @@ impl McapSaver {
             tracker,
         );
         let file = staged.create(path)?;
-        let writer =
-            formation_tracker_cli::foxglove::FoxgloveWriter::new(file, rig, calibration, true)
-                .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        let writer = formation_io::foxglove::FoxgloveWriter::new(file, rig, calibration, true)
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
         Ok(Self {
             path: path.to_path_buf(),
             dt,
@@ -603,7 +601,7 @@ impl McapSaver {
                     return;
                 }
             };
-        let out = formation_tracker_cli::foxglove::FrameOut {
+        let out = formation_io::foxglove::FrameOut {
             frame: frame.step as u64,
             stamp_ns: (t * 1e9).round() as u64,
             t,

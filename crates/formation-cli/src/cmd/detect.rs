@@ -61,7 +61,7 @@ pub struct Args {
     pub no_motion_blur: bool,
     /// Largest image side accepted, pixels; larger images are refused from their header,
     /// before they are decoded.
-    #[arg(long, value_name = "PX", default_value_t = formation_tracker_cli::frames::MAX_SIDE,
+    #[arg(long, value_name = "PX", default_value_t = formation_io::frames::MAX_SIDE,
           value_parser = super::numbers::max_side)]
     pub max_side: usize,
     /// Size of the markers, metres, for a `pose` per marker (needs `--camera`):
@@ -261,8 +261,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     let mut found = Vec::new();
     let mut failed = 0usize;
     for path in &args.images {
-        let grey = match formation_tracker_cli::frames::read_grey_with_max_side(path, args.max_side)
-        {
+        let grey = match formation_io::frames::read_grey_with_max_side(path, args.max_side) {
             Ok(grey) => grey,
             Err(err) => {
                 super::progress::errln!("formation-tracker: error: {}: {err}", path.display());

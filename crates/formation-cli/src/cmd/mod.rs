@@ -64,7 +64,7 @@ pub fn load_rig(
     dictionary: &fiducial::Dictionary,
 ) -> Result<formation_tracker::rig::RigModel, CliError> {
     Ok(match path {
-        Some(path) => formation_tracker::rig::RigModel::load(path, dictionary)?,
+        Some(path) => formation_io::rigfile::load(path, dictionary)?,
         None => formation_tracker::rig::RigModel::reference(),
     })
 }

@@ -201,13 +201,13 @@ fn filter_and_write(
     if smooth {
         // The smoother needs every step: refuse up front what would not fit.
         let need = scenario.steps() as u64 * SMOOTH_BYTES_PER_STEP;
-        let budget = formation_tracker_cli::limits::max_memory();
+        let budget = formation_io::limits::max_memory();
         if need > budget {
             return Err(format!(
                 "--smooth keeps every step: {} steps need about {}, more than --max-memory {} (run without --smooth, whose memory does not grow with the duration, or raise --max-memory)",
                 scenario.steps(),
-                formation_tracker::textfile::bytes_text(need),
-                formation_tracker::textfile::bytes_text(budget)
+                formation_io::textfile::bytes_text(need),
+                formation_io::textfile::bytes_text(budget)
             )
             .into());
         }

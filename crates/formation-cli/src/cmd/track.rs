@@ -6,14 +6,14 @@ use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
 use fiducial::{Detector, DetectorConfig, Dictionary};
+use formation_io::frames::FrameSource;
+use formation_io::inputs::FollowerInputs;
 use formation_tracker::guided::GuidedConfig;
 use formation_tracker::mount::CameraMount;
 use formation_tracker::pipeline::{Pipeline, PipelineError, PipelineFrame, Scan};
 use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotConfig;
 use formation_tracker::tracker::{LeaderReport, SmoothedLeader, Tracker, TrackerConfig};
-use formation_tracker_cli::frames::FrameSource;
-use formation_tracker_cli::inputs::FollowerInputs;
 use pose::PoseSolver;
 use pose::calib::Calibration;
 use serde::Serialize;
@@ -89,7 +89,7 @@ pub struct Args {
     pub(super) scale_calibration: bool,
     /// Largest image side accepted, pixels; larger frames are refused from their header,
     /// before they are decoded.
-    #[arg(long, value_name = "PX", default_value_t = formation_tracker_cli::frames::MAX_SIDE,
+    #[arg(long, value_name = "PX", default_value_t = formation_io::frames::MAX_SIDE,
           value_parser = super::numbers::max_side)]
     pub(super) max_side: usize,
     /// Seconds without a measurement before a track is dropped.
@@ -160,7 +160,7 @@ struct TimingOut {
 pub fn run(args: &Args) -> Result<(), CliError> {
     refuse_overwriting_inputs(args)?;
     super::interrupt::install()?;
-    if formation_tracker_cli::bag::is_bag(&args.input) {
+    if formation_io::bag::is_bag(&args.input) {
         return super::track_bag::run(args);
     }
     if args.image_topic.is_some() || args.inputs_topic.is_some() {

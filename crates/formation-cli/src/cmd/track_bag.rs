@@ -6,14 +6,14 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use fiducial::Dictionary;
+use formation_io::bag::{Bag, BagError};
+use formation_io::foxglove::{FoxgloveWriter, FrameOut};
+use formation_io::frames::GreyImage;
+use formation_io::inputs::FollowerInputs;
 use formation_tracker::mount::CameraMount;
 use formation_tracker::pipeline::{Pipeline, PipelineFrame};
 use formation_tracker::rig::RigModel;
 use formation_tracker::robots::MarkerObservation;
-use formation_tracker_cli::bag::{Bag, BagError};
-use formation_tracker_cli::foxglove::{FoxgloveWriter, FrameOut};
-use formation_tracker_cli::frames::GreyImage;
-use formation_tracker_cli::inputs::FollowerInputs;
 use pose::calib::Calibration;
 use unicycle::Inputs;
 

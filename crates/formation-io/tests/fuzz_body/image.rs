@@ -1,8 +1,8 @@
-//! Image files (`formation_tracker_cli::frames::decode_grey`): never a panic; an accepted
+//! Image files (`formation_io::frames::decode_grey`): never a panic; an accepted
 //! image has a size within the limit and exactly one grey byte per pixel. The header check
 //! (`check_decoded_size`) accepts only what fits the side limit and the memory budget.
 
-use formation_tracker_cli::frames::{check_decoded_size, decode_grey};
+use formation_io::frames::{check_decoded_size, decode_grey};
 
 /// The pixel limit a side for fuzzing (small, so that each run stays fast).
 const MAX_SIDE: usize = 512;
@@ -17,7 +17,7 @@ pub fn run(data: &[u8]) {
         ]);
         if check_decoded_size(w, h, decoded, MAX_SIDE).is_ok() {
             assert!((1..=MAX_SIDE as u32).contains(&w) && (1..=MAX_SIDE as u32).contains(&h));
-            let budget = formation_tracker_cli::limits::max_buffer();
+            let budget = formation_io::limits::max_buffer();
             assert!(decoded.saturating_add(u64::from(w) * u64::from(h)) <= budget);
         }
     }

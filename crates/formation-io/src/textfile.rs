@@ -1,6 +1,5 @@
-//! Reading the project's text files (rig and scene files): JSON when the file is named
-//! `.json`, YAML otherwise. Only with the feature `files`, which brings the parsers
-//! (`serde_json`, `serde-saphyr`).
+//! Reading the project's text files (rig, scene and scenario files): JSON when the file is
+//! named `.json`, YAML otherwise, and every read bounded.
 //!
 //! # Errors
 //! [`read`] returns the I/O error; [`parse`] the parser's message, which names the field

@@ -3,12 +3,10 @@
 //! panic or ask for more memory than the file holds.
 #![allow(clippy::unwrap_used)] // Tests may unwrap (house rules); helpers here are test code too.
 
-use formation_tracker_cli::bag::Bag;
-use formation_tracker_cli::bag::cdr::{
-    CameraInfo, CompressedImage, Image, TwistSample, mono8_image,
-};
-use formation_tracker_cli::bag::mcap::McapReader;
-use formation_tracker_cli::mcap_out::McapWriter;
+use formation_io::bag::Bag;
+use formation_io::bag::cdr::{CameraInfo, CompressedImage, Image, TwistSample, mono8_image};
+use formation_io::bag::mcap::McapReader;
+use formation_io::mcap_out::McapWriter;
 use proptest::prelude::*;
 
 fn tmp(name: &str) -> std::path::PathBuf {

@@ -176,11 +176,8 @@ fn folder_files(dir: &Path) -> Result<(Vec<PathBuf>, Vec<PathBuf>), BagError> {
         reason,
     };
     let listed = if metadata.exists() {
-        let bytes = formation_tracker::textfile::read_bounded(
-            &metadata,
-            formation_tracker::textfile::MAX_TEXT_BYTES,
-        )
-        .map_err(|e| bad(format!("cannot read: {e}")))?;
+        let bytes = crate::textfile::read_bounded(&metadata, crate::textfile::MAX_TEXT_BYTES)
+            .map_err(|e| bad(format!("cannot read: {e}")))?;
         let text = String::from_utf8_lossy(&bytes);
         let parsed: Metadata = serde_saphyr::from_str(&text).map_err(|e| {
             bad(format!(

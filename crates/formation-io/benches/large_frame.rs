@@ -64,8 +64,8 @@ fn benches(c: &mut Criterion) {
         .expect("temporary PNG written");
     group.bench_function("load_12mp_grey_png", |b| {
         b.iter(|| {
-            let g = formation_tracker_cli::frames::read_grey(black_box(&path))
-                .expect("the PNG just written");
+            let g =
+                formation_io::frames::read_grey(black_box(&path)).expect("the PNG just written");
             black_box(g.data.len())
         })
     });

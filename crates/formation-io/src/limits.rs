@@ -8,7 +8,7 @@
 //! - a bag's record or decompressed chunk must fit in a quarter of it (and never more than
 //!   1 GiB), by its declared size and by what it really decompresses to;
 //! - text files (calibration, rig, scene, scenario, inputs CSV, `metadata.yaml`) have fixed
-//!   limits of their own, far below the budget (`formation_tracker::textfile::MAX_TEXT_BYTES`,
+//!   limits of their own, far below the budget (`crate::textfile::MAX_TEXT_BYTES`,
 //!   `pose::calib::Calibration::MAX_FILE_BYTES`).
 
 use std::sync::atomic::{AtomicU64, Ordering};

@@ -158,14 +158,12 @@ impl FollowerInputs {
     /// # Errors
     /// Any [`InputsError`].
     pub fn from_path(path: &Path) -> Result<Self, InputsError> {
-        let bytes = formation_tracker::textfile::read_bounded(
-            path,
-            formation_tracker::textfile::MAX_TEXT_BYTES,
-        )
-        .map_err(|source| InputsError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let bytes = crate::textfile::read_bounded(path, crate::textfile::MAX_TEXT_BYTES).map_err(
+            |source| InputsError::Io {
+                path: path.to_path_buf(),
+                source,
+            },
+        )?;
         let text = String::from_utf8(bytes).map_err(|e| InputsError::Io {
             path: path.to_path_buf(),
             source: std::io::Error::new(

@@ -5,7 +5,7 @@
 use std::io::Cursor;
 use std::path::PathBuf;
 
-use formation_tracker_cli::frames::{FrameError, FrameSource};
+use formation_io::frames::{FrameError, FrameSource};
 
 /// A y4m stream of `frames` frames of `w x h` in colour space `cs` (`"420"`, `"mono"`,
 /// `"420p10"`) at 30000/1001 frames/s; luma of frame `k` at pixel `i` is `(10 k + i) % 256`.

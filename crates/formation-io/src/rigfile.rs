@@ -27,15 +27,14 @@
 //! be at least 45 degrees apart so they cannot overlap. When `markers` is given it is the
 //! complete table: a `(robot, face)` not listed carries no marker.
 
-#[cfg(feature = "files")]
 use std::path::Path;
 
 use fiducial::Dictionary;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::rig::{FaceSpec, RigError, RigGeometry, RigModel};
-#[cfg(feature = "files")]
+use formation_tracker::rig::{FaceSpec, RigError, RigGeometry, RigModel};
+
 use crate::textfile;
 
 /// What is wrong with a rig file.
@@ -126,98 +125,102 @@ pub struct RigFile {
     pub markers: Option<Vec<MarkerSpec>>,
 }
 
-impl RigModel {
-    /// Parses and checks a rig file's text; `json` selects the JSON parser (otherwise YAML,
-    /// which also reads JSON). `path` only labels error messages. Needs the feature `files`.
-    #[cfg(feature = "files")]
-    pub fn from_text(
-        text: &str,
-        json: bool,
-        path: &str,
-        dictionary: &Dictionary,
-    ) -> Result<Self, RigFileError> {
-        let file: RigFile = if !json && text.trim().is_empty() {
-            RigFile::default()
-        } else {
-            textfile::parse(text, json).map_err(|message| RigFileError::Parse {
-                path: path.to_string(),
-                message,
-            })?
-        };
-        Self::from_file(&file, dictionary)
-    }
+/// Parses and checks a rig file's text; `json` selects the JSON parser (otherwise YAML,
+/// which also reads JSON). `path` only labels error messages.
+///
+/// # Errors
+/// The parser's message, or the first field that fails its check.
+pub fn from_text(
+    text: &str,
+    json: bool,
+    path: &str,
+    dictionary: &Dictionary,
+) -> Result<RigModel, RigFileError> {
+    let file: RigFile = if !json && text.trim().is_empty() {
+        RigFile::default()
+    } else {
+        textfile::parse(text, json).map_err(|message| RigFileError::Parse {
+            path: path.to_string(),
+            message,
+        })?
+    };
+    from_file(&file, dictionary)
+}
 
-    /// Reads a rig file (`.json` is parsed as JSON, anything else as YAML). Needs the
-    /// feature `files`.
-    #[cfg(feature = "files")]
-    pub fn load(path: &Path, dictionary: &Dictionary) -> Result<Self, RigFileError> {
-        let (text, json) = textfile::read(path).map_err(|source| RigFileError::Io {
-            path: path.display().to_string(),
-            source,
-        })?;
-        Self::from_text(&text, json, &path.display().to_string(), dictionary)
-    }
+/// Reads a rig file (`.json` is parsed as JSON, anything else as YAML).
+///
+/// # Errors
+/// The file cannot be read (or is over [`textfile::MAX_TEXT_BYTES`]); as [`from_text`].
+pub fn load(path: &Path, dictionary: &Dictionary) -> Result<RigModel, RigFileError> {
+    let (text, json) = textfile::read(path).map_err(|source| RigFileError::Io {
+        path: path.display().to_string(),
+        source,
+    })?;
+    from_text(&text, json, &path.display().to_string(), dictionary)
+}
 
-    /// Checks a parsed rig file and fills in the reference values.
-    ///
-    /// `dictionary` is the one the caller reads with; a file that names its own
-    /// `dictionary` uses that one instead.
-    pub fn from_file(file: &RigFile, dictionary: &Dictionary) -> Result<Self, RigFileError> {
-        let (dictionary, name) = match &file.dictionary {
-            Some(name) => {
-                let d = fiducial::dictionary_by_name(name)
-                    .map_err(|e| field("dictionary", e.to_string()))?;
-                (d, d.name().unwrap_or(fiducial::PAPER_NAME))
-            }
-            None => (
-                dictionary,
-                dictionary.name().unwrap_or(fiducial::PAPER_NAME),
+/// Checks a parsed rig file and fills in the reference values.
+///
+/// `dictionary` is the one the caller reads with; a file that names its own
+/// `dictionary` uses that one instead.
+///
+/// # Errors
+/// The first field that fails its check.
+pub fn from_file(file: &RigFile, dictionary: &Dictionary) -> Result<RigModel, RigFileError> {
+    let (dictionary, name) = match &file.dictionary {
+        Some(name) => {
+            let d = fiducial::dictionary_by_name(name)
+                .map_err(|e| field("dictionary", e.to_string()))?;
+            (d, d.name().unwrap_or(fiducial::PAPER_NAME))
+        }
+        None => (
+            dictionary,
+            dictionary.name().unwrap_or(fiducial::PAPER_NAME),
+        ),
+    };
+    let mut r = RigGeometry::reference();
+    if file.dictionary.is_some() {
+        r.data_rows = dictionary.family().rows();
+        r.data_cols = dictionary.family().cols();
+    }
+    let geometry = RigGeometry {
+        face_width_m: file.face_width_m.unwrap_or(r.face_width_m),
+        marker_centre_height_m: file
+            .marker_centre_height_m
+            .unwrap_or(r.marker_centre_height_m),
+        cell_size_m: file.cell_size_m.unwrap_or(r.cell_size_m),
+        data_rows: file.data_rows.unwrap_or(r.data_rows),
+        data_cols: file.data_cols.unwrap_or(r.data_cols),
+    };
+    geometry.validate()?;
+    let family = geometry.family()?;
+    if family != dictionary.family() {
+        return Err(field(
+            "data_rows/data_cols",
+            format!(
+                "the rig's markers have {} x {} data cells but the dictionary's have {} x {}",
+                family.rows(),
+                family.cols(),
+                dictionary.family().rows(),
+                dictionary.family().cols()
             ),
-        };
-        let mut r = RigGeometry::reference();
-        if file.dictionary.is_some() {
-            r.data_rows = dictionary.family().rows();
-            r.data_cols = dictionary.family().cols();
-        }
-        let geometry = RigGeometry {
-            face_width_m: file.face_width_m.unwrap_or(r.face_width_m),
-            marker_centre_height_m: file
-                .marker_centre_height_m
-                .unwrap_or(r.marker_centre_height_m),
-            cell_size_m: file.cell_size_m.unwrap_or(r.cell_size_m),
-            data_rows: file.data_rows.unwrap_or(r.data_rows),
-            data_cols: file.data_cols.unwrap_or(r.data_cols),
-        };
-        geometry.validate()?;
-        let family = geometry.family()?;
-        if family != dictionary.family() {
-            return Err(field(
-                "data_rows/data_cols",
-                format!(
-                    "the rig's markers have {} x {} data cells but the dictionary's have {} x {}",
-                    family.rows(),
-                    family.cols(),
-                    dictionary.family().rows(),
-                    dictionary.family().cols()
-                ),
-            ));
-        }
-        let faces = file
-            .faces
-            .clone()
-            .unwrap_or_else(|| RigModel::reference().faces);
-        check_faces(&faces)?;
-        let markers = match &file.markers {
-            None => None,
-            Some(list) => Some(check_markers(list, &faces, dictionary, name)?),
-        };
-        Ok(Self {
-            geometry,
-            faces,
-            markers,
-            dictionary: name,
-        })
+        ));
     }
+    let faces = file
+        .faces
+        .clone()
+        .unwrap_or_else(|| RigModel::reference().faces);
+    check_faces(&faces)?;
+    let markers = match &file.markers {
+        None => None,
+        Some(list) => Some(check_markers(list, &faces, dictionary, name)?),
+    };
+    Ok(RigModel {
+        geometry,
+        faces,
+        markers,
+        dictionary: name,
+    })
 }
 
 fn field(name: impl Into<String>, reason: impl Into<String>) -> RigFileError {

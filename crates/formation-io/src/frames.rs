@@ -249,8 +249,8 @@ impl FrameSource {
         if need > crate::limits::max_buffer() {
             return Err(bad(format!(
                 "header field W/H: a {width}x{height} frame needs {} to read, more than the {} an input may take (a quarter of --max-memory)",
-                formation_tracker::textfile::bytes_text(need),
-                formation_tracker::textfile::bytes_text(crate::limits::max_buffer()),
+                crate::textfile::bytes_text(need),
+                crate::textfile::bytes_text(crate::limits::max_buffer()),
             )));
         }
         Ok(Self::new(
@@ -400,14 +400,13 @@ fn jpeg_is_complete(bytes: &[u8]) -> bool {
 /// Decodes an image file into the grey buffer (see [`read_grey`]).
 fn load_image(path: &Path, grey: &mut GreyImage, max_side: usize) -> Result<(), String> {
     // An image file larger than the memory budget cannot be decoded within it either.
-    let bytes = formation_tracker::textfile::read_bounded(path, crate::limits::max_buffer())
-        .map_err(|e| {
-            if e.kind() == std::io::ErrorKind::InvalidData {
-                format!("too large for an image file: {e} (a quarter of --max-memory)")
-            } else {
-                e.to_string()
-            }
-        })?;
+    let bytes = crate::textfile::read_bounded(path, crate::limits::max_buffer()).map_err(|e| {
+        if e.kind() == std::io::ErrorKind::InvalidData {
+            format!("too large for an image file: {e} (a quarter of --max-memory)")
+        } else {
+            e.to_string()
+        }
+    })?;
     decode_image(&bytes, grey, max_side)
 }
 
@@ -494,9 +493,9 @@ pub fn check_decoded_size(w: u32, h: u32, decoded: u64, max_side: usize) -> Resu
     if need > limit {
         return Err(format!(
             "image size {w}x{h} needs {} decoded, more than the {} an input may take (a quarter of --max-memory {})",
-            formation_tracker::textfile::bytes_text(need),
-            formation_tracker::textfile::bytes_text(limit),
-            formation_tracker::textfile::bytes_text(crate::limits::max_memory()),
+            crate::textfile::bytes_text(need),
+            crate::textfile::bytes_text(limit),
+            crate::textfile::bytes_text(crate::limits::max_memory()),
         ));
     }
     Ok(())

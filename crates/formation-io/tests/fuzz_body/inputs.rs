@@ -1,7 +1,7 @@
-//! The follower's inputs CSV (`formation_tracker_cli::inputs`): never a panic, and every
+//! The follower's inputs CSV (`formation_io::inputs`): never a panic, and every
 //! sample of an accepted file is finite.
 
-use formation_tracker_cli::inputs::FollowerInputs;
+use formation_io::inputs::FollowerInputs;
 
 /// Parses `data` as an inputs CSV and reads samples at frames 0..16 and times 0..8 s.
 pub fn run(data: &[u8]) {

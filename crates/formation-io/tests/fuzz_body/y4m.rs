@@ -1,11 +1,11 @@
-//! y4m streams (`formation_tracker_cli::y4m`): the header parser and the frame reader never
+//! y4m streams (`formation_io::y4m`): the header parser and the frame reader never
 //! panic, an accepted header has a positive size and a positive finite frame rate, and at
 //! most a few frames are read into a buffer of the header's size (streams larger than
 //! 1024 x 1024 are only parsed, to keep each run short).
 
 use std::io::{BufRead, BufReader, Read};
 
-use formation_tracker_cli::y4m::{Next, Reader, parse_header};
+use formation_io::y4m::{Next, Reader, parse_header};
 
 /// Reads `data` as a y4m stream.
 pub fn run(data: &[u8]) {

@@ -1,4 +1,4 @@
-//! ROS 2 bags (`formation_tracker_cli::bag`: the MCAP reader, CDR messages, image
+//! ROS 2 bags (`formation_io::bag`: the MCAP reader, CDR messages, image
 //! conversion): the bytes are written to a file and opened as a bag the way `track` opens
 //! one; nothing panics, and every frame read has one grey byte per pixel within the size
 //! limit, with inputs that are finite. At most 8 frames are read, at most 1024 px a side.
@@ -6,7 +6,7 @@
 use std::io::Write;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use formation_tracker_cli::bag::Bag;
+use formation_io::bag::Bag;
 
 /// The pixel limit a side for fuzzing (the fixture bags' 640 x 480 frames pass; larger
 /// frames are refused before decoding, which keeps each run short).

@@ -16,15 +16,15 @@ use std::path::{Path, PathBuf};
 
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use fiducial::{Detector, DetectorConfig, Dictionary};
+use formation_io::bag::Bag;
+use formation_io::bag::mcap::McapReader;
+use formation_io::frames::GreyImage;
+use formation_io::mcap_out::McapWriter;
 use formation_tracker::mount::CameraMount;
 use formation_tracker::pipeline::Pipeline;
 use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotConfig;
 use formation_tracker::tracker::{Tracker, TrackerConfig};
-use formation_tracker_cli::bag::Bag;
-use formation_tracker_cli::bag::mcap::McapReader;
-use formation_tracker_cli::frames::GreyImage;
-use formation_tracker_cli::mcap_out::McapWriter;
 use pose::PoseSolver;
 use unicycle::Inputs;
 

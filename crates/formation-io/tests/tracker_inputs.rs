@@ -1,7 +1,7 @@
 //! The follower-inputs CSV: columns in any order, hold between rows, typed errors.
 #![allow(clippy::unwrap_used)] // Tests may unwrap (house rules); helpers here are test code too.
 
-use formation_tracker_cli::inputs::{FollowerInputs, InputsError, Key};
+use formation_io::inputs::{FollowerInputs, InputsError, Key};
 use proptest::prelude::*;
 
 #[test]
@@ -128,7 +128,7 @@ fn impossible_speeds_in_the_inputs_csv_are_refused() {
             ),
         )
         .unwrap();
-        let e = formation_tracker_cli::inputs::FollowerInputs::from_path(&path)
+        let e = formation_io::inputs::FollowerInputs::from_path(&path)
             .unwrap_err()
             .to_string();
         assert!(

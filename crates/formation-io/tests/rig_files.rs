@@ -4,8 +4,8 @@
 use std::path::PathBuf;
 
 use fiducial::Dictionary;
+use formation_io::rigfile::RigFileError;
 use formation_tracker::rig::{FACE_YAWS_DEG, RigError, RigGeometry, RigModel};
-use formation_tracker::rigfile::RigFileError;
 use proptest::prelude::*;
 
 fn fixture(name: &str) -> PathBuf {
@@ -15,7 +15,7 @@ fn fixture(name: &str) -> PathBuf {
 }
 
 fn yaml(text: &str) -> Result<RigModel, RigFileError> {
-    RigModel::from_text(text, false, "<test>", Dictionary::paper())
+    formation_io::rigfile::from_text(text, false, "<test>", Dictionary::paper())
 }
 
 /// The field a `Field` error names, or a panic with the error.
@@ -31,7 +31,7 @@ fn fixtures_and_empty_file_are_the_reference_rig() {
     let d = Dictionary::paper();
     let reference = RigModel::reference();
     for name in ["reference.yaml", "reference.json"] {
-        let m = RigModel::load(&fixture(name), d).unwrap();
+        let m = formation_io::rigfile::load(&fixture(name), d).unwrap();
         assert_eq!(m, reference, "{name}");
     }
     assert_eq!(yaml("").unwrap(), reference);
@@ -59,7 +59,7 @@ fn fixtures_and_empty_file_are_the_reference_rig() {
 #[test]
 fn explicit_marker_table_is_the_whole_table() {
     let d = Dictionary::paper();
-    let m = RigModel::load(&fixture("three-faces-custom-codes.yaml"), d).unwrap();
+    let m = formation_io::rigfile::load(&fixture("three-faces-custom-codes.yaml"), d).unwrap();
     assert_eq!(m.faces.len(), 3);
     assert_eq!(m.index_of(1, 3), Some(41));
     assert_eq!(m.index_of(2, 4), Some(52));
@@ -96,7 +96,7 @@ fn changed_geometry_moves_the_corners() {
 fn unknown_and_mistyped_fields_are_named() {
     let err = yaml("cell_size_mm: 20\n").unwrap_err().to_string();
     assert!(err.contains("cell_size_mm"), "{err}");
-    let err = RigModel::from_text(
+    let err = formation_io::rigfile::from_text(
         r#"{"faces": [{"face": 1, "yaw": 90}]}"#,
         true,
         "x.json",
@@ -107,7 +107,8 @@ fn unknown_and_mistyped_fields_are_named() {
     assert!(err.contains("yaw") && err.contains("x.json"), "{err}");
     let err = yaml("face_width_m: wide\n").unwrap_err();
     assert!(matches!(err, RigFileError::Parse { .. }), "{err:?}");
-    let err = RigModel::load(&fixture("no-such-file.yaml"), Dictionary::paper()).unwrap_err();
+    let err = formation_io::rigfile::load(&fixture("no-such-file.yaml"), Dictionary::paper())
+        .unwrap_err();
     assert!(matches!(err, RigFileError::Io { .. }));
 }
 
@@ -188,7 +189,8 @@ proptest! {
 
 #[test]
 fn rigs_name_their_dictionary_and_faces_by_dictionary_and_id() {
-    let m = RigModel::load(&fixture("octagon-tag36h11.yaml"), Dictionary::paper()).unwrap();
+    let m = formation_io::rigfile::load(&fixture("octagon-tag36h11.yaml"), Dictionary::paper())
+        .unwrap();
     assert_eq!(m.dictionary, "DICT_APRILTAG_36h11");
     assert_eq!((m.geometry.data_rows, m.geometry.data_cols), (6, 6));
     assert_eq!(m.index_of(2, 3), Some(22));

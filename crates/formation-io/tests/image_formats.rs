@@ -3,7 +3,7 @@
 //! the stored rows. Every image is made here; the EXIF bytes are written by hand.
 #![allow(clippy::unwrap_used)] // Tests may unwrap (house rules); helpers here are test code too.
 
-use formation_tracker_cli::frames::{GreyImage, read_grey};
+use formation_io::frames::{GreyImage, read_grey};
 use image::{ImageBuffer, Luma, LumaA, Rgb, Rgba};
 use std::path::PathBuf;
 
