@@ -404,3 +404,37 @@ pub fn sojourn_transition<const K: usize>(
     let leave = (1.0 - stay) / (K - 1) as f64;
     Ok(SMatrix::from_fn(|i, j| if i == j { stay } else { leave }))
 }
+/// The moment-matched mean of `K` model predictions `outs` under the probabilities `p`:
+/// `outs[0] (+) sum_j p_j (outs[j] (-) outs[0])` in `space` (angles averaged on the circle
+/// near the first prediction). With [`mixture_noise`], it turns a model set into one
+/// transition, e.g. for smoothing an IMM's recorded run with [`crate::filter_and_smooth`].
+pub fn mixture_mean<const N: usize, const K: usize, S: Space<N>>(
+    space: &S,
+    outs: &[SVector<f64, N>; K],
+    p: &[f64; K],
+) -> SVector<f64, N> {
+    let base = outs[0];
+    let mut acc = SVector::<f64, N>::zeros();
+    for (pj, out) in p.iter().zip(outs) {
+        acc += space.residual(out, &base) * *pj;
+    }
+    space.add(&base, &acc)
+}
+
+/// The noise of the mixture transition of [`mixture_mean`]: `sum_j p_j (Q_j + d_j d_j^T)`
+/// with `d_j = outs[j] (-) mean` (the models' own noises and the spread of their
+/// predictions), symmetrised.
+pub fn mixture_noise<const N: usize, const K: usize, S: Space<N>>(
+    space: &S,
+    outs: &[SVector<f64, N>; K],
+    mean: &SVector<f64, N>,
+    noises: impl Fn(usize) -> SMatrix<f64, N, N>,
+    p: &[f64; K],
+) -> SMatrix<f64, N, N> {
+    let mut q = SMatrix::<f64, N, N>::zeros();
+    for j in 0..K {
+        let d = space.residual(&outs[j], mean);
+        q += (noises(j) + d * d.transpose()) * p[j];
+    }
+    (q + q.transpose()) * 0.5
+}

@@ -258,3 +258,51 @@ fn check_estimate<const N: usize>(e: &Gaussian<N>) -> Result<(), UkfError> {
     check_vector(&e.mean, Input::State)?;
     check_matrix(&e.covariance, Input::StateCovariance)
 }
+
+/// One measurement of a recorded step: the value and its noise covariance.
+pub type Measured<const M: usize> = (SVector<f64, M>, SMatrix<f64, M, M>);
+
+/// The smoother of a recorded run in one call: an unscented Kalman filter over `len` steps
+/// from `start`, predicting step `k` from step `k - 1` with `f(k - 1, x)` and the noise
+/// `noise(k - 1, m)` (`m` the filtered mean of step `k - 1`; each noise is computed once and
+/// kept, so that the backward pass uses the same one), updating with `measurement(k)` through
+/// `h` when there is one; then [`RtsSmoother::smooth`] backwards over that pass with the same
+/// transitions. Use it when the filter that ran causally is not the smoother's model (a
+/// multiple-model mixture, or two filters without their cross-covariance): the backward
+/// recursion needs filtered estimates that are the Bayesian updates of its own predictions.
+///
+/// # Errors
+/// Bad parameters, a bad start, any filter or smoother error ([`UkfError`]); nothing is
+/// returned on error.
+#[allow(clippy::too_many_arguments)] // one call: the model, the record and the spaces
+pub fn filter_and_smooth<const N: usize, const M: usize, S, SM>(
+    space: S,
+    params: UtParams,
+    start: &Gaussian<N>,
+    len: usize,
+    mut f: impl FnMut(usize, &SVector<f64, N>) -> SVector<f64, N>,
+    mut noise: impl FnMut(usize, &SVector<f64, N>) -> SMatrix<f64, N, N>,
+    mut measurement: impl FnMut(usize) -> Option<Measured<M>>,
+    mut h: impl FnMut(&SVector<f64, N>) -> SVector<f64, M>,
+    measurement_space: &SM,
+) -> Result<Smoothed<N>, UkfError>
+where
+    S: Space<N> + Clone,
+    SM: Space<M>,
+{
+    let smoother = RtsSmoother::new(space.clone(), params)?;
+    let mut ukf = crate::Ukf::new(start.mean, start.covariance, space, params)?;
+    let mut filtered = Vec::with_capacity(len);
+    let mut noises: Vec<SMatrix<f64, N, N>> = Vec::with_capacity(len);
+    filtered.push(Gaussian::new(*ukf.state(), *ukf.covariance()));
+    for k in 1..len {
+        let q = noise(k - 1, ukf.state());
+        noises.push(q);
+        ukf.predict(|x| f(k - 1, x), &q)?;
+        if let Some((y, r)) = measurement(k) {
+            ukf.update(&y, &mut h, &r, measurement_space)?;
+        }
+        filtered.push(Gaussian::new(*ukf.state(), *ukf.covariance()));
+    }
+    smoother.smooth(&filtered, f, |k| noises[k])
+}

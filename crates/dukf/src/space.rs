@@ -104,6 +104,20 @@ impl<const D: usize> AngleMask<D> {
         Self { angles }
     }
 
+    /// A mask with the listed components as angles and the rest linear, for constants:
+    /// `const MASK: AngleMask<3> = AngleMask::at(&[1, 2]);`. In a constant an index `>= D`
+    /// fails to compile; at run time it panics, so use [`AngleMask::from_indices`] for
+    /// indices that are not constants.
+    pub const fn at(indices: &[usize]) -> Self {
+        let mut angles = [false; D];
+        let mut k = 0;
+        while k < indices.len() {
+            angles[indices[k]] = true;
+            k += 1;
+        }
+        Self { angles }
+    }
+
     /// A mask with the listed components as angles and the rest linear.
     ///
     /// # Errors

@@ -13,9 +13,10 @@
 
 use formation_sim::scenario::{Scenario, ScenarioConfig, simulate};
 use formation_sim::scenario_file::ScenarioSpec;
-use formation_tracker::filter::{FilterConfig, FormationFilter, formation_holding_velocity};
+use formation_tracker::filter::{FilterConfig, FormationFilter};
 use nalgebra::Vector2;
 use unicycle::PolarModel;
+use unicycle::formation_holding_velocity;
 
 #[path = "common/imm_tuning.rs"]
 mod imm_tuning;

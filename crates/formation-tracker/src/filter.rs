@@ -21,10 +21,10 @@
 //!   jerk: a property of the robot, not of a scenario).
 //! - **B, the follower holds the formation**: the leader velocity is the one that keeps
 //!   `l12` and `alpha12` constant given the follower's known inputs
-//!   ([`formation_holding_velocity`]); the held variables drift by a small random walk
+//!   ([`unicycle::formation_holding_velocity`]); the held variables drift by a small random walk
 //!   ([`ImmTuning::held_rate_std`]). `beta12` is still predicted through the model.
 //! - **C, the follower holds the bearing**: model A's speed, and the turn rate that keeps
-//!   `alpha12` constant ([`bearing_holding_turn_rate`]): the follower changes its separation
+//!   `alpha12` constant ([`unicycle::bearing_holding_turn_rate`]): the follower changes its separation
 //!   (a set-point step) while holding the bearing.
 //!
 //! The switching matrix has one constant, the mean time a model stays in force
@@ -32,7 +32,7 @@
 //!
 //! **With the follower's controller known** ([`FormationFilter::set_follower_controller`], as
 //! `reproduce dukf` runs it) the model set changes: B takes the leader velocity under which the
-//! formation moves as the controller commands ([`controlled_formation_velocity`]), with no held
+//! formation moves as the controller commands ([`unicycle::controlled_formation_velocity`]), with no held
 //! random walk (only the integrator's error, [`ImmTuning::controlled_formation_q`]); C, which
 //! covered set-point changes that B now models, is dropped; and B does not switch out, while A
 //! hands over to B at the sojourn rate. Each of these rules removes one cause of the
@@ -65,11 +65,12 @@ pub use smooth::{FilterStep, SmoothedStep};
 
 use std::cell::Cell;
 
+use crate::mount::MEASUREMENT_SPACE;
 use dukf::{AngleMask, DualUkf, Euclidean, Imm, Ukf, UkfError, UtParams, sojourn_transition};
 use nalgebra::{Matrix2, Matrix3, Matrix5, SMatrix, SVector, Vector2, Vector3};
 use unicycle::{
-    ControllerConfig, Formation, Inputs, MEASUREMENT_ANGLES, PolarModel, PolarState, STATE_ANGLES,
-    UnicycleError, wrap_angle,
+    ControllerConfig, Formation, Inputs, LeaderMotion, MIN_PREDICTED_SEPARATION, PolarModel,
+    PolarState, STATE_ANGLES, UnicycleError, predict_leader,
 };
 
 type Matrix6 = SMatrix<f64, 6, 6>;
@@ -309,10 +310,6 @@ fn state_space() -> Result<AngleMask<6>, UkfError> {
     AngleMask::from_indices(&STATE_ANGLES)
 }
 
-fn measurement_space() -> Result<AngleMask<3>, UkfError> {
-    AngleMask::from_indices(&MEASUREMENT_ANGLES)
-}
-
 /// Runs `model.f`, remembering the first model error (the UKF closures cannot fail, so a
 /// refused sigma point becomes NaN, which `dukf` reports; we then return the model's own,
 /// clearer error).
@@ -324,73 +321,23 @@ fn process<'a>(
 ) -> impl FnMut(&PolarState, &Vector2<f64>) -> PolarState + 'a {
     move |x, w| match model.f(x, u, w, dt) {
         Ok(next) => next,
-        Err(e) => {
-            if failure.get().is_none() {
-                failure.set(Some(e));
-            }
-            PolarState::repeat(f64::NAN)
-        }
+        Err(e) => PolarState::repeat(remember(failure, e)),
     }
 }
 
-/// The leader velocity `[v1, w1]` that keeps `l12` and `alpha12` constant at the state `x`
-/// given the follower's inputs `u` (spec 2.4 with `l12' = alpha12' = 0`):
-/// `v1 = (v2 cos(beta12) + d w2 sin(beta12)) / cos(alpha12)`,
-/// `w1 = (-v1 sin(alpha12) + v2 sin(beta12) - d w2 cos(beta12)) / l12`. Non-finite when
-/// `cos(alpha12) = 0` (the leader abeam: no speed holds the separation).
-pub fn formation_holding_velocity(x: &PolarState, u: &Vector2<f64>, d: f64) -> Vector2<f64> {
-    let (l, a, b) = (x[3], x[4], x[5]);
-    let (v2, w2) = (u[0], u[1]);
-    let v1 = (v2 * b.cos() + d * w2 * b.sin()) / a.cos();
-    let w1 = (-v1 * a.sin() + v2 * b.sin() - d * w2 * b.cos()) / l;
-    Vector2::new(v1, w1)
+/// Keeps the first model error of a step in `failure` and returns the NaN that stands for the
+/// refused sigma point (`dukf` reports it; [`outcome`] then returns the model's error).
+fn remember(failure: &Cell<Option<UnicycleError>>, e: UnicycleError) -> f64 {
+    if failure.get().is_none() {
+        failure.set(Some(e));
+    }
+    f64::NAN
 }
 
-/// The leader turn rate that keeps `alpha12` constant at the state `x` given the follower's
-/// inputs `u` and the leader speed `v1`: `w1 = (-v1 sin(alpha12) + v2 sin(beta12) - d w2
-/// cos(beta12)) / l12` (spec 2.4 with `alpha12' = 0`).
-pub fn bearing_holding_turn_rate(x: &PolarState, u: &Vector2<f64>, v1: f64, d: f64) -> f64 {
-    let (l, a, b) = (x[3], x[4], x[5]);
-    (-v1 * a.sin() + u[0] * b.sin() - d * u[1] * b.cos()) / l
-}
-
-/// The leader velocity `[v1, w1]` under which the follower's separation-bearing controller
-/// achieves what it commands, given its inputs `u`: with `controller` (gains and set-points),
-/// `l12' = k_l (l12_d - l12)` and `alpha12' = k_alpha (alpha12_d - alpha12)` (spec 2.4):
-/// `v1 = (k_l (l12_d - l12) + v2 cos(beta12) + d w2 sin(beta12)) / cos(alpha12)`,
-/// `w1 = (-v1 sin(alpha12) + v2 sin(beta12) - d w2 cos(beta12)) / l12 - k_alpha (alpha12_d -
-/// alpha12)`; without it, [`formation_holding_velocity`] (`l12' = alpha12' = 0`).
-pub fn controlled_formation_velocity(
-    x: &PolarState,
-    u: &Vector2<f64>,
-    d: f64,
-    controller: Option<ControllerConfig>,
-) -> Vector2<f64> {
-    let Some(c) = controller else {
-        return formation_holding_velocity(x, u, d);
-    };
-    let (l, a, b) = (x[3], x[4], x[5]);
-    let (v2, w2) = (u[0], u[1]);
-    let v1 = (c.k_l * (c.l12_desired - l) + v2 * b.cos() + d * w2 * b.sin()) / a.cos();
-    let w1 = (-v1 * a.sin() + v2 * b.sin() - d * w2 * b.cos()) / l
-        - c.k_alpha * wrap_angle(c.alpha12_desired - a);
-    Vector2::new(v1, w1)
-}
-
-/// The separation (m) below which an IMM sigma point is clamped before it is propagated (see
-/// [`imm_process`]); far below any real separation between two robots.
-const SIGMA_POINT_MIN_SEPARATION: f64 = 0.01;
-
-/// The IMM's three process functions over `z = [x, v1, w1, a_v, a_w]`: model 0 (A) moves the
-/// formation with the leader velocity `[v1, w1]` and integrates the accelerations into it;
-/// model 1 (B) moves it with the formation-holding velocity of the follower's inputs and
-/// stores that velocity in `[v1, w1]` (accelerations kept); model 2 (C) keeps model A's
-/// speed but turns at the rate that holds `alpha12` (the follower holds the bearing while
-/// its separation changes). The documented recovery for sigma points outside the model's
-/// domain: `l12` below [`SIGMA_POINT_MIN_SEPARATION`] is clamped to it, and a step the model
-/// refuses because the separation would cross zero is taken with the leader stopped, or not
-/// at all; so a wide covariance (coasting on the initial velocity prior) never fails a
-/// track. The mean is checked at construction: a non-positive initial `l12` is an error.
+/// The IMM's three process functions over `z = [x, v1, w1, a_v, a_w]`: model `j` is
+/// [`LeaderMotion::ALL`]`[j]` ([`unicycle::predict_leader`], which recovers states outside the
+/// model's domain). A refused step is remembered in `failure` and becomes NaN, which `dukf`
+/// reports; the mean is checked at construction: a non-positive initial `l12` is an error.
 fn imm_process<'a>(
     model: &'a PolarModel,
     u: &'a Vector2<f64>,
@@ -398,62 +345,9 @@ fn imm_process<'a>(
     controller: Option<ControllerConfig>,
     failure: &'a Cell<Option<UnicycleError>>,
 ) -> impl FnMut(usize, &Joint) -> Joint + 'a {
-    move |j, z| {
-        let mut x: PolarState = z.fixed_rows::<6>(0).into_owned();
-        // Sigma points outside the model's domain (drawn from a wide covariance while
-        // coasting) are clamped to a separation of `SIGMA_POINT_MIN_SEPARATION`.
-        if x[3] < SIGMA_POINT_MIN_SEPARATION {
-            x[3] = SIGMA_POINT_MIN_SEPARATION;
-        }
-        let w = match j {
-            0 => Vector2::new(z[6], z[7]),
-            1 => controlled_formation_velocity(&x, u, model.d(), controller),
-            _ => Vector2::new(
-                z[6],
-                bearing_holding_turn_rate(&x, u, z[6], model.d())
-                    - controller.map_or(0.0, |c| c.k_alpha * wrap_angle(c.alpha12_desired - x[4])),
-            ),
-        };
-        // The documented recovery: a sigma point whose separation the step would drive
-        // through zero (a leader speed many standard deviations out, e.g. while coasting with
-        // the wide initial velocity prior) is propagated with the leader stopped, so that the
-        // step succeeds and the spread of `l12` stays finite instead of failing the track.
-        let result = match model.f(&x, u, &w, dt) {
-            Err(UnicycleError::SeparationTooSmall { .. }) => {
-                match model.f(&x, u, &Vector2::new(0.0, w[1]), dt) {
-                    Err(UnicycleError::SeparationTooSmall { .. }) => Ok(x),
-                    other => other,
-                }
-            }
-            other => other,
-        };
-        match result {
-            Ok(next) => {
-                let mut out = *z;
-                out.fixed_rows_mut::<6>(0).copy_from(&next);
-                match j {
-                    0 => {
-                        out[6] += z[8] * dt;
-                        out[7] += z[9] * dt;
-                    }
-                    1 => {
-                        out[6] = w[0];
-                        out[7] = w[1];
-                    }
-                    _ => {
-                        out[6] += z[8] * dt;
-                        out[7] = w[1];
-                    }
-                }
-                out
-            }
-            Err(e) => {
-                if failure.get().is_none() {
-                    failure.set(Some(e));
-                }
-                Joint::repeat(f64::NAN)
-            }
-        }
+    move |j, z| match predict_leader(model, LeaderMotion::ALL[j], z, u, dt, controller) {
+        Ok(next) => next,
+        Err(e) => Joint::repeat(remember(failure, e)),
     }
 }
 
@@ -491,10 +385,10 @@ impl ImmEngine {
             }
             .into());
         }
-        if config.x0[3].is_nan() || config.x0[3] <= SIGMA_POINT_MIN_SEPARATION {
+        if config.x0[3].is_nan() || config.x0[3] <= MIN_PREDICTED_SEPARATION {
             return Err(UnicycleError::SeparationTooSmall {
                 l12: config.x0[3],
-                min: SIGMA_POINT_MIN_SEPARATION,
+                min: MIN_PREDICTED_SEPARATION,
             }
             .into());
         }
@@ -619,7 +513,7 @@ impl FormationFilter {
             FilterDesign::Dual => {
                 let state = Ukf::new(config.x0, t.p0, state_space()?, t.ut)?;
                 let params = Ukf::new(t.w0, t.pw0, Euclidean, t.ut)?;
-                let dual = DualUkf::new(state, params, t.q, t.rr, measurement_space()?)?;
+                let dual = DualUkf::new(state, params, t.q, t.rr, MEASUREMENT_SPACE)?;
                 let snapshot = dual_snapshot(&dual);
                 (Engine::Dual(Box::new(dual)), snapshot)
             }
@@ -660,19 +554,10 @@ impl FormationFilter {
         u: &Vector2<f64>,
     ) -> Result<(), FilterError> {
         let x = *dual.state();
-        let w = *dual.parameters();
-        let mut fw = SMatrix::<f64, 6, 2>::zeros();
-        for j in 0..2 {
-            let h = 1e-6 * (1.0 + w[j].abs());
-            let (mut wp, mut wm) = (w, w);
-            wp[j] += h;
-            wm[j] -= h;
-            let mut d = model.f(&x, u, &wp, dt)? - model.f(&x, u, &wm, dt)?;
-            for i in STATE_ANGLES {
-                d[i] = wrap_angle(d[i]);
-            }
-            fw.set_column(j, &(d / (2.0 * h)));
-        }
+        let step = |w: f64| 1e-6 * (1.0 + w.abs());
+        let fw = dukf::central_jacobian(dual.parameters(), step, &state_space()?, |w| {
+            model.f(&x, u, w, dt)
+        })?;
         let pw = dual.parameter_covariance() + dual.parameter_noise();
         let q = q + fw * pw * fw.transpose();
         dual.set_process_noise((q + q.transpose()) * 0.5)?;
@@ -682,7 +567,7 @@ impl FormationFilter {
     /// Tells the IMM the follower's own separation-bearing controller (gains and current
     /// set-points) that computes the inputs passed to the next steps; `reproduce dukf` does,
     /// from the scenario. Model B then takes the leader velocity under which the formation
-    /// moves as that controller commands ([`controlled_formation_velocity`]) instead of one
+    /// moves as that controller commands ([`unicycle::controlled_formation_velocity`]) instead of one
     /// that holds it exactly, with no held random walk (only
     /// [`ImmTuning::controlled_formation_q`]); model C, which covered set-point changes that
     /// B now models, is dropped (its probability goes to B); and B does not switch out (the
@@ -750,7 +635,7 @@ impl FormationFilter {
                     y,
                     |z| Vector3::new(z[3], z[4], z[5]),
                     r,
-                    &measurement_space()?,
+                    &MEASUREMENT_SPACE,
                 );
                 let report = outcome(result, &failure)?;
                 self.snapshot = engine.snapshot();
@@ -1047,45 +932,6 @@ mod tests {
             0.0
         );
         assert!(imm.last_nis().is_some_and(|n| n.is_finite() && n >= 0.0));
-    }
-
-    #[test]
-    fn holding_velocities_hold_the_formation() {
-        // Through the model: with the holding velocity, l12' = alpha12' = 0.
-        let model = PolarModel::new(0.5).unwrap();
-        let x = PolarState::from_row_slice(&[1.5, 0.25, 0.3, 1.2, 0.3, -0.2]);
-        let u = Vector2::new(0.7, 0.15);
-        let w = formation_holding_velocity(&x, &u, 0.5);
-        let dx = model.derivative(&x, &u, &w).unwrap();
-        assert!(dx[3].abs() < 1e-12 && dx[4].abs() < 1e-12, "{dx:?}");
-        let w1 = bearing_holding_turn_rate(&x, &u, 0.9, 0.5);
-        let dx = model.derivative(&x, &u, &Vector2::new(0.9, w1)).unwrap();
-        assert!(dx[4].abs() < 1e-12 && dx[3].abs() > 0.1, "{dx:?}");
-    }
-
-    #[test]
-    fn controlled_velocity_moves_the_formation_as_the_controller_commands() {
-        // Regression for measurement 10 (`docs/dukf-reproduction.md`): model B's velocity
-        // must make l12' = k_l (l12_d - l12), alpha12' = k_alpha (alpha12_d - alpha12), not 0.
-        let model = PolarModel::new(0.5).unwrap();
-        let x = PolarState::from_row_slice(&[1.5, 0.25, 0.3, 1.2, 0.3, -0.2]);
-        let u = Vector2::new(0.7, 0.15);
-        let goal = ControllerConfig {
-            l12_desired: 1.0,
-            alpha12_desired: 0.25,
-            k_l: 0.8,
-            k_alpha: 1.5,
-            max_v: None,
-            max_w: None,
-        };
-        let w = controlled_formation_velocity(&x, &u, 0.5, Some(goal));
-        let dx = model.derivative(&x, &u, &w).unwrap();
-        assert!((dx[3] - 0.8 * (1.0 - 1.2)).abs() < 1e-12, "{dx:?}");
-        assert!((dx[4] - 1.5 * (0.25 - 0.3)).abs() < 1e-12, "{dx:?}");
-        assert_eq!(
-            controlled_formation_velocity(&x, &u, 0.5, None),
-            formation_holding_velocity(&x, &u, 0.5)
-        );
     }
 
     #[test]

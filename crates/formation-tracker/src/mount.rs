@@ -15,7 +15,11 @@
 
 use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, Vector3};
 use serde::{Deserialize, Serialize};
-use unicycle::wrap_angle;
+use unicycle::{MEASUREMENT_ANGLES, wrap_angle};
+
+/// The formation variables `[l12, alpha12, beta12]` as a `dukf` space: the bearings are
+/// angles.
+pub(crate) const MEASUREMENT_SPACE: dukf::AngleMask<3> = dukf::AngleMask::at(&MEASUREMENT_ANGLES);
 
 /// Where and how the camera sits on the follower.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -153,7 +157,7 @@ pub fn formation_from_camera_pose(
 pub fn propagate_covariance<F>(
     params: &SVector<f64, 6>,
     covariance: &SMatrix<f64, 6, 6>,
-    mut to_formation: F,
+    to_formation: F,
 ) -> Result<SMatrix<f64, 3, 3>, MeasurementError>
 where
     F: FnMut(&SVector<f64, 6>) -> Result<SVector<f64, 3>, MeasurementError>,
@@ -163,27 +167,19 @@ where
             what: "pose covariance",
         });
     }
-    let mut jac = SMatrix::<f64, 3, 6>::zeros();
-    for k in 0..6 {
-        let h = 1e-6 * params[k].abs().max(1.0);
-        let mut plus = *params;
-        plus[k] += h;
-        let mut minus = *params;
-        minus[k] -= h;
-        let yp = to_formation(&plus)?;
-        let ym = to_formation(&minus)?;
-        let mut dy = yp - ym;
-        dy[1] = wrap_angle(dy[1]);
-        dy[2] = wrap_angle(dy[2]);
-        jac.set_column(k, &(dy / (2.0 * h)));
-    }
-    let s = jac * covariance * jac.transpose();
-    Ok((s + s.transpose()) * 0.5)
+    dukf::propagate_linearised(
+        params,
+        covariance,
+        |p| 1e-6 * p.abs().max(1.0),
+        &MEASUREMENT_SPACE,
+        to_formation,
+    )
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use dukf::Space as _;
     use proptest::prelude::*;
 
     /// Pose of a planar body `(x, y, theta)` as (rotation, translation) into the world.
@@ -328,9 +324,7 @@ mod tests {
             for k in 0..6 {
                 p[k] += sig[k] * n01.sample(&mut rng);
             }
-            let mut dy = f(&p).unwrap() - y0;
-            dy[1] = wrap_angle(dy[1]);
-            dy[2] = wrap_angle(dy[2]);
+            let dy = MEASUREMENT_SPACE.residual(&f(&p).unwrap(), &y0);
             acc += dy * dy.transpose();
         }
         acc /= n as f64;

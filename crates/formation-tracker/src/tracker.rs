@@ -98,12 +98,14 @@ pub use smooth::SmoothedLeader;
 
 use std::collections::BTreeMap;
 
+use dukf::Space as _;
 use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, Vector2, Vector3};
-use unicycle::{ControllerConfig, Formation, Inputs, PolarState, wrap_angle};
+use unicycle::{ControllerConfig, Formation, Inputs, PolarState};
 
 use crate::filter::{FilterError, FormationFilter};
 use crate::mount::{
-    CameraMount, MIN_L12, MeasurementError, formation_from_camera_pose, propagate_covariance,
+    CameraMount, MEASUREMENT_SPACE, MIN_L12, MeasurementError, formation_from_camera_pose,
+    propagate_covariance,
 };
 use smooth::{NO_INPUTS, Recorded, Segment};
 
@@ -458,9 +460,7 @@ impl Tracker {
             if f.y[0] < MIN_L12 {
                 return Err(MeasurementError::Coincident { l12: f.y[0] });
             }
-            let mut y = f.y;
-            y[1] = wrap_angle(y[1]);
-            y[2] = wrap_angle(y[2]);
+            let y = MEASUREMENT_SPACE.normalize(&f.y);
             // A joint or ground-plane fit is rescaled only to the pooled corner noise (a fixed
             // `corner_sigma_px` stands for single faces' 2-dof estimates).
             let scale = match (self.config.corner_sigma_px, f.fit) {
@@ -711,11 +711,7 @@ impl Tracker {
         // (candidate, d^2); at most two candidates.
         let mut scored: [Option<(Formed, f64)>; 2] = [None, None];
         for (slot, m) in scored.iter_mut().zip(list) {
-            let nu = Vector3::new(
-                m.y[0] - y_pred[0],
-                wrap_angle(m.y[1] - y_pred[1]),
-                wrap_angle(m.y[2] - y_pred[2]),
-            );
+            let nu = MEASUREMENT_SPACE.residual(&m.y, &y_pred);
             let s = Matrix3::from_diagonal(&var) + m.r;
             let Some(chol) = s.cholesky() else { continue };
             let d2 = chol.solve(&nu).dot(&nu);

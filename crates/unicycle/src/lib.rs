@@ -18,6 +18,12 @@
 //!   nalgebra's static vectors keep the dimensions in the types and keep the step free of
 //!   allocation.
 //!
+//! - [`predict_leader`]: the leader's motion as a follower hypothesises it from its own
+//!   inputs ([`LeaderMotion`]: accelerating, holding the formation, holding the bearing), and
+//!   the leader velocities behind the last two ([`formation_holding_velocity`],
+//!   [`bearing_holding_turn_rate`], [`controlled_formation_velocity`]): the model set a
+//!   multiple-model filter mixes.
+//!
 //! [`SeparationBearingController`] closes the loop for simulations: Das et al.'s `l-psi`
 //! controller (IEEE T-RA 2002) holding a separation and a bearing in the leader's frame.
 //!
@@ -50,12 +56,17 @@ pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 mod angle;
 mod controller;
 mod error;
+mod leader;
 mod polar;
 mod robot;
 
 pub use angle::wrap_angle;
 pub use controller::{ControllerConfig, SeparationBearingController};
 pub use error::UnicycleError;
+pub use leader::{
+    LeaderMotion, LeaderState, MIN_PREDICTED_SEPARATION, bearing_holding_turn_rate,
+    controlled_formation_velocity, formation_holding_velocity, predict_leader,
+};
 pub use polar::{
     Formation, FormationMeasurement, MEASUREMENT_ANGLES, MIN_SEPARATION, PolarModel, PolarState,
     STATE_ANGLES,

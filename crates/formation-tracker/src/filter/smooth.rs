@@ -73,15 +73,18 @@
 
 use std::cell::Cell;
 
-use dukf::{AngleMask, Gaussian, RtsSmoother, Space as _, Ukf, UkfError};
+use dukf::{AngleMask, Gaussian, UkfError};
 use nalgebra::{Matrix2, Matrix3, SMatrix, SVector, Vector2, Vector3};
 use unicycle::{
     ControllerConfig, Formation, Inputs, MEASUREMENT_ANGLES, PolarModel, PolarState, STATE_ANGLES,
     UnicycleError,
 };
 
+use crate::mount::MEASUREMENT_SPACE;
+
 use super::{
     Engine, FilterDesign, FilterError, FormationFilter, ImmEngine, Joint, Matrix6, imm_process,
+    outcome, remember,
 };
 
 type Augmented = SVector<f64, 8>;
@@ -203,7 +206,6 @@ impl FormationFilter {
     /// The dual design's smoother: the joint `[x; w]` random-walk pass and its RTS smoother.
     fn smooth_dual(&self, history: &[FilterStep]) -> Result<Vec<SmoothedStep>, FilterError> {
         let space = AngleMask::<8>::from_indices(&STATE_ANGLES)?;
-        let smoother = RtsSmoother::new(space, self.ut)?;
         let Some(first) = history.first() else {
             return Err(UkfError::EmptyHistory.into());
         };
@@ -215,57 +217,27 @@ impl FormationFilter {
         let process = |k: usize, z: &Augmented| -> Augmented {
             let x: PolarState = z.fixed_rows::<6>(0).into_owned();
             let w: Vector2<f64> = z.fixed_rows::<2>(6).into_owned();
-            let u: Vector2<f64> = history
-                .get(k + 1)
-                .map_or(Inputs::new(0.0, 0.0), |s| s.inputs)
-                .into();
-            match model.f(&x, &u, &w, dt) {
+            match model.f(&x, &inputs_after(history, k), &w, dt) {
                 Ok(next) => {
                     let mut out = *z;
                     out.fixed_rows_mut::<6>(0).copy_from(&next);
                     out
                 }
-                Err(e) => {
-                    if failure.get().is_none() {
-                        failure.set(Some(e));
-                    }
-                    Augmented::repeat(f64::NAN)
-                }
+                Err(e) => Augmented::repeat(remember(&failure, e)),
             }
         };
-        let measurement_space = AngleMask::<3>::from_indices(&MEASUREMENT_ANGLES)?;
-        let forward = |process: &mut dyn FnMut(usize, &Augmented) -> Augmented| {
-            let start = augment(first);
-            let mut joint = Ukf::new(start.mean, start.covariance, space, self.ut)?;
-            let mut filtered = Vec::with_capacity(history.len());
-            filtered.push(Gaussian::new(*joint.state(), *joint.covariance()));
-            for (k, step) in history.iter().enumerate().skip(1) {
-                joint.predict(|z| process(k - 1, z), &q)?;
-                if let Some((y, r)) = step.measurement {
-                    joint.update(
-                        &y,
-                        |z| Vector3::new(z[3], z[4], z[5]),
-                        &r,
-                        &measurement_space,
-                    )?;
-                }
-                filtered.push(Gaussian::new(*joint.state(), *joint.covariance()));
-            }
-            Ok::<_, UkfError>(filtered)
-        };
-        let mut process = process;
-        let result = forward(&mut process)
-            .and_then(|filtered| smoother.smooth(&filtered, &mut process, |_| q));
-        let smoothed = match result {
-            Ok(s) => s,
-            Err(e) => {
-                return Err(match failure.get() {
-                    Some(model_error) => model_error.into(),
-                    None => e.into(),
-                });
-            }
-        };
-        let e = &smoothed.estimates;
+        let smoothed = dukf::filter_and_smooth(
+            space,
+            self.ut,
+            &augment(first),
+            history.len(),
+            process,
+            |_, _| q,
+            |k| history[k].measurement,
+            |z| Vector3::new(z[3], z[4], z[5]),
+            &MEASUREMENT_SPACE,
+        );
+        let e = &outcome(smoothed, &failure)?.estimates;
         Ok(e.iter()
             .enumerate()
             .map(|(k, s)| {
@@ -279,6 +251,7 @@ impl FormationFilter {
             })
             .collect())
     }
+
     /// The IMM design's smoother: a joint unscented Kalman filter over the IMM's state
     /// `[x, v1, w1, a_v, a_w]` from the first recorded mixed estimate, whose transition from
     /// step `k` to `k + 1` mixes the models with the probabilities after step `k + 1` (see
@@ -291,7 +264,6 @@ impl FormationFilter {
         // The smoother runs over the observable block `o = z[3..] = [l12, alpha12, beta12,
         // v1, w1, a_v, a_w]`, whose angles are the measurement's (see the module docs).
         let space = AngleMask::<7>::from_indices(&MEASUREMENT_ANGLES)?;
-        let smoother = RtsSmoother::new(space, self.ut)?;
         let Some(first) = history.first() else {
             return Err(UkfError::EmptyHistory.into());
         };
@@ -302,95 +274,52 @@ impl FormationFilter {
             });
         };
         // The transition from step k to k + 1 mixes the models with the probabilities after
-        // step k + 1: its mean is the weighted mean of the models' predictions, its noise
-        // their weighted noise plus their spread at the filtered mean of step k.
+        // step k + 1, and the controller that step was predicted with, as recorded.
         let weights = |k: usize| -> [f64; 3] {
             history
                 .get(k + 1)
                 .and_then(|s| s.model_probabilities)
                 .unwrap_or([1.0, 0.0, 0.0])
         };
-        let failure: Cell<Option<UnicycleError>> = Cell::new(None);
-        // The follower's controller each step was predicted with, as recorded (set-point
-        // changes included; `None` where the filter was not told it).
-        let (model, dt) = (&self.model, self.dt);
         let controller = |k: usize| history.get(k + 1).and_then(|s| s.controller);
+        let failure: Cell<Option<UnicycleError>> = Cell::new(None);
+        let (model, dt) = (&self.model, self.dt);
         let predictions = |k: usize, o: &Observable| -> [Observable; 3] {
-            let u: Vector2<f64> = history
-                .get(k + 1)
-                .map_or(Inputs::new(0.0, 0.0), |s| s.inputs)
-                .into();
+            let u = inputs_after(history, k);
             let mut f = imm_process(model, &u, dt, controller(k), &failure);
             // The hidden pose is zero: the observable block's prediction does not read it.
             let z = embed(o);
             [0, 1, 2].map(|j| observable(&f(j, &z)))
         };
-        let mixed = |k: usize, o: &Observable| -> (Observable, [Observable; 3]) {
-            let outs = predictions(k, o);
-            let p = weights(k);
-            let base = outs[0];
-            let mut acc = Observable::zeros();
-            for (pj, out) in p.iter().zip(&outs) {
-                acc += space.residual(out, &base) * *pj;
-            }
-            (space.add(&base, &acc), outs)
+        let process = |k: usize, o: &Observable| -> Observable {
+            dukf::mixture_mean(&space, &predictions(k, o), &weights(k))
         };
-        let mut process = |k: usize, o: &Observable| -> Observable { mixed(k, o).0 };
-        let noise_at = |k: usize, m: &Observable| -> Matrix7 {
-            let (mean, outs) = mixed(k, m);
-            let p = weights(k);
-            let mut q = Matrix7::zeros();
-            for j in 0..3 {
-                let d = space.residual(&outs[j], &mean);
-                let qj = engine.noise(controller(k).is_some())[j]
-                    .fixed_view::<7, 7>(HIDDEN, HIDDEN)
-                    .into_owned();
-                q += (qj + d * d.transpose()) * p[j];
-            }
-            (q + q.transpose()) * 0.5
+        let noise = |k: usize, m: &Observable| -> Matrix7 {
+            let outs = predictions(k, m);
+            let mean = dukf::mixture_mean(&space, &outs, &weights(k));
+            let q = engine.noise(controller(k).is_some());
+            let block = |j: usize| q[j].fixed_view::<7, 7>(HIDDEN, HIDDEN).into_owned();
+            dukf::mixture_noise(&space, &outs, &mean, block, &weights(k))
         };
-        let measurement_space = AngleMask::<3>::from_indices(&MEASUREMENT_ANGLES)?;
-        let mut noises: Vec<Matrix7> = Vec::with_capacity(history.len());
-        let mut forward = || {
-            let mut joint = Ukf::new(
-                observable(&start.mean),
-                start
-                    .covariance
-                    .fixed_view::<7, 7>(HIDDEN, HIDDEN)
-                    .into_owned(),
-                space,
-                self.ut,
-            )?;
-            let mut filtered = Vec::with_capacity(history.len());
-            filtered.push(Gaussian::new(*joint.state(), *joint.covariance()));
-            for (k, step) in history.iter().enumerate().skip(1) {
-                let q = noise_at(k - 1, joint.state());
-                noises.push(q);
-                joint.predict(|o| mixed(k - 1, o).0, &q)?;
-                if let Some((y, r)) = step.measurement {
-                    joint.update(
-                        &y,
-                        |o| Vector3::new(o[0], o[1], o[2]),
-                        &r,
-                        &measurement_space,
-                    )?;
-                }
-                filtered.push(Gaussian::new(*joint.state(), *joint.covariance()));
-            }
-            Ok::<_, UkfError>(filtered)
-        };
-        let result =
-            forward().and_then(|filtered| smoother.smooth(&filtered, &mut process, |k| noises[k]));
-        let smoothed = match result {
-            Ok(s) => s,
-            Err(e) => {
-                return Err(match failure.get() {
-                    Some(model_error) => model_error.into(),
-                    None => e.into(),
-                });
-            }
-        };
-        Ok(smoothed
+        let start = Gaussian::new(
+            observable(&start.mean),
+            start
+                .covariance
+                .fixed_view::<7, 7>(HIDDEN, HIDDEN)
+                .into_owned(),
+        );
+        let smoothed = dukf::filter_and_smooth(
+            space,
+            self.ut,
+            &start,
+            history.len(),
+            process,
+            noise,
+            |k| history[k].measurement,
+            |o| Vector3::new(o[0], o[1], o[2]),
+            &MEASUREMENT_SPACE,
+        );
+        Ok(outcome(smoothed, &failure)?
             .estimates
             .iter()
             .zip(history)
@@ -416,6 +345,14 @@ impl FormationFilter {
             })
             .collect())
     }
+}
+
+/// The follower inputs recorded for the step from `k` to `k + 1` (zero past the end).
+fn inputs_after(history: &[FilterStep], k: usize) -> Vector2<f64> {
+    history
+        .get(k + 1)
+        .map_or(Inputs::new(0.0, 0.0), |s| s.inputs)
+        .into()
 }
 
 /// The IMM's joint state with the hidden pose `[x1, y1, theta1]` zero and the observable
