@@ -66,7 +66,7 @@ proptest! {
 fn the_seeds_are_accepted() {
     // The edits start from inputs the parsers accept, so the proptests explore near them.
     for text in CALIBRATIONS {
-        assert!(pose::calib::Calibration::from_yaml_str(text).is_ok());
+        assert!(pose::Camera::from_yaml_str(text).is_ok());
     }
     for (json, text) in SCENES {
         formation_sim::scene::SceneSpec::from_text(text, json == 1, "seed").unwrap();

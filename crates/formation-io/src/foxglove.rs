@@ -21,7 +21,7 @@ use formation_tracker::pipeline::PipelineFrame;
 use formation_tracker::rig::RigModel;
 use formation_tracker::robots::MarkerObservation;
 use nalgebra::{Point2, Point3, Rotation3, UnitQuaternion, Vector3};
-use pose::calib::Calibration;
+use pose::Camera;
 use serde_json::{Value, json};
 
 use crate::bag::cdr;
@@ -93,7 +93,7 @@ pub struct FrameOut<'a> {
 pub struct FoxgloveWriter<W: Write> {
     mcap: McapWriter<W>,
     rig: RigModel,
-    calibration: Calibration,
+    calibration: Camera,
     image: Option<u16>,
     annotations: u16,
     tf: u16,
@@ -127,12 +127,7 @@ impl<W: Write> FoxgloveWriter<W> {
     ///
     /// # Errors
     /// A failed write.
-    pub fn new(
-        out: W,
-        rig: RigModel,
-        calibration: Calibration,
-        images: bool,
-    ) -> std::io::Result<Self> {
+    pub fn new(out: W, rig: RigModel, calibration: Camera, images: bool) -> std::io::Result<Self> {
         let mut mcap = McapWriter::new(out, "")?;
         let image = if images {
             let s = mcap.add_schema("sensor_msgs/msg/Image", "ros2msg", IMAGE_MSG.as_bytes())?;
@@ -171,9 +166,7 @@ impl<W: Write> FoxgloveWriter<W> {
 
     /// Projects a camera-frame point through the calibration (with its distortion).
     fn project(&self, p: &Point3<f64>) -> Option<Point2<f64>> {
-        let k = &self.calibration.intrinsics;
-        let ideal = k.project(p).ok()?;
-        Some(self.calibration.distortion.distort_pixel(k, &ideal))
+        self.calibration.project(p).ok()
     }
 
     /// Writes one frame's messages.

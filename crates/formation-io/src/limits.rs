@@ -9,7 +9,7 @@
 //!   1 GiB), by its declared size and by what it really decompresses to;
 //! - text files (calibration, rig, scene, scenario, inputs CSV, `metadata.yaml`) have fixed
 //!   limits of their own, far below the budget (`crate::textfile::MAX_TEXT_BYTES`,
-//!   `pose::calib::Calibration::MAX_FILE_BYTES`).
+//!   `pose::Camera::MAX_FILE_BYTES`).
 
 use std::sync::atomic::{AtomicU64, Ordering};
 

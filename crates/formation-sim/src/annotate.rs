@@ -9,7 +9,7 @@
 use ab_glyph::FontRef;
 use image::{GrayImage, Rgb, RgbImage};
 use imageproc::drawing::{draw_line_segment_mut, draw_text_mut};
-use nalgebra::{Matrix3, Point2, Point3, Rotation3, Vector3};
+use nalgebra::{Point2, Point3, Rotation3, Vector3};
 use thiserror::Error;
 
 use formation_tracker::rig::RigModel;
@@ -104,23 +104,16 @@ fn polygon(img: &mut RgbImage, pts: &[Point2<f64>], colour: Rgb<u8>, thick: bool
     }
 }
 
-/// Projects camera-frame points by `K`; `None` if any is behind the camera.
-fn project(k: &Matrix3<f64>, pts: &[Point3<f64>]) -> Option<Vec<Point2<f64>>> {
-    pts.iter()
-        .map(|p| {
-            if p.z <= 1e-6 {
-                return None;
-            }
-            let q = k * p.coords;
-            Some(Point2::new(q.x / q.z, q.y / q.z))
-        })
-        .collect()
+/// Projects camera-frame points through `camera` ([`pose::Camera::project`]); `None` if any
+/// is behind the camera.
+fn project(camera: &pose::Camera, pts: &[Point3<f64>]) -> Option<Vec<Point2<f64>>> {
+    pts.iter().map(|p| camera.project(p).ok()).collect()
 }
 
-/// Draws `markers` and `rigs` over a grey frame; `k` is the camera matrix.
+/// Draws `markers` and `rigs` over a grey frame seen through `camera`.
 pub fn annotate(
     frame: &GrayImage,
-    k: &Matrix3<f64>,
+    camera: &pose::Camera,
     rig: &RigModel,
     markers: &[MarkerLabel],
     rigs: &[RigOverlay],
@@ -154,11 +147,11 @@ pub fn annotate(
             let cam: Vec<Point3<f64>> = panel.iter().map(|&p| to_cam(p)).collect();
             // Faces turned away are drawn thin, faces towards the camera thick.
             let towards = (r * n).dot(&(-to_cam(c).coords)) > 0.0;
-            if let Some(px) = project(k, &cam) {
+            if let Some(px) = project(camera, &cam) {
                 polygon(&mut img, &px, colour, towards);
             }
             let border: Vec<Point3<f64>> = g.corner_points().iter().map(|&p| to_cam(p)).collect();
-            if towards && let Some(px) = project(k, &border) {
+            if towards && let Some(px) = project(camera, &border) {
                 polygon(&mut img, &px, colour, false);
             }
         }
@@ -167,7 +160,7 @@ pub fn annotate(
         let top = rig.geometry.marker_centre_height_m + half_h;
         let bottom = rig.geometry.marker_centre_height_m - half_h;
         if let Some(px) = project(
-            k,
+            camera,
             &[
                 to_cam(Point3::origin()),
                 to_cam(Point3::new(0.0, 0.0, bottom.max(0.0))),

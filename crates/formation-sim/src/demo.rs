@@ -1007,7 +1007,8 @@ impl Follower {
             .iter()
             .map(|m| format!("{}/{}", m.robot, m.face))
             .collect();
-        let image = annotate(frame, &world.k.matrix(), &world.rig, &markers, &rigs)?;
+        let camera = pose::Camera::pinhole(world.k, frame.width(), frame.height());
+        let image = annotate(frame, &camera, &world.rig, &markers, &rigs)?;
         Ok((image, labels))
     }
 }

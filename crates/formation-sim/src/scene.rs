@@ -401,7 +401,7 @@ pub struct BuiltScene {
     /// The synthetic camera's scene.
     pub scene: synthcam::Scene,
     /// The camera.
-    pub camera: synthcam::Camera,
+    pub camera: synthcam::PosedCamera,
     /// Render settings.
     pub settings: synthcam::RenderSettings,
 }
@@ -456,7 +456,7 @@ pub fn build_scene(
         width as u32,
         height as u32,
     )?;
-    let camera = synthcam::Camera::on_robot(
+    let camera = synthcam::PosedCamera::on_robot(
         intrinsics,
         width,
         height,
@@ -695,7 +695,7 @@ pub fn render_scene_exposure(
         .iter()
         .map(|s| build_scene(s, rig, dictionary))
         .collect::<Result<_, _>>()?;
-    let views: Vec<(&synthcam::Scene, &synthcam::Camera)> =
+    let views: Vec<(&synthcam::Scene, &synthcam::PosedCamera)> =
         built.iter().map(|b| (&b.scene, &b.camera)).collect();
     let mut settings = built[specs.len() / 2].settings;
     settings.gradient = gradient;

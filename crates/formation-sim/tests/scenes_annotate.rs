@@ -12,7 +12,8 @@ use nalgebra::{Matrix3, Point2};
 fn true_rig_is_drawn_on_the_markers() {
     let rig = RigModel::reference();
     let out = render_scene(&paper_scene(10).unwrap(), &rig, Dictionary::paper()).unwrap();
-    let k = Matrix3::from_row_slice(&out.truth.k.concat());
+    let k = pose::Intrinsics::from_matrix(&Matrix3::from_row_slice(&out.truth.k.concat())).unwrap();
+    let camera = pose::Camera::pinhole(k, out.image.width(), out.image.height());
     let overlays: Vec<RigOverlay> = out
         .truth
         .robots
@@ -23,7 +24,7 @@ fn true_rig_is_drawn_on_the_markers() {
             translation: r.translation,
         })
         .collect();
-    let img = annotate(&out.image, &k, &rig, &[], &overlays).unwrap();
+    let img = annotate(&out.image, &camera, &rig, &[], &overlays).unwrap();
     img.save(std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("annotate-fig10.png"))
         .unwrap();
     // On every readable face, the drawn marker border passes through its true corners:
@@ -60,7 +61,8 @@ fn true_rig_is_drawn_on_the_markers() {
 fn labels_are_drawn_and_poses_behind_the_camera_are_skipped() {
     let rig = RigModel::reference();
     let grey = image::GrayImage::from_pixel(200, 150, image::Luma([128]));
-    let k = Matrix3::new(200.0, 0.0, 99.5, 0.0, 200.0, 74.5, 0.0, 0.0, 1.0);
+    let k = pose::Intrinsics::square_pixels(200.0, 200.0, 99.5, 74.5).unwrap();
+    let camera = pose::Camera::pinhole(k, 200, 150);
     let marker = MarkerLabel {
         robot: 2,
         face: 3,
@@ -76,7 +78,7 @@ fn labels_are_drawn_and_poses_behind_the_camera_are_skipped() {
         rotation: [0.0, 0.0, 0.0],
         translation: [0.0, 0.0, -3.0],
     };
-    let img = annotate(&grey, &k, &rig, &[marker], &[behind]).unwrap();
+    let img = annotate(&grey, &camera, &rig, &[marker], &[behind]).unwrap();
     let coloured = |x0: u32, x1: u32, y0: u32, y1: u32| {
         (y0..y1)
             .flat_map(|y| (x0..x1).map(move |x| (x, y)))

@@ -17,23 +17,23 @@
 //! The three models share the joint state `z = [x, v1, w1, a_v, a_w]` (the leader's
 //! accelerations included), so they mix exactly (Blom and Bar-Shalom; `dukf::Imm`):
 //! - **A, the leader accelerates**: `[v1, w1]` move with `[a_v, a_w]`, which are a random walk
-//!   of per-step standard deviation `jerk * dt` ([`ImmTuning::jerk`], the leader's largest
+//!   of per-step standard deviation `jerk * dt` ([`LeaderMotionTuning::jerk`], the leader's largest
 //!   jerk: a property of the robot, not of a scenario).
 //! - **B, the follower holds the formation**: the leader velocity is the one that keeps
 //!   `l12` and `alpha12` constant given the follower's known inputs
 //!   ([`unicycle::formation_holding_velocity`]); the held variables drift by a small random walk
-//!   ([`ImmTuning::held_rate_std`]). `beta12` is still predicted through the model.
+//!   ([`LeaderMotionTuning::held_rate_std`]). `beta12` is still predicted through the model.
 //! - **C, the follower holds the bearing**: model A's speed, and the turn rate that keeps
 //!   `alpha12` constant ([`unicycle::bearing_holding_turn_rate`]): the follower changes its separation
 //!   (a set-point step) while holding the bearing.
 //!
 //! The switching matrix has one constant, the mean time a model stays in force
-//! ([`ImmTuning::sojourn`], `Pi_jj = exp(-dt / sojourn)`).
+//! ([`LeaderMotionTuning::sojourn`], `Pi_jj = exp(-dt / sojourn)`).
 //!
 //! **With the follower's controller known** ([`FormationFilter::set_follower_controller`], as
 //! `reproduce dukf` runs it) the model set changes: B takes the leader velocity under which the
 //! formation moves as the controller commands ([`unicycle::controlled_formation_velocity`]), with no held
-//! random walk (only the integrator's error, [`ImmTuning::controlled_formation_q`]); C, which
+//! random walk (only the integrator's error, [`LeaderMotionTuning::controlled_formation_q`]); C, which
 //! covered set-point changes that B now models, is dropped; and B does not switch out, while A
 //! hands over to B at the sojourn rate. Each of these rules removes one cause of the
 //! under-confidence measured before (`docs/dukf-reproduction.md`, measurement 12): a held random
@@ -69,8 +69,8 @@ use crate::mount::MEASUREMENT_SPACE;
 use dukf::{AngleMask, DualUkf, Euclidean, Imm, Ukf, UkfError, UtParams, sojourn_transition};
 use nalgebra::{Matrix2, Matrix3, Matrix5, SMatrix, SVector, Vector2, Vector3};
 use unicycle::{
-    ControllerConfig, Formation, Inputs, LeaderMotion, MIN_PREDICTED_SEPARATION, PolarModel,
-    PolarState, STATE_ANGLES, UnicycleError, predict_leader,
+    ControllerConfig, Formation, Inputs, LeaderMotion, LeaderMotionTuning,
+    MIN_PREDICTED_SEPARATION, PolarModel, PolarState, STATE_ANGLES, UnicycleError, predict_leader,
 };
 
 type Matrix6 = SMatrix<f64, 6, 6>;
@@ -133,7 +133,7 @@ pub struct FilterTuning {
     /// Which causal filter runs: the paper's dual UKF (the default) or the IMM.
     pub design: FilterDesign,
     /// The IMM's settings (unused by the dual UKF).
-    pub imm: ImmTuning,
+    pub imm: LeaderMotionTuning,
 }
 
 /// Which causal filter a [`FormationFilter`] runs (see the module documentation).
@@ -145,62 +145,6 @@ pub enum FilterDesign {
     /// The paper's dual UKF: a state filter over `x` and a parameter filter over `[v1, w1]`
     /// (a random walk with [`FilterTuning::rr`]).
     Dual,
-}
-
-/// The settings of the IMM design; every number is a property of a robot or of the
-/// simulation, none of a scenario (`docs/dukf-reproduction.md`, "The IMM design").
-#[derive(Debug, Clone, PartialEq)]
-pub struct ImmTuning {
-    /// The leader's largest jerk `[m/s^3, rad/s^3]`: model A's accelerations are a random
-    /// walk with per-step standard deviation `jerk * dt`.
-    pub jerk: Vector2<f64>,
-    /// Standard deviation of the initial leader accelerations `[m/s^2, rad/s^2]` (mean 0).
-    pub acceleration_std: Vector2<f64>,
-    /// Process noise per step on `[l12, alpha12, beta12]` in both models (m^2, rad^2, rad^2):
-    /// the model error of one RK4 step, not a motion.
-    pub formation_q: Vector3<f64>,
-    /// Models B and C ("the follower holds the formation / the bearing"): the held variables
-    /// (`l12` and `alpha12` in B, `alpha12` in C) move by a random walk of per-step standard
-    /// deviation `held_rate_std * dt` (m, rad), i.e. a drift of the held formation at up to
-    /// about `held_rate_std` (`[m/s, rad/s]`).
-    pub held_rate_std: Vector2<f64>,
-    /// Process noise per step on `[l12, alpha12, beta12]` in model B while the follower's
-    /// controller is known ([`FormationFilter::set_follower_controller`]): B's prediction is
-    /// then exact but for the integrator, whose error in one RK4 step is about
-    /// `l12 (k dt)^5 / 120` (4e-10 m with the controller gain `k = 1 /s` at 30 Hz); this is
-    /// that error rounded up, not a motion (`docs/dukf-reproduction.md`, measurement 12).
-    pub controlled_formation_q: Vector3<f64>,
-    /// Mean time a model stays in force, seconds (the switching matrix is
-    /// `Pi_jj = exp(-dt / sojourn)`).
-    pub sojourn: f64,
-    /// Initial probability of model A (constant-acceleration leader); models B and C share
-    /// the rest equally.
-    pub mu0_a: f64,
-}
-
-impl ImmTuning {
-    /// The reference settings: `jerk = [0.5, 0.5]` (about twice the largest jerk of any
-    /// fixture's leader), `acceleration_std = [0.2, 0.2]`, `formation_q = 1e-9` each,
-    /// `held_rate_std = [0.01, 0.01]` (1 cm/s, 0.01 rad/s), `controlled_formation_q = 1e-18`
-    /// each (1 nm, 1 nrad per step), `sojourn = 20 s`, `mu0_a = 0.5` (the other two models
-    /// share the rest).
-    pub fn reference() -> Self {
-        Self {
-            jerk: Vector2::new(0.5, 0.5),
-            acceleration_std: Vector2::new(0.2, 0.2),
-            formation_q: Vector3::new(1e-9, 1e-9, 1e-9),
-            held_rate_std: Vector2::new(0.01, 0.01),
-            controlled_formation_q: Vector3::new(1e-18, 1e-18, 1e-18),
-            sojourn: 20.0,
-            mu0_a: 0.5,
-        }
-    }
-}
-
-impl Default for ImmTuning {
-    fn default() -> Self {
-        Self::reference()
-    }
 }
 
 impl FilterTuning {
@@ -220,7 +164,7 @@ impl FilterTuning {
             propagate_parameter_uncertainty: true,
             ut: UtParams::new(1.0, 2.0, 0.0),
             design: FilterDesign::Dual,
-            imm: ImmTuning::reference(),
+            imm: LeaderMotionTuning::reference(),
         }
     }
 }
@@ -368,23 +312,7 @@ impl ImmEngine {
         let t = &config.tuning;
         let i = &t.imm;
         let dt = config.dt;
-        let finite = i
-            .jerk
-            .iter()
-            .chain(i.acceleration_std.iter())
-            .all(|v| v.is_finite())
-            && i.formation_q
-                .iter()
-                .chain(i.held_rate_std.iter())
-                .chain(i.controlled_formation_q.iter())
-                .all(|v| v.is_finite())
-            && (0.0..=1.0).contains(&i.mu0_a);
-        if !finite {
-            return Err(UkfError::InvalidModelProbabilities {
-                reason: "the IMM tuning needs finite noises and mu0_a in [0, 1]",
-            }
-            .into());
-        }
+        i.validate()?;
         if config.x0[3].is_nan() || config.x0[3] <= MIN_PREDICTED_SEPARATION {
             return Err(UnicycleError::SeparationTooSmall {
                 l12: config.x0[3],
@@ -403,24 +331,8 @@ impl ImmEngine {
         p0[(9, 9)] = i.acceleration_std[1].powi(2);
         let space = AngleMask::<10>::from_indices(&STATE_ANGLES)?;
         let ukf = Ukf::new(z0, p0, space, t.ut)?;
-        let mut qa = Matrix10::zeros();
-        for k in 0..3 {
-            qa[(k, k)] = t.q[(k, k)];
-            qa[(3 + k, 3 + k)] = i.formation_q[k];
-        }
-        qa[(8, 8)] = (i.jerk[0] * dt).powi(2);
-        qa[(9, 9)] = (i.jerk[1] * dt).powi(2);
-        let mut qb = qa;
-        qb[(3, 3)] += (i.held_rate_std[0] * dt).powi(2);
-        qb[(4, 4)] += (i.held_rate_std[1] * dt).powi(2);
-        let mut qc = qa;
-        qc[(4, 4)] += (i.held_rate_std[1] * dt).powi(2);
-        // With the follower's controller known, B's formation is predicted exactly but for the
-        // integrator: no held random walk, only the integrator's error.
-        let mut qb_controlled = qa;
-        for k in 0..3 {
-            qb_controlled[(3 + k, 3 + k)] = i.controlled_formation_q[k];
-        }
+        let pose_q = Vector3::new(t.q[(0, 0)], t.q[(1, 1)], t.q[(2, 2)]);
+        let [q, q_controlled] = i.process_noises(&pose_q, dt);
         let transition = sojourn_transition::<3>(dt, i.sojourn)?;
         let stay = transition[(0, 0)];
         #[rustfmt::skip]
@@ -433,8 +345,8 @@ impl ImmEngine {
         let imm = Imm::new([ukf, ukf, ukf], [i.mu0_a, rest, rest], transition)?;
         Ok(Self {
             imm,
-            q: [qa, qb, qc],
-            q_controlled: [qa, qb_controlled, qa],
+            q,
+            q_controlled,
             transition,
             transition_controlled,
         })
@@ -569,7 +481,7 @@ impl FormationFilter {
     /// from the scenario. Model B then takes the leader velocity under which the formation
     /// moves as that controller commands ([`unicycle::controlled_formation_velocity`]) instead of one
     /// that holds it exactly, with no held random walk (only
-    /// [`ImmTuning::controlled_formation_q`]); model C, which covered set-point changes that
+    /// [`LeaderMotionTuning::controlled_formation_q`]); model C, which covered set-point changes that
     /// B now models, is dropped (its probability goes to B); and B does not switch out (the
     /// follower's controller is its own knowledge, not a behaviour that ends): model A
     /// competes from its initial probability and hands over to B at the sojourn rate.

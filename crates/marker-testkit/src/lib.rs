@@ -23,7 +23,7 @@ use std::sync::Arc;
 use nalgebra::{Isometry3, Matrix3, Point2, Point3, Vector3};
 use rand::{Rng, RngExt};
 use synthcam::{
-    Camera, CellGrid, Filter, Gradient, ImageTexture, Panel, RenderSettings, Scene, Texture,
+    CellGrid, Filter, Gradient, ImageTexture, Panel, PosedCamera, RenderSettings, Scene, Texture,
 };
 use thiserror::Error;
 
@@ -234,7 +234,7 @@ impl Default for Effects {
 pub struct Canvas {
     width: usize,
     height: usize,
-    camera: Camera,
+    camera: PosedCamera,
     scene: Scene,
 }
 
@@ -255,7 +255,7 @@ impl Canvas {
             0.5 * (height as f64 - 1.0),
         )
         .map_err(|_| TestkitError::BadSize { width, height })?;
-        let camera = Camera::new(k, width, height, Isometry3::identity())?;
+        let camera = PosedCamera::new(k, width, height, Isometry3::identity())?;
         Ok(Self {
             width,
             height,

@@ -88,28 +88,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let refined = solver.refine(&rig, &rig_pixels, &predicted)?;
     report("  refined    ", &refined.pose, &rig_truth, refined.rms);
 
-    // Calibration files (feature `calib`).
+    // Camera files (feature `calib`).
     #[cfg(feature = "calib")]
     {
         let path = concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/../../fixtures/calibration/opencv_640x480.yaml"
         );
-        let cal = pose::calib::Calibration::from_file(path)?;
+        let cal = pose::Camera::from_file(path)?;
         let with_lens = PoseSolver::new(cal.intrinsics).with_distortion(cal.distortion);
         let distorted: Vec<Point2<f64>> = rig
             .iter()
-            .map(|p| {
-                cal.intrinsics
-                    .project(&rig_truth.transform_point(p))
-                    .map(|m| cal.distortion.distort_pixel(&cal.intrinsics, &m))
-            })
+            .map(|p| cal.project(&rig_truth.transform_point(p)))
             .collect::<Result<_, _>>()?;
         let sol = with_lens.solve(&rig, &distorted)?;
-        println!(
-            "with the calibration in opencv_640x480.yaml ({:?} format)",
-            cal.format
-        );
+        println!("with the calibration in opencv_640x480.yaml");
         report("  undistorted", &sol.best.pose, &rig_truth, sol.best.rms);
     }
     Ok(())

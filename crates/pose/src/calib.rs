@@ -30,6 +30,7 @@
 //! A missing or malformed field gives [`CalibrationError::MissingField`] or
 //! [`CalibrationError::BadField`] naming it.
 
+use crate::Camera;
 use crate::distortion::ProfileFault;
 use crate::{Distortion, DistortionModel, Intrinsics, PoseError};
 use nalgebra::Matrix3;
@@ -70,7 +71,7 @@ pub enum CalibrationError {
     },
     /// An image's size is not the calibration's. A pose solved with the wrong intrinsics is
     /// wrong by hundreds of pixels, so this is refused unless the caller asks to rescale
-    /// ([`Calibration::scaled_to`]).
+    /// ([`Camera::scaled_to`]).
     #[error(
         "the image is {width}x{height} but the calibration is for {calibrated_width}x{calibrated_height}"
     )]
@@ -110,21 +111,6 @@ pub enum CalibrationFormat {
     Ros,
 }
 
-/// A camera calibration: intrinsics, distortion and image size.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Calibration {
-    /// Pinhole intrinsics.
-    pub intrinsics: Intrinsics,
-    /// Lens distortion (all zero when the file has none).
-    pub distortion: Distortion,
-    /// Image width in pixels.
-    pub width: u32,
-    /// Image height in pixels.
-    pub height: u32,
-    /// The file format.
-    pub format: CalibrationFormat,
-}
-
 #[derive(Deserialize)]
 struct RawMatrix {
     rows: Option<usize>,
@@ -143,7 +129,7 @@ struct RawFile {
     fisheye_model: Option<i64>,
 }
 
-impl Calibration {
+impl Camera {
     /// `Ok` if an image of `width x height` is the size this calibration was made for,
     /// else [`CalibrationError::SizeMismatch`].
     pub fn check_size(&self, width: u32, height: u32) -> Result<(), CalibrationError> {
@@ -237,7 +223,21 @@ impl Calibration {
     }
 
     /// Parses calibration YAML text (OpenCV or ROS).
+    ///
+    /// # Errors
+    /// As [`Self::from_yaml_str_with_format`].
     pub fn from_yaml_str(text: &str) -> Result<Self, CalibrationError> {
+        Self::from_yaml_str_with_format(text).map(|(camera, _)| camera)
+    }
+
+    /// Parses calibration YAML text (OpenCV or ROS), and says which of the two it was.
+    ///
+    /// # Errors
+    /// YAML that does not parse, a missing or bad field (naming it), or a lens whose
+    /// distortion folds over inside the image.
+    pub fn from_yaml_str_with_format(
+        text: &str,
+    ) -> Result<(Self, CalibrationFormat), CalibrationError> {
         let text = text.trim_start_matches('\u{feff}');
         let opencv_header = text.starts_with("%YAML:");
         let raw: RawFile = serde_saphyr::from_str(text).map_err(|e| CalibrationError::Yaml {
@@ -278,13 +278,15 @@ impl Calibration {
             CalibrationFormat::Ros
         };
         check_lens(&intrinsics, &distortion, width, height)?;
-        Ok(Self {
-            intrinsics,
-            distortion,
-            width,
-            height,
+        Ok((
+            Self {
+                intrinsics,
+                distortion,
+                width,
+                height,
+            },
             format,
-        })
+        ))
     }
 }
 

@@ -4,8 +4,62 @@
 //! Pixel convention (spec 2.1): u right, v down, integer coordinates are pixel centres, so a
 //! `w x h` image covers `[-0.5, w - 0.5] x [-0.5, h - 0.5]`.
 
-use crate::{Pose, PoseError, so3};
+use crate::{Distortion, Pose, PoseError, so3};
 use nalgebra::{Matrix2x3, Matrix3, Point2, Point3, SMatrix, Vector3};
+
+/// The one behind-the-camera rule of the workspace: a camera-frame point projects only if its
+/// depth `z` is above this (metres); one at or below it (on or behind the camera plane, or
+/// NaN) is refused, never projected to a flipped or infinite pixel.
+pub const MIN_DEPTH: f64 = 1e-9;
+
+/// A camera: pinhole intrinsics, lens distortion and the image size. It is what a
+/// calibration file describes ([`crate::calib`]), what the synthetic camera renders through
+/// and what annotations are drawn with; [`Camera::project`] is the one projection.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    /// Pinhole intrinsics.
+    pub intrinsics: Intrinsics,
+    /// Lens distortion (none: [`Distortion::NONE`]).
+    pub distortion: Distortion,
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+}
+
+impl Camera {
+    /// A camera without lens distortion.
+    pub fn pinhole(intrinsics: Intrinsics, width: u32, height: u32) -> Self {
+        Self {
+            intrinsics,
+            distortion: Distortion::NONE,
+            width,
+            height,
+        }
+    }
+
+    /// Projects a camera-frame point to a pixel: the pinhole projection
+    /// ([`Intrinsics::project`]), then the lens distortion. A point with `z <=` [`MIN_DEPTH`]
+    /// is an error ([`PoseError::PointBehindCamera`]).
+    #[inline]
+    pub fn project(&self, p: &Point3<f64>) -> Result<Point2<f64>, PoseError> {
+        let ideal = self.intrinsics.project(p)?;
+        if self.distortion.is_identity() {
+            Ok(ideal)
+        } else {
+            Ok(self.distortion.distort_pixel(&self.intrinsics, &ideal))
+        }
+    }
+
+    /// True if the pixel `m` lies inside the image, `[-0.5, w - 0.5] x [-0.5, h - 0.5]`
+    /// (spec 2.1).
+    pub fn contains(&self, m: &Point2<f64>) -> bool {
+        m.x >= -0.5
+            && m.y >= -0.5
+            && m.x <= f64::from(self.width) - 0.5
+            && m.y <= f64::from(self.height) - 0.5
+    }
+}
 
 /// Pinhole intrinsics `K = [[alpha, -alpha cot(theta), u0], [0, beta / sin(theta), v0], [0, 0, 1]]`
 /// (spec 4.1, paper eq. 20).
@@ -163,11 +217,12 @@ impl Intrinsics {
         Point2::new((m.x - self.u0 - self.k01 * y) / self.alpha, y)
     }
 
-    /// Projects a camera-frame point to a pixel, `m = (1/z) K p`. A point with `z <= 0` (on or
-    /// behind the camera plane) is an error, never a flipped pixel.
+    /// Projects a camera-frame point to a pixel, `m = (1/z) K p`, without lens distortion
+    /// ([`Camera::project`] adds it). A point with `z <=` [`MIN_DEPTH`] (on or behind the
+    /// camera plane) is an error, never a flipped pixel.
     #[inline]
     pub fn project(&self, p: &Point3<f64>) -> Result<Point2<f64>, PoseError> {
-        if p.z.is_nan() || p.z <= 0.0 {
+        if p.z.is_nan() || p.z <= MIN_DEPTH {
             return Err(PoseError::PointBehindCamera { index: 0, z: p.z });
         }
         Ok(self.normalized_to_pixel(&Point2::new(p.x / p.z, p.y / p.z)))

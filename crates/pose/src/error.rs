@@ -211,5 +211,5 @@ pub enum PoseError {
     /// A calibration file could not be read or parsed.
     #[cfg(feature = "calib")]
     #[error(transparent)]
-    Calibration(#[from] crate::calib::CalibrationError),
+    Camera(#[from] crate::calib::CalibrationError),
 }

@@ -41,7 +41,7 @@
 //! `solvePnP(..., SOLVEPNP_IPPE_SQUARE)` gives, in OpenCV's marker frame and corner order,
 //! with both candidates and the covariance.
 //!
-//! **Calibration files** (feature `calib`, on by default; pure Rust via `serde-saphyr`): OpenCV
+//! **Camera files** (feature `calib`, on by default; pure Rust via `serde-saphyr`): OpenCV
 //! `FileStorage` YAML and ROS `camera_info` YAML, see [`calib`].
 //!
 //! # Example
@@ -74,6 +74,7 @@ pub mod calib;
 mod camera;
 mod distortion;
 mod error;
+pub mod faces;
 mod ippe;
 mod ldl;
 mod lm;
@@ -83,7 +84,7 @@ mod posit;
 pub mod so3;
 mod solve;
 
-pub use camera::{Frustum, Intrinsics};
+pub use camera::{Camera, Frustum, Intrinsics, MIN_DEPTH};
 pub use distortion::{Distortion, DistortionModel, UNDISTORT_MAX_ITERATIONS, UNDISTORT_TOLERANCE};
 pub use error::PoseError;
 pub use lm::LmConfig;

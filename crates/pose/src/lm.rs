@@ -206,7 +206,7 @@ fn normal_equations_with(
     for (i, (p, m)) in model.iter().zip(image).enumerate() {
         let rp = r * p.coords;
         let pc = Point3::from(rp + pose.translation);
-        if pc.z.is_nan() || pc.z <= 0.0 {
+        if pc.z.is_nan() || pc.z <= crate::MIN_DEPTH {
             return Err((i, pc.z));
         }
         let (proj, jp) = project(&pc);

@@ -155,7 +155,7 @@ impl LeastSquares<3> for PlaneReprojection<'_> {
             // The point turned by the yaw, in plane axes.
             let q = Vector3::new(c * m.x - s * m.y, s * m.x + c * m.y, m.z);
             let pc = Point3::from(r * (q + origin) + self.plane.translation);
-            if pc.z.is_nan() || pc.z <= 0.0 {
+            if pc.z.is_nan() || pc.z <= crate::MIN_DEPTH {
                 return Err((i, pc.z));
             }
             let proj = self

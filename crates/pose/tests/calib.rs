@@ -1,7 +1,8 @@
-//! Calibration files: OpenCV and ROS YAML, and malformed ones (fixtures/calibration).
+//! Camera files: OpenCV and ROS YAML, and malformed ones (fixtures/calibration).
 #![cfg(feature = "calib")]
 
-use pose::calib::{Calibration, CalibrationError, CalibrationFormat};
+use pose::Camera;
+use pose::calib::{CalibrationError, CalibrationFormat};
 use pose::{Distortion, DistortionModel};
 use std::path::PathBuf;
 
@@ -11,10 +12,16 @@ fn fixture(name: &str) -> PathBuf {
         .join(name)
 }
 
+/// The format a fixture's text is read as.
+fn format_of(name: &str) -> CalibrationFormat {
+    let text = std::fs::read_to_string(fixture(name)).expect("the fixture is readable");
+    Camera::from_yaml_str_with_format(&text).expect("the fixture parses").1
+}
+
 #[test]
 fn opencv_file_loads() {
-    let c = Calibration::from_file(fixture("opencv_640x480.yaml")).unwrap();
-    assert_eq!(c.format, CalibrationFormat::OpenCv);
+    let c = Camera::from_file(fixture("opencv_640x480.yaml")).unwrap();
+    assert_eq!(format_of("opencv_640x480.yaml"), CalibrationFormat::OpenCv);
     assert_eq!((c.width, c.height), (640, 480));
     let k = c.intrinsics;
     assert!((k.alpha() - 554.256_258_422_040_8).abs() < 1e-9);
@@ -29,9 +36,9 @@ fn opencv_file_loads() {
 
 #[test]
 fn ros_file_loads_and_matches_the_opencv_one() {
-    let ros = Calibration::from_file(fixture("ros_camera_info.yaml")).unwrap();
-    assert_eq!(ros.format, CalibrationFormat::Ros);
-    let cv = Calibration::from_file(fixture("opencv_640x480.yaml")).unwrap();
+    let ros = Camera::from_file(fixture("ros_camera_info.yaml")).unwrap();
+    assert_eq!(format_of("ros_camera_info.yaml"), CalibrationFormat::Ros);
+    let cv = Camera::from_file(fixture("opencv_640x480.yaml")).unwrap();
     assert_eq!((ros.width, ros.height), (cv.width, cv.height));
     assert!((ros.intrinsics.matrix() - cv.intrinsics.matrix()).amax() < 1e-9);
     assert_eq!(ros.distortion, cv.distortion);
@@ -40,15 +47,15 @@ fn ros_file_loads_and_matches_the_opencv_one() {
 #[test]
 fn opencv_header_with_skew_and_no_distortion() {
     let text = "%YAML:1.0\n---\nimage_width: 100\nimage_height: 80\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 100., -5., 49.5, 0., 101., 39.5, 0., 0., 1. ]\n";
-    let c = Calibration::from_yaml_str(text).unwrap();
-    assert_eq!(c.format, CalibrationFormat::OpenCv);
+    let (c, format) = Camera::from_yaml_str_with_format(text).unwrap();
+    assert_eq!(format, CalibrationFormat::OpenCv);
     assert!((c.intrinsics.matrix()[(0, 1)] + 5.0).abs() < 1e-12);
     assert!(c.distortion.is_identity());
 }
 
 #[test]
 fn missing_camera_matrix_is_named() {
-    let e = Calibration::from_file(fixture("malformed_missing_camera_matrix.yaml")).unwrap_err();
+    let e = Camera::from_file(fixture("malformed_missing_camera_matrix.yaml")).unwrap_err();
     assert_eq!(
         e,
         CalibrationError::MissingField {
@@ -60,7 +67,7 @@ fn missing_camera_matrix_is_named() {
 
 #[test]
 fn missing_width_is_named() {
-    let e = Calibration::from_file(fixture("malformed_missing_width.yaml")).unwrap_err();
+    let e = Camera::from_file(fixture("malformed_missing_width.yaml")).unwrap_err();
     assert_eq!(
         e,
         CalibrationError::MissingField {
@@ -71,7 +78,7 @@ fn missing_width_is_named() {
 
 #[test]
 fn wrong_matrix_size_is_named() {
-    let e = Calibration::from_file(fixture("malformed_camera_matrix_shape.yaml")).unwrap_err();
+    let e = Camera::from_file(fixture("malformed_camera_matrix_shape.yaml")).unwrap_err();
     assert!(
         matches!(&e, CalibrationError::BadField { field: "camera_matrix", reason } if reason.contains("9 values")),
         "{e}"
@@ -80,7 +87,7 @@ fn wrong_matrix_size_is_named() {
 
 #[test]
 fn singular_camera_matrix_is_named() {
-    let e = Calibration::from_file(fixture("malformed_singular_camera_matrix.yaml")).unwrap_err();
+    let e = Camera::from_file(fixture("malformed_singular_camera_matrix.yaml")).unwrap_err();
     assert!(
         matches!(
             &e,
@@ -95,20 +102,20 @@ fn singular_camera_matrix_is_named() {
 
 #[test]
 fn invalid_yaml_is_reported() {
-    let e = Calibration::from_file(fixture("malformed_not_yaml.yaml")).unwrap_err();
+    let e = Camera::from_file(fixture("malformed_not_yaml.yaml")).unwrap_err();
     assert!(matches!(e, CalibrationError::Yaml { .. }), "{e}");
 }
 
 #[test]
 fn missing_file_is_an_io_error() {
-    let e = Calibration::from_file(fixture("no_such_file.yaml")).unwrap_err();
+    let e = Camera::from_file(fixture("no_such_file.yaml")).unwrap_err();
     assert!(matches!(e, CalibrationError::Io { .. }), "{e}");
 }
 
 #[test]
 fn unsupported_distortion_model_is_named() {
     let text = "image_width: 640\nimage_height: 480\ncamera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\ndistortion_model: kannala_brandt8\ndistortion_coefficients: {rows: 1, cols: 4, data: [0.1, 0, 0, 0]}\n";
-    let e = Calibration::from_yaml_str(text).unwrap_err();
+    let e = Camera::from_yaml_str(text).unwrap_err();
     assert!(
         matches!(
             e,
@@ -124,7 +131,7 @@ fn unsupported_distortion_model_is_named() {
 #[test]
 fn wrong_type_in_a_field_is_reported_with_its_name() {
     let text = "image_width: wide\nimage_height: 480\ncamera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\n";
-    let e = Calibration::from_yaml_str(text).unwrap_err();
+    let e = Camera::from_yaml_str(text).unwrap_err();
     assert!(
         matches!(&e, CalibrationError::Yaml { message } if message.contains("image_width") || message.contains("line 1")),
         "{e}"
@@ -133,7 +140,7 @@ fn wrong_type_in_a_field_is_reported_with_its_name() {
 
 #[test]
 fn a_resized_image_gets_scaled_intrinsics_and_a_crop_is_refused() {
-    let c = Calibration::from_file(fixture("opencv_640x480.yaml")).unwrap();
+    let c = Camera::from_file(fixture("opencv_640x480.yaml")).unwrap();
     assert!(c.check_size(640, 480).is_ok());
     assert!(matches!(
         c.check_size(1280, 960),
@@ -188,7 +195,7 @@ fn opencv_yaml(k: [f64; 9], d: &[f64]) -> String {
 fn calibrations_no_camera_can_have_are_refused_with_the_field_named() {
     let k = |fx: f64, fy: f64, cx: f64, cy: f64| [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0];
     let ok = opencv_yaml(k(554.0, 554.0, 319.5, 239.5), &[-0.3, 0.1, 0.0, 0.0, -0.02]);
-    assert!(Calibration::from_yaml_str(&ok).is_ok());
+    assert!(Camera::from_yaml_str(&ok).is_ok());
     for (text, field, says) in [
         (
             opencv_yaml(k(1e-300, 554.0, 319.5, 239.5), &[0.0; 5]),
@@ -221,7 +228,7 @@ fn calibrations_no_camera_can_have_are_refused_with_the_field_named() {
             "4 or 5 (plumb_bob: k1, k2, p1, p2[, k3]), 8 (rational_polynomial",
         ),
     ] {
-        let e = Calibration::from_yaml_str(&text).unwrap_err();
+        let e = Camera::from_yaml_str(&text).unwrap_err();
         match &e {
             CalibrationError::BadField { field: f, .. } => assert_eq!(*f, field, "{e}"),
             other => panic!("{other}"),
@@ -232,10 +239,13 @@ fn calibrations_no_camera_can_have_are_refused_with_the_field_named() {
 
 #[test]
 fn rational_polynomial_files_load_in_both_formats() {
-    let ros = Calibration::from_file(fixture("ros_rational_polynomial.yaml")).unwrap();
-    let cv = Calibration::from_file(fixture("opencv_rational_1280x720.yaml")).unwrap();
+    let ros = Camera::from_file(fixture("ros_rational_polynomial.yaml")).unwrap();
+    let cv = Camera::from_file(fixture("opencv_rational_1280x720.yaml")).unwrap();
     assert_eq!(
-        (ros.format, cv.format),
+        (
+            format_of("ros_rational_polynomial.yaml"),
+            format_of("opencv_rational_1280x720.yaml")
+        ),
         (CalibrationFormat::Ros, CalibrationFormat::OpenCv)
     );
     let expected =
@@ -248,31 +258,31 @@ fn rational_polynomial_files_load_in_both_formats() {
 
 #[test]
 fn fisheye_files_load_in_both_formats() {
-    let ros = Calibration::from_file(fixture("ros_equidistant.yaml")).unwrap();
-    let cv = Calibration::from_file(fixture("opencv_fisheye_1280x800.yaml")).unwrap();
+    let ros = Camera::from_file(fixture("ros_equidistant.yaml")).unwrap();
+    let cv = Camera::from_file(fixture("opencv_fisheye_1280x800.yaml")).unwrap();
     let expected = Distortion::equidistant(0.05, -0.01, 0.002, -0.0003).unwrap();
     assert_eq!(ros.distortion, expected);
     assert_eq!(cv.distortion, expected);
-    assert_eq!(cv.format, CalibrationFormat::OpenCv);
+    assert_eq!(
+        format_of("opencv_fisheye_1280x800.yaml"),
+        CalibrationFormat::OpenCv
+    );
     assert!((ros.intrinsics.matrix() - cv.intrinsics.matrix()).amax() < 1e-12);
     // Without `fisheye_model: 1` the same four numbers are OpenCV's plumb bob: a fisheye file
     // must say what it is.
     let text = std::fs::read_to_string(fixture("opencv_fisheye_1280x800.yaml"))
         .unwrap()
         .replace("fisheye_model: 1\n", "");
-    let plain = Calibration::from_yaml_str(&text).unwrap();
+    let plain = Camera::from_yaml_str(&text).unwrap();
     assert_eq!(plain.distortion.model(), DistortionModel::PlumbBob);
     // An OpenCV file may name the model as ROS does.
     let named = text.replace("image_width", "distortion_model: equidistant\nimage_width");
-    assert_eq!(
-        Calibration::from_yaml_str(&named).unwrap().distortion,
-        expected
-    );
+    assert_eq!(Camera::from_yaml_str(&named).unwrap().distortion, expected);
     // A contradiction is named.
     let both = std::fs::read_to_string(fixture("opencv_fisheye_1280x800.yaml"))
         .unwrap()
         .replace("image_width", "distortion_model: plumb_bob\nimage_width");
-    let e = Calibration::from_yaml_str(&both).unwrap_err();
+    let e = Camera::from_yaml_str(&both).unwrap_err();
     assert!(
         matches!(&e, CalibrationError::BadField { field: "distortion_model", reason } if reason.contains("fisheye_model")),
         "{e}"
@@ -300,7 +310,7 @@ fn lens_sanity_checks_hold_for_every_model() {
         ),
         ("equidistant", &[0.05, -0.01, 0.002, -0.0003][..]),
     ] {
-        let c = Calibration::from_yaml_str(&ros(model, d)).unwrap();
+        let c = Camera::from_yaml_str(&ros(model, d)).unwrap();
         assert_eq!(c.distortion.model().name(), model);
     }
     // Profiles that fold back inside the image are refused, named by model.
@@ -321,7 +331,7 @@ fn lens_sanity_checks_hold_for_every_model() {
             "folds back at angle",
         ),
     ] {
-        let e = Calibration::from_yaml_str(&ros(model, d)).unwrap_err();
+        let e = Camera::from_yaml_str(&ros(model, d)).unwrap_err();
         match &e {
             CalibrationError::BadField { field, reason } => {
                 assert_eq!(*field, "distortion_coefficients", "{e}");
@@ -332,7 +342,7 @@ fn lens_sanity_checks_hold_for_every_model() {
     }
     // An f-theta lens with a 100 px focal length would need rays beyond 180 degrees to fill a
     // 1280x800 image.
-    let e = Calibration::from_yaml_str(
+    let e = Camera::from_yaml_str(
         &ros("equidistant", &[0.0; 4])
             .replace("[430, 0, 639.5, 0, 430,", "[100, 0, 639.5, 0, 100,"),
     )
@@ -342,7 +352,7 @@ fn lens_sanity_checks_hold_for_every_model() {
         "{e}"
     );
     // A focal length no lens has is refused whatever the model.
-    let e = Calibration::from_yaml_str(
+    let e = Camera::from_yaml_str(
         &ros("equidistant", &[0.0; 4])
             .replace("[430, 0, 639.5, 0, 430,", "[1e-9, 0, 639.5, 0, 430,"),
     )
@@ -352,8 +362,7 @@ fn lens_sanity_checks_hold_for_every_model() {
         "{e}"
     );
     // The wrong count for a named model lists what that model takes.
-    let e =
-        Calibration::from_yaml_str(&ros("equidistant", &[0.1, 0.0, 0.0, 0.0, 0.0])).unwrap_err();
+    let e = Camera::from_yaml_str(&ros("equidistant", &[0.1, 0.0, 0.0, 0.0, 0.0])).unwrap_err();
     assert!(
         e.to_string()
             .contains("equidistant distortion needs 4 (k1, k2, k3, k4)"),
@@ -371,7 +380,7 @@ fn distortion_that_squeezes_or_stretches_the_view_is_refused() {
         )
     };
     for (k2, shown) in [("1e6", "1000000.0"), ("1e300", "1e300"), ("1e3", "1000.0")] {
-        let e = Calibration::from_yaml_str(&camera(k2)).unwrap_err();
+        let e = Camera::from_yaml_str(&camera(k2)).unwrap_err();
         let text = e.to_string();
         assert!(
             matches!(
@@ -387,7 +396,7 @@ fn distortion_that_squeezes_or_stretches_the_view_is_refused() {
     }
     // Ordinary lenses pass: mild pincushion and barrel.
     for k2 in ["0.5", "-0.2", "2"] {
-        Calibration::from_yaml_str(&camera(k2)).unwrap();
+        Camera::from_yaml_str(&camera(k2)).unwrap();
     }
 }
 
@@ -396,7 +405,7 @@ fn distortion_that_squeezes_or_stretches_the_view_is_refused() {
 #[test]
 fn a_non_finite_entry_names_its_element_and_value() {
     let text = "image_width: 640\nimage_height: 480\ncamera_matrix:\n  rows: 3\n  cols: 3\n  data: [554.0, 0.0, .nan, 0.0, 554.0, 239.5, 0.0, 0.0, 1.0]\ndistortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [0, 0, 0, 0, 0]\n";
-    let e = Calibration::from_yaml_str(text).unwrap_err().to_string();
+    let e = Camera::from_yaml_str(text).unwrap_err().to_string();
     assert!(
         e.contains("camera_matrix") && e.contains("data[2] (row 0, column 2) is NaN"),
         "{e}"

@@ -11,21 +11,18 @@ use unicycle::Pose;
 
 use crate::scene::{body_to_world, validate_pose};
 
-/// Points closer to the camera's focal plane than this (m, camera-frame `z`) do not project.
-pub const MIN_DEPTH: f64 = 1e-9;
-
 /// Largest image the renderer accepts, in pixels (64 Mpx).
 pub const MAX_PIXELS: usize = 1 << 26;
 
-/// A posed pinhole camera: `pose`'s intrinsics, an image size and the extrinsics
-/// `world -> camera`.
+/// A posed camera: `pose`'s [`pose::Camera`] (intrinsics and image size; the renderer casts
+/// ideal pinhole rays, so no lens distortion) and the extrinsics `world -> camera`.
 ///
 /// Pixel `(u, v)` (u right, v down, integer values at pixel *centres*) sees the ray
 /// `K^-1 [u, v, 1]^T` in the camera frame (x right, y down, z along the optical axis); the
 /// image covers `[-0.5, w - 0.5] x [-0.5, h - 0.5]`.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Camera {
-    intrinsics: Intrinsics,
+pub struct PosedCamera {
+    camera: pose::Camera,
     k: Matrix3<f64>,
     k_inv: Matrix3<f64>,
     width: usize,
@@ -33,7 +30,7 @@ pub struct Camera {
     world_to_camera: Isometry3<f64>,
 }
 
-impl Camera {
+impl PosedCamera {
     /// A camera from intrinsics, an image size (non-empty, at most [`MAX_PIXELS`]) and its
     /// extrinsics `world -> camera` (must be finite). Entries of `K` beyond
     /// [`MAX_INTRINSIC`] are refused.
@@ -65,7 +62,8 @@ impl Camera {
             finite("camera rotation", c)?;
         }
         Ok(Self {
-            intrinsics,
+            // Both sides are at most MAX_PIXELS (2^26), so they fit a u32.
+            camera: pose::Camera::pinhole(intrinsics, width as u32, height as u32),
             k,
             k_inv,
             width,
@@ -132,7 +130,11 @@ impl Camera {
 
     /// The intrinsics.
     pub fn intrinsics(&self) -> &Intrinsics {
-        &self.intrinsics
+        &self.camera.intrinsics
+    }
+    /// The camera model (intrinsics and image size) it renders through.
+    pub fn camera(&self) -> &pose::Camera {
+        &self.camera
     }
     /// `K`.
     pub fn k(&self) -> &Matrix3<f64> {
@@ -151,15 +153,11 @@ impl Camera {
         self.height
     }
 
-    /// Exact pinhole projection of a camera-frame point; `None` unless `z > MIN_DEPTH`
-    /// (which, with the crate's magnitude limits, keeps the result finite).
+    /// Exact pinhole projection of a camera-frame point ([`pose::Camera::project`]); `None`
+    /// unless `z >` [`pose::MIN_DEPTH`] (which, with the crate's magnitude limits, keeps the
+    /// result finite).
     pub fn project(&self, p: &Point3<f64>) -> Option<Point2<f64>> {
-        if p.z > MIN_DEPTH {
-            let q = self.k * p.coords;
-            Some(Point2::new(q.x / q.z, q.y / q.z))
-        } else {
-            None
-        }
+        self.camera.project(p).ok()
     }
 
     /// The (unnormalised, `z = 1`) camera-frame ray through pixel coordinates `(u, v)`.
@@ -169,10 +167,7 @@ impl Camera {
 
     /// True if `(u, v)` lies inside the image area `[-0.5, w - 0.5] x [-0.5, h - 0.5]`.
     pub fn contains(&self, p: &Point2<f64>) -> bool {
-        p.x >= -0.5
-            && p.y >= -0.5
-            && p.x <= self.width as f64 - 0.5
-            && p.y <= self.height as f64 - 0.5
+        self.camera.contains(p)
     }
     /// The rigid transform world -> camera.
     pub fn world_to_camera(&self) -> &Isometry3<f64> {
@@ -213,7 +208,7 @@ mod tests {
         Intrinsics::from_hfov(60f64.to_radians(), W as u32, H as u32).unwrap()
     }
 
-    /// Camera -> body of a camera `d` ahead of the reference point at `height`, panned left
+    /// PosedCamera -> body of a camera `d` ahead of the reference point at `height`, panned left
     /// by `pan` and tilted down by `tilt` (image x = body -y, image y = body -z when level).
     fn mount(d: f64, height: f64, pan: f64, tilt: f64) -> Isometry3<f64> {
         let r0 = Rotation3::from_matrix_unchecked(Matrix3::new(
@@ -228,8 +223,8 @@ mod tests {
         )
     }
 
-    fn on_robot(m: &Isometry3<f64>, robot: Pose) -> Result<Camera, SynthError> {
-        Camera::on_robot(intr(), W, H, m, &robot)
+    fn on_robot(m: &Isometry3<f64>, robot: Pose) -> Result<PosedCamera, SynthError> {
+        PosedCamera::on_robot(intr(), W, H, m, &robot)
     }
 
     #[test]
@@ -267,7 +262,7 @@ mod tests {
     #[test]
     fn look_at_matches_a_mounted_camera() {
         let a = on_robot(&mount(0.0, 0.3, 0.0, 0.0), Pose::default()).unwrap();
-        let b = Camera::look_at(
+        let b = PosedCamera::look_at(
             intr(),
             W,
             H,
@@ -285,15 +280,15 @@ mod tests {
         let id = Isometry3::identity();
         let huge = Intrinsics::square_pixels(1e12, 1e12, 10.0, 10.0).unwrap();
         assert!(matches!(
-            Camera::new(huge, 20, 20, id),
+            PosedCamera::new(huge, 20, 20, id),
             Err(SynthError::TooLarge { .. })
         ));
         assert!(matches!(
-            Camera::new(intr(), 0, 10, id),
+            PosedCamera::new(intr(), 0, 10, id),
             Err(SynthError::ZeroImageSize { .. })
         ));
         assert!(matches!(
-            Camera::new(intr(), 1 << 20, 1 << 20, id),
+            PosedCamera::new(intr(), 1 << 20, 1 << 20, id),
             Err(SynthError::ImageTooLarge { .. })
         ));
         assert!(matches!(
@@ -310,7 +305,7 @@ mod tests {
             Err(SynthError::NonFinite { .. })
         ));
         assert!(
-            Camera::look_at(
+            PosedCamera::look_at(
                 intr(),
                 W,
                 H,
@@ -321,7 +316,7 @@ mod tests {
             .is_err()
         );
         assert!(
-            Camera::look_at(
+            PosedCamera::look_at(
                 intr(),
                 W,
                 H,

@@ -8,7 +8,7 @@
 //!
 //! # Conventions (spec 2.1)
 //! - World and robot body frames: x forward, y left, z up; angles counter-clockwise.
-//! - Camera frame (OpenCV): x right, y down, z along the optical axis.
+//! - PosedCamera frame (OpenCV): x right, y down, z along the optical axis.
 //! - Pixels: u right, v down, integer coordinates at pixel *centres*; the image covers
 //!   `[-0.5, w - 0.5] x [-0.5, h - 0.5]`. Pixel `(u, v)` sees the ray `K^-1 [u, v, 1]^T`.
 //!
@@ -69,9 +69,9 @@
 //! from their own types.
 //!
 //! # Vocabulary
-//! The pinhole model is `pose`'s ([`pose::Intrinsics`]; a [`Camera`] adds the image size and
+//! The pinhole model is `pose`'s ([`pose::Intrinsics`]; a [`PosedCamera`] adds the image size and
 //! its pose), robots stand at `unicycle`'s planar [`unicycle::Pose`], and a camera mounted on a
-//! robot is given by the rigid transform camera frame -> body frame ([`Camera::on_robot`]).
+//! robot is given by the rigid transform camera frame -> body frame ([`PosedCamera::on_robot`]).
 //!
 //! # Example
 //! ```
@@ -102,7 +102,7 @@
 //!     UnitQuaternion::face_towards(&Vector3::x(), &-Vector3::z()),
 //! );
 //! let intrinsics = pose::Intrinsics::from_hfov(60f64.to_radians(), 160, 120).expect("valid");
-//! let camera = Camera::on_robot(intrinsics, 160, 120, &camera_to_body, &Pose::new(0.0, 0.0, 0.0))?;
+//! let camera = PosedCamera::on_robot(intrinsics, 160, 120, &camera_to_body, &Pose::new(0.0, 0.0, 0.0))?;
 //! let out = render(&scene, &camera, &RenderSettings::default())?;
 //! assert_eq!(out.frame.data.len(), 160 * 120);
 //! // The leader faces away from the camera, so its backward face (label 3) is visible.
@@ -122,7 +122,7 @@ mod scene;
 mod texture;
 mod truth;
 
-pub use camera::{Camera, MAX_PIXELS, MIN_DEPTH};
+pub use camera::{MAX_PIXELS, PosedCamera};
 pub use error::{MAX_INTRINSIC, MAX_MAGNITUDE, SynthError};
 pub use render::{
     Frame, Gradient, MAX_SUPERSAMPLING, PixelFormat, RenderSettings, Rendered, Shading, render,

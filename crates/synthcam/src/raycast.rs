@@ -7,7 +7,7 @@
 
 use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
 
-use crate::camera::Camera;
+use crate::camera::PosedCamera;
 use crate::error::SynthError;
 use crate::scene::{Body, Face, Ground, Panel, Robot, Scene};
 use crate::texture::Texture;
@@ -61,7 +61,7 @@ pub(crate) struct Rect<'a> {
     /// `down / height` and its offset, giving `t = t (t_dir . d) - t0`.
     t_dir: Vector3<f64>,
     t0: f64,
-    /// Camera on the outward side?
+    /// PosedCamera on the outward side?
     front: bool,
     texture: &'a dyn Texture,
     front_shade: f32,
@@ -113,7 +113,7 @@ pub(crate) struct Prim<'a> {
 pub(crate) struct PreparedGround<'a> {
     normal: Vector3<f64>,
     offset: f64,
-    /// Camera centre in world, and camera->world rotation rows 0 and 1 scaled by `1 / tile`.
+    /// PosedCamera centre in world, and camera->world rotation rows 0 and 1 scaled by `1 / tile`.
     eye_s: f64,
     eye_t: f64,
     row_s: Vector3<f64>,
@@ -139,8 +139,8 @@ pub(crate) struct Hit {
 
 /// Conservative screen box of camera-frame points: `None` if all are behind the camera,
 /// the whole plane if some are.
-fn screen_box(camera: &Camera, pts: &[Point3<f64>]) -> Option<ScreenBox> {
-    let eps = crate::camera::MIN_DEPTH;
+fn screen_box(camera: &PosedCamera, pts: &[Point3<f64>]) -> Option<ScreenBox> {
+    let eps = pose::MIN_DEPTH;
     if pts.iter().all(|p| p.z <= eps) {
         return None;
     }
@@ -214,7 +214,7 @@ impl RobotFrame {
 
 /// The primitive of a robot's body (none for [`Body::None`] or a body off screen).
 fn body_prim<'a>(
-    camera: &Camera,
+    camera: &PosedCamera,
     light: Option<&Light>,
     f: &RobotFrame,
     body: &Body,
@@ -297,7 +297,7 @@ fn body_prim<'a>(
 
 /// The primitive of rig face `face` of robot `robot` (none if it is off screen).
 fn face_prim<'a>(
-    camera: &Camera,
+    camera: &PosedCamera,
     light: Option<&Light>,
     f: &RobotFrame,
     face: &'a Face,
@@ -339,7 +339,11 @@ fn face_prim<'a>(
 }
 
 /// The primitive of a free-standing panel (none if it is off screen).
-fn panel_prim<'a>(camera: &Camera, w2c: &Isometry3<f64>, panel: &'a Panel) -> Option<Prim<'a>> {
+fn panel_prim<'a>(
+    camera: &PosedCamera,
+    w2c: &Isometry3<f64>,
+    panel: &'a Panel,
+) -> Option<Prim<'a>> {
     let [nw, ne, sw] = panel.corners.map(|p| w2c * p);
     let se = ne + (sw - nw);
     let bbox = screen_box(camera, &[nw, ne, se, sw])?;
@@ -394,7 +398,7 @@ impl<'a> Prepared<'a> {
     /// Transform the (validated) scene into the camera frame.
     pub fn new(
         scene: &'a Scene,
-        camera: &Camera,
+        camera: &PosedCamera,
         light: Option<&Light>,
     ) -> Result<Self, SynthError> {
         let w2c = camera.world_to_camera();

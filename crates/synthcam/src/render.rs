@@ -7,7 +7,7 @@ use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use crate::camera::Camera;
+use crate::camera::PosedCamera;
 use crate::error::{SynthError, finite, finite_vec, in_range};
 use crate::raycast::{Light, Prepared};
 use crate::scene::Scene;
@@ -200,7 +200,7 @@ pub struct Rendered {
 /// Validates everything first: any bad input is a typed error, never a panic or a NaN pixel.
 pub fn render(
     scene: &Scene,
-    camera: &Camera,
+    camera: &PosedCamera,
     settings: &RenderSettings,
 ) -> Result<Rendered, SynthError> {
     render_with_progress(scene, camera, settings, &|_, _| {})
@@ -215,7 +215,7 @@ pub fn render(
 /// As [`render`].
 pub fn render_with_progress(
     scene: &Scene,
-    camera: &Camera,
+    camera: &PosedCamera,
     settings: &RenderSettings,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Rendered, SynthError> {
@@ -249,7 +249,7 @@ pub fn render_with_progress(
 /// As [`render`]; [`SynthError::InvalidExposure`] when `views` is empty or the views'
 /// cameras differ in size.
 pub fn render_exposure(
-    views: &[(&Scene, &Camera)],
+    views: &[(&Scene, &PosedCamera)],
     settings: &RenderSettings,
 ) -> Result<Rendered, SynthError> {
     settings.validate()?;
@@ -318,7 +318,7 @@ fn light_plane(settings: &RenderSettings, w: usize, h: usize) -> [f64; 3] {
 /// Radiance in grey levels (`255 * albedo * light`), row-major `f32`, not clamped.
 fn trace_image(
     prepared: &Prepared<'_>,
-    camera: &Camera,
+    camera: &PosedCamera,
     settings: &RenderSettings,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Vec<f32> {

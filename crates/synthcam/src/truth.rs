@@ -4,7 +4,7 @@ use nalgebra::{Isometry3, Point2, Point3};
 
 use unicycle::Pose;
 
-use crate::camera::Camera;
+use crate::camera::PosedCamera;
 use crate::error::SynthError;
 use crate::raycast::Prepared;
 use crate::scene::Scene;
@@ -18,7 +18,7 @@ pub const CORNER_INSET: f64 = 1e-3;
 /// A face is **visible** when all of these hold:
 /// - `front_facing`: the camera centre lies strictly on the outward side of the face's plane
 ///   (equivalently `off_axis_deg < 90`);
-/// - `in_front`: all four corners have camera-frame `z >` [`crate::MIN_DEPTH`];
+/// - `in_front`: all four corners have camera-frame `z >` [`pose::MIN_DEPTH`];
 /// - `inside_image`: all four projected corners lie in the image area
 ///   `[-0.5, w - 0.5] x [-0.5, h - 0.5]`;
 /// - `unoccluded`: for each corner, the segment from the camera centre to the corner (pulled
@@ -73,7 +73,7 @@ pub struct RobotTruth {
 #[derive(Clone, Debug, PartialEq)]
 pub struct FrameTruth {
     /// The camera (intrinsics, image size, `world -> camera`).
-    pub camera: Camera,
+    pub camera: PosedCamera,
     /// One entry per robot, in scene order.
     pub robots: Vec<RobotTruth>,
 }
@@ -99,7 +99,7 @@ impl FrameTruth {
 }
 
 /// Ground truth of `scene` seen by `camera`, without rendering.
-pub fn ground_truth(scene: &Scene, camera: &Camera) -> Result<FrameTruth, SynthError> {
+pub fn ground_truth(scene: &Scene, camera: &PosedCamera) -> Result<FrameTruth, SynthError> {
     scene.validate()?;
     let prepared = Prepared::new(scene, camera, None)?;
     ground_truth_prepared(scene, camera, &prepared)
@@ -107,7 +107,7 @@ pub fn ground_truth(scene: &Scene, camera: &Camera) -> Result<FrameTruth, SynthE
 
 pub(crate) fn ground_truth_prepared(
     scene: &Scene,
-    camera: &Camera,
+    camera: &PosedCamera,
     prepared: &Prepared<'_>,
 ) -> Result<FrameTruth, SynthError> {
     let w2c = *camera.world_to_camera();

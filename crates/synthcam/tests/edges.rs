@@ -108,7 +108,7 @@ fn intersect(l1: (f64, f64, f64), l2: (f64, f64, f64)) -> Point2<f64> {
 }
 
 /// Measure all four corners of face 0 of robot 0 and return the worst error against the truth.
-fn worst_corner_error(scene: &Scene, camera: &Camera, n: usize) -> f64 {
+fn worst_corner_error(scene: &Scene, camera: &PosedCamera, n: usize) -> f64 {
     let out = render(scene, camera, &crisp(n)).unwrap();
     let face = &out.truth.robots[0].faces[0];
     assert!(face.visible, "{face:?}");
@@ -128,10 +128,10 @@ fn worst_corner_error(scene: &Scene, camera: &Camera, n: usize) -> f64 {
 
 /// The rectangle seen obliquely from above and to the side: a general quadrilateral with no
 /// axis-aligned edge.
-fn oblique_view() -> (Scene, Camera) {
+fn oblique_view() -> (Scene, PosedCamera) {
     let scene = black_rectangle_scene(Pose::new(3.0, 0.2, 0.35));
     let intr = common::intrinsics(320, 240, 50.0);
-    let cam = Camera::look_at(
+    let cam = PosedCamera::look_at(
         intr,
         320,
         240,
@@ -158,7 +158,7 @@ fn rendered_corners_match_with_skewed_off_centre_intrinsics() {
     let scene = black_rectangle_scene(Pose::new(2.5, -0.1, -0.5));
     let k = nalgebra::Matrix3::new(300.0, 4.0, 150.3, 0.0, 290.0, 131.7, 0.0, 0.0, 1.0);
     let intr = pose::Intrinsics::from_matrix(&k).unwrap();
-    let cam = Camera::look_at(
+    let cam = PosedCamera::look_at(
         intr,
         301,
         257,
@@ -188,7 +188,7 @@ fn a_single_sample_per_pixel_is_measurably_worse() {
 /// coverage.
 fn worst_vertical_edge_error(n: usize) -> f64 {
     let intr = common::intrinsics(320, 240, 50.0);
-    let cam = Camera::look_at(
+    let cam = PosedCamera::look_at(
         intr,
         320,
         240,

@@ -56,7 +56,7 @@ proptest! {
         for f in &truth.robots[0].faces {
             prop_assert!((0.0..=180.0).contains(&f.off_axis_deg));
             prop_assert_eq!(f.front_facing, f.off_axis_deg < 90.0);
-            prop_assert_eq!(f.in_front, f.corners_camera.iter().all(|p| p.z > MIN_DEPTH));
+            prop_assert_eq!(f.in_front, f.corners_camera.iter().all(|p| p.z > pose::MIN_DEPTH));
             if f.visible {
                 prop_assert!(f.front_facing && f.in_front && f.inside_image);
                 prop_assert!(f.unoccluded.iter().all(|&x| x));

@@ -39,7 +39,7 @@ fn scene() -> Scene {
     s
 }
 
-fn camera(w: usize, h: usize) -> Camera {
+fn camera(w: usize, h: usize) -> PosedCamera {
     let mount = common::mount(0.1, 0.3, 0.05, 0.05);
     common::camera(w, h, 60.0, &mount, Pose::default()).unwrap()
 }
@@ -327,30 +327,30 @@ fn bad_input_is_a_typed_error() {
     let huge_k = pose::Intrinsics::square_pixels(1e200, 1e200, 10.0, 10.0).unwrap();
     let id = nalgebra::Isometry3::identity();
     assert!(matches!(
-        Camera::new(huge_k, 20, 20, id),
+        PosedCamera::new(huge_k, 20, 20, id),
         Err(SynthError::TooLarge { .. })
     ));
     let far = common::mount(-1e12, 0.3, 0.0, 0.0);
     let (w, h) = (c.width(), c.height());
     assert!(matches!(
-        Camera::on_robot(*c.intrinsics(), w, h, &far, &Pose::default()),
+        PosedCamera::on_robot(*c.intrinsics(), w, h, &far, &Pose::default()),
         Err(SynthError::TooLarge { .. })
     ));
     assert!(matches!(
-        Camera::new(*c.intrinsics(), 20, 0, id),
+        PosedCamera::new(*c.intrinsics(), 20, 0, id),
         Err(SynthError::ZeroImageSize { .. })
     ));
     assert!(matches!(
-        Camera::new(*c.intrinsics(), 0, 0, id),
+        PosedCamera::new(*c.intrinsics(), 0, 0, id),
         Err(SynthError::ZeroImageSize { .. })
     ));
     let nan_pose = nalgebra::Isometry3::translation(f64::NAN, 0.0, 0.0);
     assert!(matches!(
-        Camera::new(*c.intrinsics(), w, h, nan_pose),
+        PosedCamera::new(*c.intrinsics(), w, h, nan_pose),
         Err(SynthError::NonFinite { .. })
     ));
     assert!(
-        Camera::look_at(
+        PosedCamera::look_at(
             *c.intrinsics(),
             w,
             h,
@@ -362,7 +362,7 @@ fn bad_input_is_a_typed_error() {
     );
     let mount = common::mount(0.1, f64::NAN, 0.0, 0.0);
     assert!(matches!(
-        Camera::on_robot(*c.intrinsics(), w, h, &mount, &Pose::default()),
+        PosedCamera::on_robot(*c.intrinsics(), w, h, &mount, &Pose::default()),
         Err(SynthError::NonFinite { .. })
     ));
 }
@@ -393,7 +393,7 @@ fn an_exposure_of_one_view_is_a_render_and_motion_blurs() {
         s
     };
     let scenes = [moved(-0.02), scene(), moved(0.02)];
-    let views: Vec<(&Scene, &Camera)> = scenes.iter().map(|s| (s, &cam)).collect();
+    let views: Vec<(&Scene, &PosedCamera)> = scenes.iter().map(|s| (s, &cam)).collect();
     let blurred = render_exposure(&views, &settings).unwrap();
     assert_eq!(blurred.truth, plain.truth);
     assert_ne!(blurred.frame, plain.frame);

@@ -23,7 +23,7 @@ fn rig_robot(pose: Pose, body: Body) -> Robot {
     r
 }
 
-fn level_camera(w: usize, h: usize, pose: Pose) -> Camera {
+fn level_camera(w: usize, h: usize, pose: Pose) -> PosedCamera {
     let mount = common::mount(0.1, 0.3, 0.0, 0.0);
     common::camera(w, h, 60.0, &mount, pose).unwrap()
 }

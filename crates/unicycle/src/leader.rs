@@ -5,7 +5,7 @@
 //! a_v, a_w]` under each of three motion hypotheses ([`LeaderMotion`]), which a
 //! multiple-model filter mixes.
 
-use nalgebra::{SVector, Vector2};
+use nalgebra::{SMatrix, SVector, Vector2, Vector3};
 
 use crate::{ControllerConfig, PolarModel, PolarState, UnicycleError, wrap_angle};
 
@@ -144,6 +144,124 @@ pub fn predict_leader(
     Ok(out)
 }
 
+/// The settings of the leader-motion hypotheses as a multiple-model filter runs them: their
+/// process noises, how long one stays in force and the prior of the first. Every number is a
+/// property of a robot or of the simulation, none of a scenario
+/// (`docs/dukf-reproduction.md`, "The IMM design").
+#[derive(Debug, Clone, PartialEq)]
+pub struct LeaderMotionTuning {
+    /// The leader's largest jerk `[m/s^3, rad/s^3]`: model A's accelerations are a random
+    /// walk with per-step standard deviation `jerk * dt`.
+    pub jerk: Vector2<f64>,
+    /// Standard deviation of the initial leader accelerations `[m/s^2, rad/s^2]` (mean 0).
+    pub acceleration_std: Vector2<f64>,
+    /// Process noise per step on `[l12, alpha12, beta12]` in both models (m^2, rad^2, rad^2):
+    /// the model error of one RK4 step, not a motion.
+    pub formation_q: Vector3<f64>,
+    /// Models B and C ("the follower holds the formation / the bearing"): the held variables
+    /// (`l12` and `alpha12` in B, `alpha12` in C) move by a random walk of per-step standard
+    /// deviation `held_rate_std * dt` (m, rad), i.e. a drift of the held formation at up to
+    /// about `held_rate_std` (`[m/s, rad/s]`).
+    pub held_rate_std: Vector2<f64>,
+    /// Process noise per step on `[l12, alpha12, beta12]` in model B while the follower's
+    /// controller is known (`formation_tracker`'s `set_follower_controller`): B's prediction is
+    /// then exact but for the integrator, whose error in one RK4 step is about
+    /// `l12 (k dt)^5 / 120` (4e-10 m with the controller gain `k = 1 /s` at 30 Hz); this is
+    /// that error rounded up, not a motion (`docs/dukf-reproduction.md`, measurement 12).
+    pub controlled_formation_q: Vector3<f64>,
+    /// Mean time a model stays in force, seconds (the switching matrix is
+    /// `Pi_jj = exp(-dt / sojourn)`).
+    pub sojourn: f64,
+    /// Initial probability of model A (constant-acceleration leader); models B and C share
+    /// the rest equally.
+    pub mu0_a: f64,
+}
+
+impl LeaderMotionTuning {
+    /// The reference settings: `jerk = [0.5, 0.5]` (about twice the largest jerk of any
+    /// fixture's leader), `acceleration_std = [0.2, 0.2]`, `formation_q = 1e-9` each,
+    /// `held_rate_std = [0.01, 0.01]` (1 cm/s, 0.01 rad/s), `controlled_formation_q = 1e-18`
+    /// each (1 nm, 1 nrad per step), `sojourn = 20 s`, `mu0_a = 0.5` (the other two models
+    /// share the rest).
+    pub fn reference() -> Self {
+        Self {
+            jerk: Vector2::new(0.5, 0.5),
+            acceleration_std: Vector2::new(0.2, 0.2),
+            formation_q: Vector3::new(1e-9, 1e-9, 1e-9),
+            held_rate_std: Vector2::new(0.01, 0.01),
+            controlled_formation_q: Vector3::new(1e-18, 1e-18, 1e-18),
+            sojourn: 20.0,
+            mu0_a: 0.5,
+        }
+    }
+}
+
+impl Default for LeaderMotionTuning {
+    fn default() -> Self {
+        Self::reference()
+    }
+}
+
+impl LeaderMotionTuning {
+    /// `Ok` if every noise is finite and `mu0_a` is a probability.
+    ///
+    /// # Errors
+    /// [`UnicycleError::NonFinite`] naming the first bad setting.
+    pub fn validate(&self) -> Result<(), UnicycleError> {
+        let noises = self
+            .jerk
+            .iter()
+            .chain(self.acceleration_std.iter())
+            .chain(self.formation_q.iter())
+            .chain(self.held_rate_std.iter())
+            .chain(self.controlled_formation_q.iter());
+        if let Some((index, &value)) = noises.enumerate().find(|(_, v)| !v.is_finite()) {
+            return Err(UnicycleError::NonFinite {
+                what: "leader-motion noise",
+                index,
+                value,
+            });
+        }
+        if !(0.0..=1.0).contains(&self.mu0_a) {
+            return Err(UnicycleError::NonFinite {
+                what: "leader-motion prior mu0_a (a probability)",
+                index: 0,
+                value: self.mu0_a,
+            });
+        }
+        Ok(())
+    }
+
+    /// The per-step process noises over [`LeaderState`] of the hypotheses A, B, C
+    /// ([`LeaderMotion::ALL`]) for a step of `dt`, with `pose_q` the noise of the leader's
+    /// pose `[x1, y1, theta1]`: with the follower's controller unknown (B and C hold the
+    /// formation or the bearing up to a random walk of `held_rate_std`) and known (B follows
+    /// the controller, predicted exactly but for the integrator's error
+    /// `controlled_formation_q`; C, which B then covers, keeps A's noise).
+    pub fn process_noises(&self, pose_q: &Vector3<f64>, dt: f64) -> [[LeaderNoise; 3]; 2] {
+        let mut qa = LeaderNoise::zeros();
+        for k in 0..3 {
+            qa[(k, k)] = pose_q[k];
+            qa[(3 + k, 3 + k)] = self.formation_q[k];
+        }
+        qa[(8, 8)] = (self.jerk[0] * dt).powi(2);
+        qa[(9, 9)] = (self.jerk[1] * dt).powi(2);
+        let mut qb = qa;
+        qb[(3, 3)] += (self.held_rate_std[0] * dt).powi(2);
+        qb[(4, 4)] += (self.held_rate_std[1] * dt).powi(2);
+        let mut qc = qa;
+        qc[(4, 4)] += (self.held_rate_std[1] * dt).powi(2);
+        let mut qb_controlled = qa;
+        for k in 0..3 {
+            qb_controlled[(3 + k, 3 + k)] = self.controlled_formation_q[k];
+        }
+        [[qa, qb, qc], [qa, qb_controlled, qa]]
+    }
+}
+
+/// A process noise over [`LeaderState`].
+pub type LeaderNoise = SMatrix<f64, 10, 10>;
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
@@ -219,5 +337,25 @@ mod tests {
         )
         .unwrap();
         assert!(next[3] >= MIN_PREDICTED_SEPARATION * 0.5, "{next:?}");
+    }
+
+    #[test]
+    fn the_noises_add_the_held_walk_and_the_controlled_formation_where_they_apply() {
+        let t = LeaderMotionTuning::reference();
+        let dt = 0.1;
+        let [[qa, qb, qc], [ca, cb, cc]] = t.process_noises(&Vector3::new(1.0, 2.0, 3.0), dt);
+        assert_eq!((qa[(0, 0)], qa[(2, 2)]), (1.0, 3.0));
+        assert_eq!(qa[(9, 9)], (t.jerk[1] * dt).powi(2));
+        let held = (t.held_rate_std[0] * dt).powi(2);
+        assert_eq!(qb[(3, 3)], qa[(3, 3)] + held);
+        assert_eq!((qc[(3, 3)], qc[(4, 4)] > qa[(4, 4)]), (qa[(3, 3)], true));
+        assert_eq!((ca, cc), (qa, qa));
+        assert_eq!(cb[(3, 3)], t.controlled_formation_q[0]);
+        let mut bad = t.clone();
+        bad.held_rate_std[1] = f64::NAN;
+        assert!(bad.validate().is_err());
+        bad = t;
+        bad.mu0_a = -0.1;
+        assert!(bad.validate().is_err());
     }
 }

@@ -551,13 +551,7 @@ impl McapSaver {
         let camera = config.camera;
         let (w, h) = (camera.width as u32, camera.height as u32);
         let intrinsics = pose::Intrinsics::from_hfov(camera.hfov_deg.to_radians(), w, h)?;
-        let calibration = pose::calib::Calibration {
-            intrinsics,
-            distortion: pose::Distortion::default(),
-            width: w,
-            height: h,
-            format: pose::calib::CalibrationFormat::Ros,
-        };
+        let calibration = pose::Camera::pinhole(intrinsics, w, h);
         let rig = formation_tracker::rig::RigModel::reference();
         let tracker = Tracker::new(TrackerConfig::reference(mount.offset, dt))?;
         let pipeline = formation_tracker::pipeline::Pipeline::new(

@@ -14,8 +14,8 @@ use formation_tracker::rig::RigModel;
 use formation_tracker::robots::{
     MarkerObservation, RobotConfig, RobotError, RobotMeasurement, measure_robots,
 };
+use pose::Camera;
 use pose::PoseSolver;
-use pose::calib::Calibration;
 
 use super::CliError;
 
@@ -82,7 +82,7 @@ fn parse_mount(text: &str, pan: f64) -> Result<CameraMount, CliError> {
 pub struct RobotStage {
     /// The rig.
     pub rig: RigModel,
-    calibration: Calibration,
+    calibration: Camera,
     scale_calibration: bool,
     mount: CameraMount,
     config: RobotConfig,
@@ -113,8 +113,8 @@ impl RobotStage {
             }
             return Ok(None);
         };
-        let calib = Calibration::from_file(path)
-            .map_err(|e| format!("--camera {}: {e}", path.display()))?;
+        let calib =
+            Camera::from_file(path).map_err(|e| format!("--camera {}: {e}", path.display()))?;
         Ok(Some(Self {
             rig: Self::rig(args, dictionary)?,
             calibration: calib,
@@ -129,7 +129,7 @@ impl RobotStage {
 
     /// The calibration for a `width x height` image: the file's, or scaled to the image with
     /// `--scale-calibration`; an image of another size is an error otherwise.
-    pub fn calibration_for(&self, width: u32, height: u32) -> Result<Calibration, CliError> {
+    pub fn calibration_for(&self, width: u32, height: u32) -> Result<Camera, CliError> {
         if self.scale_calibration {
             Ok(self.calibration.scaled_to(width, height)?)
         } else {

@@ -9,7 +9,7 @@
 //! corner noise, the marker behind the camera) or that fails is reported in `rejected` with
 //! the reason and the marker's `pose` is `null`.
 
-use pose::calib::Calibration;
+use pose::Camera;
 use pose::{MarkerPose, PoseSolver};
 use serde::Serialize;
 
@@ -151,7 +151,7 @@ impl From<&MarkerPose> for MarkerPoseOut {
 /// SW as printed: OpenCV's order), or why there is none. `Ok(None)` when no size is known
 /// for it.
 pub fn marker_pose(
-    calibration: &Calibration,
+    calibration: &Camera,
     sizes: &MarkerSizes,
     index: usize,
     corners: &fiducial::Corners,
@@ -206,7 +206,7 @@ mod tests {
 
     #[test]
     fn a_quad_no_square_can_project_to_is_rejected_with_the_reason() {
-        let calibration = Calibration::from_yaml_str(
+        let calibration = Camera::from_yaml_str(
             "image_width: 640\nimage_height: 480\ncamera_matrix: {rows: 3, cols: 3, data: [554, 0, 319.5, 0, 554, 239.5, 0, 0, 1]}\n",
         )
         .unwrap();

@@ -70,9 +70,10 @@ pub fn load_rig(
 }
 
 /// The calibration file `path` (`--camera`), every error naming the file.
-pub fn load_calibration(path: &std::path::Path) -> Result<pose::calib::Calibration, CliError> {
-    use pose::calib::{Calibration, CalibrationError};
-    Calibration::from_file(path).map_err(|e| match e {
+pub fn load_calibration(path: &std::path::Path) -> Result<pose::Camera, CliError> {
+    use pose::Camera;
+    use pose::calib::CalibrationError;
+    Camera::from_file(path).map_err(|e| match e {
         // Already names the file.
         CalibrationError::Io { .. } => e.into(),
         e => format!("{}: {e}", path.display()).into(),

@@ -40,13 +40,10 @@ pub fn annotated(eval: &Evaluation, rig: &RigModel) -> Result<image::RgbImage, C
         })
         .collect();
     let rigs: Vec<RigOverlay> = eval.robots.robots.iter().map(RigOverlay::from).collect();
-    Ok(annotate(
-        &eval.rendered.image,
-        &truth_k(&eval.rendered.truth),
-        rig,
-        &markers,
-        &rigs,
-    )?)
+    let image = &eval.rendered.image;
+    let k = pose::Intrinsics::from_matrix(&truth_k(&eval.rendered.truth))?;
+    let camera = pose::Camera::pinhole(k, image.width(), image.height());
+    Ok(annotate(image, &camera, rig, &markers, &rigs)?)
 }
 
 /// Runs the five scenes and writes the outputs into `out`; returns the reports.

@@ -14,8 +14,8 @@ use formation_tracker::pipeline::{Pipeline, PipelineError, PipelineFrame, Scan};
 use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotConfig;
 use formation_tracker::tracker::{LeaderReport, SmoothedLeader, Tracker, TrackerConfig};
+use pose::Camera;
 use pose::PoseSolver;
-use pose::calib::Calibration;
 use serde::Serialize;
 use unicycle::Inputs;
 
@@ -350,7 +350,7 @@ fn frame_rate(args: &Args, frames: &FrameSource) -> Result<f64, CliError> {
 /// The detector, the calibrated solver, the rig and the tracker, in one pipeline.
 pub(super) fn build_pipeline(
     args: &Args,
-    calibration: Calibration,
+    calibration: Camera,
     rig: RigModel,
     mount: CameraMount,
     fps: f64,

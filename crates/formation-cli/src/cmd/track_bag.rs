@@ -14,7 +14,7 @@ use formation_tracker::mount::CameraMount;
 use formation_tracker::pipeline::{Pipeline, PipelineFrame};
 use formation_tracker::rig::RigModel;
 use formation_tracker::robots::MarkerObservation;
-use pose::calib::Calibration;
+use pose::Camera;
 use unicycle::Inputs;
 
 use super::CliError;
@@ -36,7 +36,7 @@ impl McapOut {
         path: &Path,
         args: &Args,
         rig: RigModel,
-        calibration: Calibration,
+        calibration: Camera,
     ) -> Result<Self, CliError> {
         super::prepare_out_file(path)?;
         let mut staged = super::output::Staged::new();

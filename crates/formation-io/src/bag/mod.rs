@@ -491,7 +491,7 @@ impl Bag {
     /// # Errors
     /// The topic has no message, its first message is not a `CameraInfo` or gives no
     /// usable calibration (e.g. a zero focal length, an unsupported distortion model).
-    pub fn calibration(&self, topic: &str) -> Result<pose::calib::Calibration, BagError> {
+    pub fn calibration(&self, topic: &str) -> Result<pose::Camera, BagError> {
         let err = |reason: String| BagError::Message {
             topic: topic.to_owned(),
             index: 0,

@@ -173,7 +173,7 @@ fn check_distortion_model(model: &str) -> Result<(), String> {
 /// # Errors
 /// An unknown distortion model or a calibration `pose` refuses (e.g. a zero focal
 /// length), as one line.
-pub fn calibration(info: &CameraInfo) -> Result<pose::calib::Calibration, String> {
+pub fn calibration(info: &CameraInfo) -> Result<pose::Camera, String> {
     check_distortion_model(&info.distortion_model)?;
     // A NaN or infinity would be written as text YAML cannot read as a number, and reported
     // as "not valid YAML": name the field and the element instead.
@@ -209,7 +209,7 @@ pub fn calibration(info: &CameraInfo) -> Result<pose::calib::Calibration, String
         d.len(),
         list(&d),
     );
-    pose::calib::Calibration::from_yaml_str(&yaml).map_err(|e| e.to_string())
+    pose::Camera::from_yaml_str(&yaml).map_err(|e| e.to_string())
 }
 
 #[cfg(test)]

@@ -4,7 +4,7 @@
 #![allow(clippy::unwrap_used)] // Tests may unwrap (house rules); helpers here are test code too.
 
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
-use synthcam::{Camera, FacePlacement, SynthError};
+use synthcam::{FacePlacement, PosedCamera, SynthError};
 use unicycle::Pose;
 
 /// Apothem of a regular octagon with side `width`.
@@ -28,7 +28,7 @@ pub fn octagon_faces(height: f64) -> Result<[FacePlacement; 5], SynthError> {
     }))
 }
 
-/// Camera -> body of a camera `d` ahead of the reference point at `height`, panned `pan`
+/// PosedCamera -> body of a camera `d` ahead of the reference point at `height`, panned `pan`
 /// (left positive) and tilted `tilt` (down positive); level, it looks along body x with image
 /// x = body -y and image y = body -z.
 pub fn mount(d: f64, height: f64, pan: f64, tilt: f64) -> Isometry3<f64> {
@@ -56,6 +56,6 @@ pub fn camera(
     hfov_deg: f64,
     mount: &Isometry3<f64>,
     robot: Pose,
-) -> Result<Camera, SynthError> {
-    Camera::on_robot(intrinsics(w, h, hfov_deg), w, h, mount, &robot)
+) -> Result<PosedCamera, SynthError> {
+    PosedCamera::on_robot(intrinsics(w, h, hfov_deg), w, h, mount, &robot)
 }
