@@ -7,7 +7,6 @@
 //! scenario or the filter.
 
 use std::fmt::Write as _;
-use std::path::PathBuf;
 
 use formation_sim::reproduce::{
     Baseline, Reproduction, Summary, baseline, paper_filter_config, paper_filter_config_with,
@@ -19,7 +18,10 @@ use formation_tracker::filter::FilterDesign;
 
 use crate::Result;
 
+mod common;
 mod smoothing;
+
+use common::{CHECK_SEEDS, SEEDS, median, verdict, workspace_root};
 
 /// The paper's figures (Figs. 12-13) and the issue's velocity bounds.
 const PAPER_MSE_L12: f64 = 1.88e-4;
@@ -27,9 +29,6 @@ const PAPER_MSE_ALPHA12: f64 = 7.22e-5;
 const MIN_REDUCTION: f64 = 5.0;
 const MAX_RMS_V1: f64 = 0.05;
 const MAX_RMS_W1: f64 = 0.05;
-const SEEDS: std::ops::RangeInclusive<u64> = 1..=20;
-/// Seeds never used for tuning, reported as a check.
-const CHECK_SEEDS: std::ops::RangeInclusive<u64> = 21..=40;
 /// The dual UKF must reach this fraction of the better baseline's MSE (issue #15).
 const BASELINE_FRACTION: f64 = 0.8;
 
@@ -75,28 +74,12 @@ fn consistency(
     (sum / count, inside as f64 / count)
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n == 0 {
-        f64::NAN
-    } else if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
 fn join(values: &[f64]) -> String {
     values
         .iter()
         .map(|v| format!("{v:e}"))
         .collect::<Vec<_>>()
         .join(", ")
-}
-
-fn verdict(ok: bool) -> &'static str {
-    if ok { "pass" } else { "FAIL" }
 }
 
 struct Medians {
@@ -115,11 +98,11 @@ fn medians(runs: &[Summary]) -> Medians {
     let m = |f: fn(&Summary) -> f64| median(runs.iter().map(f).collect());
     let max = |f: fn(&Summary) -> f64| runs.iter().map(f).fold(f64::NEG_INFINITY, f64::max);
     Medians {
-        l12: m(|s| s.mse_l12),
-        alpha12: m(|s| s.mse_alpha12),
-        beta12: m(|s| s.mse_beta12),
-        meas_l12: m(|s| s.mse_meas_l12),
-        meas_alpha12: m(|s| s.mse_meas_alpha12),
+        l12: m(|s| s.mse.l12),
+        alpha12: m(|s| s.mse.alpha12),
+        beta12: m(|s| s.mse.beta12),
+        meas_l12: m(|s| s.mse.meas_l12),
+        meas_alpha12: m(|s| s.mse.meas_alpha12),
         v1: m(|s| s.rms_v1_after_2s),
         w1: m(|s| s.rms_w1_after_2s),
         max_v1: max(|s| s.rms_v1_after_2s),
@@ -140,25 +123,17 @@ fn per_seed_table(out: &mut String, runs: &[Summary]) {
             out,
             "| {} | {:.3e} | {:.3e} | {:.3e} | {:.3e} | {:.3e} | {:.3e} | {:.3e} | {:.4} | {:.4} |",
             s.seed,
-            s.mse_l12,
-            s.mse_alpha12,
-            s.mse_beta12,
-            s.mse_v1,
-            s.mse_w1,
-            s.mse_meas_l12,
-            s.mse_meas_alpha12,
+            s.mse.l12,
+            s.mse.alpha12,
+            s.mse.beta12,
+            s.mse.v1,
+            s.mse.w1,
+            s.mse.meas_l12,
+            s.mse.meas_alpha12,
             s.rms_v1_after_2s,
             s.rms_w1_after_2s
         );
     }
-}
-
-fn workspace_root() -> Result<PathBuf> {
-    let manifest = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    Ok(manifest
-        .parent()
-        .ok_or("xtask has no parent directory")?
-        .to_path_buf())
 }
 
 /// Runs the table and writes `docs/dukf-reproduction.md`.

@@ -7,7 +7,7 @@
 //!
 //! Stages: [`Binarizer`] (adaptive tile threshold, or Otsu), [`Labeller`] (run-length
 //! union-find), cheap rejection of components by size, shape and frame-border contact,
-//! [`trace_outer`] (Moore border following) and [`fit_quad`] (four-vertex polygon), then
+//! [`crate::contour::trace_outer`] (Moore border following) and [`crate::quad::fit_quad`] (four-vertex polygon), then
 //! [`Refiner`] (sub-pixel corners from grey-level edge lines), and finally [`decode()`](crate::decode())
 //! (cross-ratio cell sampling and dictionary lookup) on each quad. Large dark components
 //! that gave no quad get two more looks inside their boxes: a re-cut at a darker threshold
@@ -20,125 +20,18 @@
 use nalgebra::Point2;
 
 use crate::cluster::Clusterer;
-use crate::contour::{Component, Labeller, trace_outer};
-use crate::decode::{
-    CellReading, DecodeParams, Decoded, Rejection, WhiteReference, match_reading, read_oriented,
-};
+use crate::config::DetectorConfig;
+use crate::contour::Labeller;
+use crate::decode::Decoded;
 use crate::dictionary::Dictionary;
 use crate::error::FiducialError;
 use crate::image::{Corners, GrayView};
-use crate::quad::{QuadLimits, fit_quad};
-use crate::refine::{RefineConfig, Refiner};
+use crate::quad::QuadLimits;
+use crate::refine::Refiner;
 use crate::roi::{Region, merge_overlapping};
-use crate::sides::{SideCheck, side_offsets};
 use crate::split::{Rect, SplitParams, Splitter};
-use crate::threshold::{Binarizer, Threshold};
-
-/// Every tunable of the detector, with documented defaults ([`DetectorConfig::default`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DetectorConfig {
-    /// Binarization (default: adaptive tiles of 8 px, minimum contrast 30).
-    pub threshold: Threshold,
-    /// Shortest marker side in pixels (default 10).
-    pub min_side: f64,
-    /// Smallest interior corner angle in degrees, allowing for perspective (default 30).
-    pub min_angle_deg: f64,
-    /// Straightness tolerance of a side: absolute pixels (default 1.5)...
-    pub line_tolerance: f64,
-    /// ...plus this fraction of the side length (default 0.05).
-    pub line_tolerance_rel: f64,
-    /// Components closer than this many pixels to the frame border are rejected (default 2).
-    pub border_margin: u32,
-    /// Sub-pixel refinement settings (default: [`RefineConfig::default`]).
-    pub refine: RefineConfig,
-    /// Decoding settings (default: [`DecodeParams::default`] but with soft-decision instead
-    /// of hard bit correction and samples over +-0.1 cell, see [`DetectorConfig::default`]).
-    pub decode: DecodeParams,
-    /// Read a quad whose sampled cells are not an entry once more as a motion-blurred
-    /// marker (blur estimated from its edges, cell levels solved by least squares; issue
-    /// #16). Default on: only quads whose plain reading had a marker's contrast and dark
-    /// border, and whose edges show a motion of at least 1.5 cells, are re-read (counted by
-    /// [`Detector::blurred_reads`]); its systems are solved in scratch the detector owns (no
-    /// allocation in steady state), and a marker it reads passes the side check like any
-    /// other. With it on, the boxes of dark components that gave no quad (up to 160 px)
-    /// are also cut nearer the white level, where a marker smeared by two cells or more
-    /// still has a closed outline ([`Detector`]'s light cut).
-    pub motion_blur: bool,
-    /// Drop a decoded marker one of whose sides is not its border's outer edge, as when the
-    /// side runs along an occluder ([`crate::sides`], issue #16). Default on, with
-    /// [`SideCheck::default`]; `None` turns it off.
-    pub side_check: Option<SideCheck>,
-    /// Look for quads in the boundary clusters of large dark components that gave no quad
-    /// ([`Clusterer`], AprilTag 3's quad search; issue #13): finds markers whose border has
-    /// merged with something as dark as their ink, e.g. flat tags at grazing angles on real
-    /// frames (it reads the last 4 of the 56 Duckietown tags). Default off here (the
-    /// per-frame loop of a robot; `formation-tracker detect` turns it on): it labels the
-    /// boxes of every large component that gave no quad, often most of a real or
-    /// cluttered frame (measured on one core: 640x480 clutter frames 2.2-6.1 ms a frame
-    /// without it, 9.5-13.1 ms with it; the 11 Duckietown frames 2.0 ms a frame without,
-    /// 5.6 ms with; nothing on the synthetic marker scenes, whose dark components are all
-    /// quads).
-    pub boundary_clusters: bool,
-}
-
-impl Default for DetectorConfig {
-    /// The defaults documented on each field.
-    ///
-    /// Hard bit correction is off (`decode.max_errors = 0`): a black-bordered square with
-    /// random content lies within two bits of one of the paper dictionary's 100 codes (in
-    /// either orientation) with probability about 4 %, within one bit about 0.4 %, so in
-    /// cluttered scenes hard correction invents markers (`docs/detector-accuracy.md` counts
-    /// them: 1-bit correction read 8 codes in 1000 clutter frames, 2-bit 79).
-    ///
-    /// Soft-decision correction is on (`decode.soft_errors = 2`, `decode.soft_margin =
-    /// 0.3`): a reading may have its one or two *least confident* cells flipped, each only if
-    /// its level is within 0.3 of half the contrast from the threshold, and the result must
-    /// then be an entry exactly. Real markers that misread do so in a cell at the threshold
-    /// (all 6 markers lost on the accuracy scenes without it were ~20 px markers, cells of
-    /// ~3 px under blur 1, with one wrong bit of margin below 0.12), while a clutter square
-    /// or a foreign marker that is one bit from an entry is so in a confident cell. On the
-    /// accuracy scenes this finds 1600/1600 markers with no false read in 1000 clutter
-    /// frames or 800 foreign markers.
-    ///
-    /// Cells are sampled over +-0.1 cell rather than +-0.25: on the smallest markers (cells
-    /// of about 3 px, blur sigma 1) the wider square reaches into the blur of neighbouring
-    /// cells, and 8 of 9 markers lost on the accuracy scenes were such misreads.
-    fn default() -> Self {
-        Self {
-            threshold: Threshold::default(),
-            min_side: 10.0,
-            min_angle_deg: 30.0,
-            line_tolerance: 1.5,
-            line_tolerance_rel: 0.05,
-            border_margin: 2,
-            refine: RefineConfig::default(),
-            decode: DecodeParams {
-                max_errors: 0,
-                sample_radius: 0.1,
-                soft_errors: 2,
-                soft_margin: 0.3,
-                ..DecodeParams::default()
-            },
-            motion_blur: true,
-            side_check: Some(SideCheck::default()),
-            boundary_clusters: false,
-        }
-    }
-}
-
-/// Two readings of one marker: their centres are within half a side of each other.
-fn overlaps(a: &Decoded, b: &Decoded) -> bool {
-    let ca = a
-        .corners
-        .iter()
-        .fold([0.0, 0.0], |s, p| [s[0] + p.x / 4.0, s[1] + p.y / 4.0]);
-    let cb = b
-        .corners
-        .iter()
-        .fold([0.0, 0.0], |s, p| [s[0] + p.x / 4.0, s[1] + p.y / 4.0]);
-    let side = (a.corners[1] - a.corners[0]).norm();
-    (ca[0] - cb[0]).hypot(ca[1] - cb[1]) < 0.5 * side
-}
+use crate::stages::{DecodeContext, Decoding, Examined, Quad, Scan, push_unique};
+use crate::threshold::Binarizer;
 
 /// Two outlines of one marker: their centres are within half a side of each other.
 fn same_place(a: &Corners, b: &Corners) -> bool {
@@ -155,16 +48,6 @@ fn same_place(a: &Corners, b: &Corners) -> bool {
         .min((b[1] - b[0]).norm_squared());
     let (dx, dy) = (ca[0] - cb[0], ca[1] - cb[1]);
     dx * dx + dy * dy < 0.25 * side2
-}
-
-/// A candidate marker outline with sub-pixel corners.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Quad {
-    /// Corners in pixel-centre coordinates, clockwise in the image (v down). Which corner is
-    /// the marker's north-west is only known after decoding.
-    pub corners: Corners,
-    /// Mean grey-level step across the four edges (0-255): a confidence measure.
-    pub contrast: f64,
 }
 
 /// The marker detector; reuse one per stream of frames.
@@ -810,224 +693,5 @@ fn add_refined(
     let corners = c.map(|[x, y]| Point2::new(x, y));
     if !quads.iter().any(|q| same_place(&q.corners, &corners)) {
         quads.push(Quad { corners, contrast });
-    }
-}
-
-/// What one scan of [`Detector::find_quads_scaled`] needs to examine a component.
-pub(crate) struct Scan<'a, 'i> {
-    pub(crate) img: &'a GrayView<'i>,
-    pub(crate) bin: &'a [u8],
-    pub(crate) w: usize,
-    pub(crate) h: usize,
-    pub(crate) limits: &'a QuadLimits,
-    pub(crate) margin: u32,
-    pub(crate) min_side: u32,
-    pub(crate) factor: usize,
-    pub(crate) config: &'a DetectorConfig,
-    pub(crate) cells_across: f64,
-}
-
-/// The fate of one component.
-pub(crate) enum Examined {
-    /// A refined quad.
-    Quad(Quad),
-    /// No quad: its box goes to the re-cut ([`Splitter`]).
-    Retry(Rect),
-    /// Rejected outright.
-    Dropped,
-}
-
-impl Scan<'_, '_> {
-    /// Whether `c` is too small to hold a marker: [`Scan::examine`] drops it first thing.
-    pub(crate) fn too_small(&self, c: &Component) -> bool {
-        let bw = c.x_max - c.x_min + 1;
-        let bh = c.y_max - c.y_min + 1;
-        bw.max(bh) < self.min_side || bw.min(bh) < self.min_side / 2
-    }
-
-    /// Cheap rejections, tracing, quad fit and refinement of one component.
-    pub(crate) fn examine(
-        &self,
-        c: &Component,
-        contour: &mut Vec<[i32; 2]>,
-        refiner: &mut Refiner,
-    ) -> Examined {
-        let (w, h, m) = (self.w, self.h, self.margin);
-        let cfg = self.config;
-        let bw = c.x_max - c.x_min + 1;
-        let bh = c.y_max - c.y_min + 1;
-        // Cheap rejections first: size, frame border, sparsity.
-        if self.too_small(c) {
-            return Examined::Dropped;
-        }
-        let rect = Rect {
-            x0: c.x_min,
-            y0: c.y_min,
-            x1: c.x_max,
-            y1: c.y_max,
-        };
-        if c.pixels < bw.max(bh) + bw.min(bh)
-            || c.x_min < m
-            || c.y_min < m
-            || c.x_max as usize + m as usize >= w
-            || c.y_max as usize + m as usize >= h
-        {
-            return Examined::Retry(rect);
-        }
-        let max_len = 2 * (bw + bh) as usize + 16;
-        if !trace_outer(self.bin, w, c.start_x, c.y_min, max_len, contour) {
-            return Examined::Retry(rect);
-        }
-        let Some(mut coarse) = fit_quad(contour, self.limits) else {
-            return Examined::Retry(rect);
-        };
-        if self.factor > 1 {
-            // Small pixel i covers full pixels f i .. f i + f - 1: its centre is at
-            // f i + (f - 1) / 2 in full-resolution pixel-centre coordinates.
-            let scale = self.factor as f64;
-            let off = 0.5 * (scale - 1.0);
-            for c in &mut coarse {
-                c[0] = c[0] * scale + off;
-                c[1] = c[1] * scale + off;
-            }
-        }
-        let Some((corners, contrast)) = refiner.refine(
-            self.img,
-            &coarse,
-            &cfg.refine,
-            cfg.min_angle_deg,
-            self.cells_across,
-        ) else {
-            return Examined::Dropped;
-        };
-        Examined::Quad(Quad {
-            corners: corners.map(|[x, y]| Point2::new(x, y)),
-            contrast,
-        })
-    }
-}
-
-/// Scratch of decoding one quad at a time, owned by the detector (one per thread in
-/// [`Detector::detect_parallel`]).
-#[derive(Debug, Clone)]
-pub(crate) struct Decoding {
-    /// Per dictionary, the reading of the current quad (valid where `grid_of[i] == i`).
-    readings: Vec<Option<(u8, CellReading)>>,
-    pattern: crate::pattern::PatternRefiner,
-    /// Scratch of the motion-blurred reading ([`DetectorConfig::motion_blur`]).
-    pub(crate) blur: crate::blur::BlurScratch,
-}
-
-impl Decoding {
-    /// Scratch for `dictionaries` dictionaries.
-    pub(crate) fn new(dictionaries: usize) -> Self {
-        Self {
-            readings: vec![None; dictionaries],
-            pattern: crate::pattern::PatternRefiner::default(),
-            blur: crate::blur::BlurScratch::default(),
-        }
-    }
-}
-
-/// What decoding a quad reads from the detector (shared by its threads).
-pub(crate) struct DecodeContext<'a> {
-    config: &'a DetectorConfig,
-    dictionaries: &'a [Dictionary],
-    grid_of: &'a [usize],
-}
-
-impl DecodeContext<'_> {
-    /// The number of dictionaries.
-    pub(crate) fn dictionaries(&self) -> usize {
-        self.dictionaries.len()
-    }
-
-    /// Reads quad `q` of `img`: the decoded marker with its corners refined against its
-    /// pattern, or `None` when it is not a marker (or a side of it runs along an occluder).
-    pub(crate) fn decode(
-        &self,
-        img: &GrayView<'_>,
-        q: &Quad,
-        scratch: &mut Decoding,
-    ) -> Option<Decoded> {
-        let params = &self.config.decode;
-        let mut best: Option<Decoded> = None;
-        // Whether some grid read as a marker's (contrast, and a dark border or nearly):
-        // only such a quad is worth the motion-blurred reading.
-        let mut marker_like = false;
-        for (i, dict) in self.dictionaries.iter().enumerate() {
-            let g = self.grid_of[i];
-            if g == i {
-                let r = read_oriented(
-                    img,
-                    &q.corners,
-                    dict.family(),
-                    WhiteReference::of(dict),
-                    params,
-                );
-                marker_like |= matches!(r, Ok(_) | Err(Rejection::BorderNotDark { .. }));
-                scratch.readings[i] = r.ok();
-            }
-            let Some((s, reading)) = &scratch.readings[g] else {
-                continue;
-            };
-            if let Some(mut d) = match_reading(&q.corners, *s, reading, dict, params)
-                && best.is_none_or(|b| d.distance < b.distance)
-            {
-                d.dictionary = i;
-                best = Some(d);
-            }
-        }
-        // Not an entry as sampled: read it as a motion-blurred marker (issue #16).
-        let best = best.or_else(|| {
-            (self.config.motion_blur && marker_like)
-                .then(|| {
-                    crate::blur::decode_blurred(
-                        img,
-                        &q.corners,
-                        self.dictionaries,
-                        params,
-                        &mut scratch.blur,
-                    )
-                })
-                .flatten()
-        });
-        let mut d = best?;
-        // A side along an occluder, not the border (issue #16).
-        if let Some(check) = &self.config.side_check {
-            let family = self.dictionaries[d.dictionary].family();
-            if side_offsets(img, &d, family, check).is_some_and(|o| !o.consistent()) {
-                return None;
-            }
-        }
-        if self.config.refine.with_pattern {
-            let family = self.dictionaries[d.dictionary].family();
-            if let Some(c) = scratch.pattern.refine(
-                img,
-                &d.corners.map(|p| [p.x, p.y]),
-                family,
-                d.code,
-                &self.config.refine,
-            ) {
-                d.corners = c.map(|[x, y]| Point2::new(x, y));
-            }
-        }
-        Some(d)
-    }
-}
-
-/// Adds `d` to `out` unless a reading of the same marker is there (then the better of the
-/// two is kept: fewer bit errors, then higher contrast).
-pub(crate) fn push_unique(out: &mut Vec<Decoded>, d: Decoded) {
-    match out
-        .iter_mut()
-        .find(|o| o.dictionary == d.dictionary && o.index == d.index && overlaps(o, &d))
-    {
-        Some(o) => {
-            if (d.distance, -d.contrast) < (o.distance, -o.contrast) {
-                *o = d;
-            }
-        }
-        None => out.push(d),
     }
 }

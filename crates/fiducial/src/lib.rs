@@ -149,6 +149,7 @@ pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 mod blur;
 pub mod cluster;
+pub(crate) mod config;
 pub mod contour;
 pub mod cross_ratio;
 pub mod decode;
@@ -165,15 +166,17 @@ pub mod render;
 pub mod roi;
 pub mod sides;
 pub mod split;
+pub(crate) mod stages;
 pub mod standard;
 pub mod threshold;
 
+pub use crate::config::DetectorConfig;
 pub use crate::cross_ratio::CrossRatioFrame;
 pub use crate::decode::{
     CellReading, DecodeParams, Decoded, Rejection, WhiteReference, decode, read_cells,
     read_cells_with,
 };
-pub use crate::detector::{Detector, DetectorConfig, Quad};
+pub use crate::detector::Detector;
 pub use crate::dictionary::{Dictionary, GenerateParams, Match, PAPER_NAME, hamming};
 pub use crate::error::FiducialError;
 pub use crate::family::MarkerFamily;
@@ -181,6 +184,7 @@ pub use crate::image::{Corners, GrayView, ImageError};
 pub use crate::render::{RenderOptions, RenderedMarker, render_marker, render_svg};
 pub use crate::roi::Region;
 pub use crate::sides::{SideCheck, SideOffsets, side_offsets};
+pub use crate::stages::Quad;
 pub use crate::standard::{
     StandardDictionary, canonical_name, dictionary_by_name, dictionary_names, standard_dictionaries,
 };

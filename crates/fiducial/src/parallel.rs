@@ -15,10 +15,10 @@
 
 use crate::contour::Component;
 use crate::decode::Decoded;
-use crate::detector::{DecodeContext, Decoding, Examined as Done, Quad, Scan, push_unique};
 use crate::image::GrayView;
 use crate::refine::Refiner;
 use crate::split::Rect;
+use crate::stages::{DecodeContext, Decoding, Examined as Done, Quad, Scan, push_unique};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Hands the items of `order` (indices, in that order) out to the workers, one at a time

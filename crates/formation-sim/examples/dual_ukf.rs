@@ -12,10 +12,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let s = reproduce(seed, false)?.summary;
         println!(
             "{seed:>4}  {:.2e} / {:.2e}       {:.2e} / {:.2e}           {:.3} m/s, {:.3} rad/s",
-            s.mse_l12,
-            s.mse_meas_l12,
-            s.mse_alpha12,
-            s.mse_meas_alpha12,
+            s.mse.l12,
+            s.mse.meas_l12,
+            s.mse.alpha12,
+            s.mse.meas_alpha12,
             s.rms_v1_after_2s,
             s.rms_w1_after_2s
         );

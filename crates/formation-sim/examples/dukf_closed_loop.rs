@@ -138,9 +138,9 @@ fn main() {
     ] {
         println!(
             "{name:<22} {:>10.3e} {:>10.3e} {:>10.3e} {:>8.4} {:>8.4}",
-            m(v, |s| s.mse_l12),
-            m(v, |s| s.mse_alpha12),
-            m(v, |s| s.mse_beta12),
+            m(v, |s| s.mse.l12),
+            m(v, |s| s.mse.alpha12),
+            m(v, |s| s.mse.beta12),
             m(v, |s| s.rms_v1_after_2s),
             m(v, |s| s.rms_w1_after_2s)
         );

@@ -345,9 +345,9 @@ fn run_dual(scen: &[formation_sim::scenario::Scenario], v: &[f64], line: &str) {
     };
     println!(
         "{line} | l {:.3e} a {:.3e} b {:.3e} | v {:.4} w {:.4} | NIS {:.2} NEESx {:.2} NEESw {:.2} (after 2s: {:.2} {:.2} {:.2})",
-        m(&|s| s.mse_l12),
-        m(&|s| s.mse_alpha12),
-        m(&|s| s.mse_beta12),
+        m(&|s| s.mse.l12),
+        m(&|s| s.mse.alpha12),
+        m(&|s| s.mse.beta12),
         m(&|s| s.rms_v1_after_2s),
         m(&|s| s.rms_w1_after_2s),
         avg(&|c| c.nis, 0),

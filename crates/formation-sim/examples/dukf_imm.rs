@@ -55,9 +55,9 @@ fn report(label: &str, runs: &[(Scenario, FilterConfig)]) {
         rw.push(baseline(s, &x0, Baseline::RANDOM_WALK));
         cv.push(baseline(s, &x0, Baseline::CONSTANT_VELOCITY));
         rows.push([
-            run.summary.mse_l12,
-            run.summary.mse_alpha12,
-            run.summary.mse_beta12,
+            run.summary.mse.l12,
+            run.summary.mse.alpha12,
+            run.summary.mse.beta12,
             run.summary.rms_v1_after_2s,
             run.summary.rms_w1_after_2s,
             mean_after_2s(&run, |c| c.nis),

@@ -42,7 +42,7 @@ use unicycle::{
 };
 
 use crate::annotate::{AnnotateError, MarkerLabel, RigOverlay, annotate};
-use crate::reproduce::{MeanSquareErrors, StepRecord};
+use crate::reproduce::{MeanSquareErrors, MseSummary, StepRecord};
 use crate::scenario::reference_leader_inputs;
 use crate::scenario_file::{GradientSpec, MotionBlurSpec, ScenarioSpec};
 use crate::scene::{self, CameraSpec, RenderSpec, RobotSpec, SceneError, SceneSpec};
@@ -372,22 +372,11 @@ impl PairSummary {
 /// that one first.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct DemoSummary {
-    /// Mean square error of `l12` over the frames with an estimate, m^2.
-    pub mse_l12: f64,
-    /// Mean square error of `alpha12`, rad^2.
-    pub mse_alpha12: f64,
-    /// Mean square error of `beta12`, rad^2.
-    pub mse_beta12: f64,
-    /// Mean square error of `v1`, (m/s)^2.
-    pub mse_v1: f64,
-    /// Mean square error of `w1`, (rad/s)^2.
-    pub mse_w1: f64,
-    /// Mean square error of the vision measurement of `l12` (frames with one), m^2.
-    pub mse_meas_l12: f64,
-    /// Mean square error of the vision measurement of `alpha12`, rad^2.
-    pub mse_meas_alpha12: f64,
-    /// Mean square error of the vision measurement of `beta12`, rad^2.
-    pub mse_meas_beta12: f64,
+    /// The mean square errors of the estimate over the frames with an estimate and of the
+    /// vision measurement over the frames with one (flat in `summary.json`: `mse_l12` ...
+    /// `mse_meas_beta12`).
+    #[serde(flatten)]
+    pub mse: MseSummary,
     /// Mean square errors of the tracked `l12`, `alpha12`, `beta12` over the frames in which
     /// the leader was measured (the frames of the vision MSEs): m^2, rad^2, rad^2.
     pub mse_detected: [f64; 3],
@@ -1066,14 +1055,7 @@ fn summarize(traces: &[FollowerTrace], config: &DemoConfig, render_s: f64) -> De
     let total_s: f64 = pipeline_ms.iter().sum::<f64>() / 1e3;
     let frames = records.len() + 1;
     DemoSummary {
-        mse_l12: first.mse[0],
-        mse_alpha12: first.mse[1],
-        mse_beta12: first.mse[2],
-        mse_v1: first.mse[3],
-        mse_w1: first.mse[4],
-        mse_meas_l12: first.mse_meas[0],
-        mse_meas_alpha12: first.mse_meas[1],
-        mse_meas_beta12: first.mse_meas[2],
+        mse: MseSummary::new(first.mse, first.mse_meas),
         mse_detected: [
             first.mse_detected[0],
             first.mse_detected[1],

@@ -89,25 +89,63 @@ impl StepRecord {
     }
 }
 
+/// The mean square errors every run reports, of the estimate and of the raw vision
+/// measurement, written flat into `summary.json` as `mse_l12`, `mse_alpha12`, `mse_beta12`,
+/// `mse_v1`, `mse_w1`, `mse_meas_l12`, `mse_meas_alpha12`, `mse_meas_beta12`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MseSummary {
+    /// Of the estimated `l12`, m^2.
+    #[serde(rename = "mse_l12")]
+    pub l12: f64,
+    /// Of the estimated `alpha12`, rad^2.
+    #[serde(rename = "mse_alpha12")]
+    pub alpha12: f64,
+    /// Of the estimated `beta12`, rad^2.
+    #[serde(rename = "mse_beta12")]
+    pub beta12: f64,
+    /// Of the estimated `v1`, (m/s)^2.
+    #[serde(rename = "mse_v1")]
+    pub v1: f64,
+    /// Of the estimated `w1`, (rad/s)^2.
+    #[serde(rename = "mse_w1")]
+    pub w1: f64,
+    /// Of the raw measured `l12`, m^2.
+    #[serde(rename = "mse_meas_l12")]
+    pub meas_l12: f64,
+    /// Of the raw measured `alpha12`, rad^2.
+    #[serde(rename = "mse_meas_alpha12")]
+    pub meas_alpha12: f64,
+    /// Of the raw measured `beta12`, rad^2.
+    #[serde(rename = "mse_meas_beta12")]
+    pub meas_beta12: f64,
+}
+
+impl MseSummary {
+    /// From the estimate's `[l12, alpha12, beta12, v1, w1]` and the measurement's
+    /// `[l12, alpha12, beta12]` mean square errors.
+    pub fn new(estimate: [f64; 5], measurement: [f64; 3]) -> Self {
+        let [l12, alpha12, beta12, v1, w1] = estimate;
+        let [meas_l12, meas_alpha12, meas_beta12] = measurement;
+        Self {
+            l12,
+            alpha12,
+            beta12,
+            v1,
+            w1,
+            meas_l12,
+            meas_alpha12,
+            meas_beta12,
+        }
+    }
+}
+
 /// Figures of one run (the fields of `summary.json`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Summary {
-    /// Mean square error of the estimated `l12` over all filtered steps, m^2.
-    pub mse_l12: f64,
-    /// Mean square error of the estimated `alpha12`, rad^2.
-    pub mse_alpha12: f64,
-    /// Mean square error of the estimated `beta12`, rad^2.
-    pub mse_beta12: f64,
-    /// Mean square error of the estimated `v1`, (m/s)^2.
-    pub mse_v1: f64,
-    /// Mean square error of the estimated `w1`, (rad/s)^2.
-    pub mse_w1: f64,
-    /// Mean square error of the raw measured `l12`, m^2.
-    pub mse_meas_l12: f64,
-    /// Mean square error of the raw measured `alpha12`, rad^2.
-    pub mse_meas_alpha12: f64,
-    /// Mean square error of the raw measured `beta12`, rad^2.
-    pub mse_meas_beta12: f64,
+    /// The mean square errors of the estimate and of the raw measurement over all filtered
+    /// steps (in `summary.json` as the top-level fields `mse_l12` ... `mse_meas_beta12`).
+    #[serde(flatten)]
+    pub mse: MseSummary,
     /// RMS error of `v1` over the steps with `t > 2 s`, m/s.
     pub rms_v1_after_2s: f64,
     /// RMS error of `w1` over the steps with `t > 2 s`, rad/s.
@@ -240,14 +278,7 @@ impl SummaryTally {
     pub fn finish(&self, seed: u64, bias: bool) -> Summary {
         let m = self.errors.finish();
         Summary {
-            mse_l12: m.estimate[0],
-            mse_alpha12: m.estimate[1],
-            mse_beta12: m.estimate[2],
-            mse_v1: m.estimate[3],
-            mse_w1: m.estimate[4],
-            mse_meas_l12: m.measurement[0],
-            mse_meas_alpha12: m.measurement[1],
-            mse_meas_beta12: m.measurement[2],
+            mse: MseSummary::new(m.estimate, m.measurement),
             rms_v1_after_2s: m.rms_velocity_after_2s[0],
             rms_w1_after_2s: m.rms_velocity_after_2s[1],
             steps: self.steps,
@@ -597,7 +628,7 @@ mod tests {
             .map(|r| (r.estimated[0] - r.truth[0]).powi(2))
             .sum::<f64>()
             / run.records.len() as f64;
-        assert!((mse - s.mse_l12).abs() < 1e-15);
+        assert!((mse - s.mse.l12).abs() < 1e-15);
         let late: Vec<f64> = run
             .records
             .iter()

@@ -40,8 +40,8 @@ fn open_loop_tracks_through_the_occlusion() {
         s.max_coasting_error_l12
     );
     // Below the paper's figures.
-    assert!(s.mse_l12 < 1.88e-4, "{}", s.mse_l12);
-    assert!(s.mse_alpha12 < 7.22e-5, "{}", s.mse_alpha12);
+    assert!(s.mse.l12 < 1.88e-4, "{}", s.mse.l12);
+    assert!(s.mse.alpha12 < 7.22e-5, "{}", s.mse.alpha12);
     let records = &run.traces[0].records;
     for r in records {
         if r.occluded {
@@ -73,7 +73,7 @@ fn closed_loop_chain_keeps_the_formation() {
     // the top-level figures.
     let pairs: Vec<(u32, u32)> = s.pairs.iter().map(|p| (p.follower, p.leader)).collect();
     assert_eq!(pairs, [(2, 1), (3, 2)]);
-    assert_eq!(s.pairs[0].mse[0], s.mse_l12);
+    assert_eq!(s.pairs[0].mse[0], s.mse.l12);
     assert_eq!(s.pairs[0].frames_detected, s.frames_detected);
     let p = &s.pairs[1];
     assert!(

@@ -50,8 +50,8 @@ fn runs(bias: bool) -> Vec<Summary> {
 fn the_imm_filters_and_tracks_the_leader_velocity_over_seeds_1_to_20() {
     let s = runs(false);
     let med = |f: fn(&Summary) -> f64| median(s.iter().map(f).collect());
-    let (l, a) = (med(|x| x.mse_l12), med(|x| x.mse_alpha12));
-    let (ml, ma) = (med(|x| x.mse_meas_l12), med(|x| x.mse_meas_alpha12));
+    let (l, a) = (med(|x| x.mse.l12), med(|x| x.mse.alpha12));
+    let (ml, ma) = (med(|x| x.mse.meas_l12), med(|x| x.mse.meas_alpha12));
     let (rv, rw) = (med(|x| x.rms_v1_after_2s), med(|x| x.rms_w1_after_2s));
     assert!(
         l * 5.0 <= ml,
@@ -83,7 +83,7 @@ fn the_imm_filters_and_tracks_the_leader_velocity_over_seeds_1_to_20() {
     for x in &s {
         assert_eq!(x.steps, 240);
         assert!(!x.bias);
-        assert!(x.mse_l12.is_finite() && x.mse_v1.is_finite());
+        assert!(x.mse.l12.is_finite() && x.mse.v1.is_finite());
     }
 }
 
@@ -91,8 +91,8 @@ fn the_imm_filters_and_tracks_the_leader_velocity_over_seeds_1_to_20() {
 fn the_measurement_noise_is_the_configured_one() {
     // Guards the comparison above: the raw measurement MSEs are the noise variances.
     let s = runs(false);
-    let ml = median(s.iter().map(|x| x.mse_meas_l12).collect());
-    let ma = median(s.iter().map(|x| x.mse_meas_alpha12).collect());
+    let ml = median(s.iter().map(|x| x.mse.meas_l12).collect());
+    let ma = median(s.iter().map(|x| x.mse.meas_alpha12).collect());
     assert!((ml / 0.07f64.powi(2) - 1.0).abs() < 0.15, "{ml}");
     assert!((ma / 0.03f64.powi(2) - 1.0).abs() < 0.15, "{ma}");
 }
@@ -104,9 +104,9 @@ fn bias_runs_complete_and_the_bias_shows_in_the_estimate() {
     let s = runs(true);
     for x in &s {
         assert!(x.bias);
-        assert!(x.mse_l12.is_finite());
+        assert!(x.mse.l12.is_finite());
     }
-    let l = median(s.iter().map(|x| x.mse_l12).collect());
+    let l = median(s.iter().map(|x| x.mse.l12).collect());
     assert!(l > 0.5 * 0.0702f64.powi(2), "{l}");
 }
 
@@ -119,8 +119,8 @@ fn the_dual_ukf_stays_selectable_with_its_figures() {
                 .summary
         })
         .collect();
-    let l = median(s.iter().map(|x| x.mse_l12).collect());
-    let a = median(s.iter().map(|x| x.mse_alpha12).collect());
+    let l = median(s.iter().map(|x| x.mse.l12).collect());
+    let a = median(s.iter().map(|x| x.mse.alpha12).collect());
     // docs/dukf-reproduction.md: 5.606e-4 and 1.423e-4.
     assert!((l / 5.606e-4 - 1.0).abs() < 0.01, "{l:.4e}");
     assert!((a / 1.423e-4 - 1.0).abs() < 0.01, "{a:.4e}");
@@ -155,7 +155,7 @@ fn the_baselines_reproduce_the_issues_figures_and_lose_on_beta12() {
     );
     assert!(close(cv[0], 2.76e-4) && close(cv[1], 6.7e-5), "{cv:?}");
     let s = runs(false);
-    let b = median(s.iter().map(|x| x.mse_beta12).collect());
+    let b = median(s.iter().map(|x| x.mse.beta12).collect());
     assert!(b <= 0.8 * rw[2].min(cv[2]), "median mse_beta12 {b:.3e}");
 }
 
@@ -247,7 +247,7 @@ fn the_fixtures_beat_both_baselines_with_the_same_tuning() {
             rw.push(baseline(&scenario, &x0, Baseline::RANDOM_WALK));
             cv.push(baseline(&scenario, &x0, Baseline::CONSTANT_VELOCITY));
             let s = spec.reproduce(seed, false).expect("runs").summary;
-            filtered.push([s.mse_l12, s.mse_alpha12, s.mse_beta12]);
+            filtered.push([s.mse.l12, s.mse.alpha12, s.mse.beta12]);
         }
         let med = |v: &[[f64; 3]], i: usize| median(v.iter().map(|x| x[i]).collect());
         for (i, var) in ["l12", "alpha12", "beta12"].iter().enumerate() {

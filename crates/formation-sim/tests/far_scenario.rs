@@ -48,8 +48,8 @@ fn the_reference_file_is_the_built_in_demo() {
         run_demo(&c).unwrap().summary
     };
     let (a, b) = (short(from_file), short(built_in));
-    assert_eq!(a.mse_l12, b.mse_l12);
-    assert_eq!(a.mse_meas_l12, b.mse_meas_l12);
+    assert_eq!(a.mse.l12, b.mse.l12);
+    assert_eq!(a.mse.meas_l12, b.mse.meas_l12);
     assert_eq!(a.frames_detected, b.frames_detected);
 }
 

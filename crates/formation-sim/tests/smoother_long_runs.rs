@@ -23,11 +23,11 @@ fn half_hour(design: FilterDesign) {
     assert_eq!(run.smoothed_records.len(), 54_000);
     let (causal, smoothed) = (&run.summary, &run.smoothed_summary);
     for (name, c, s) in [
-        ("l12", causal.mse_l12, smoothed.mse_l12),
-        ("alpha12", causal.mse_alpha12, smoothed.mse_alpha12),
-        ("beta12", causal.mse_beta12, smoothed.mse_beta12),
-        ("v1", causal.mse_v1, smoothed.mse_v1),
-        ("w1", causal.mse_w1, smoothed.mse_w1),
+        ("l12", causal.mse.l12, smoothed.mse.l12),
+        ("alpha12", causal.mse.alpha12, smoothed.mse.alpha12),
+        ("beta12", causal.mse.beta12, smoothed.mse.beta12),
+        ("v1", causal.mse.v1, smoothed.mse.v1),
+        ("w1", causal.mse.w1, smoothed.mse.w1),
     ] {
         assert!(
             s.is_finite() && s <= c,

@@ -61,8 +61,6 @@
 
 mod smooth;
 
-pub use smooth::{FilterStep, SmoothedStep};
-
 use std::cell::Cell;
 
 use crate::mount::MEASUREMENT_SPACE;
@@ -80,6 +78,72 @@ type Dual = DualUkf<6, 2, 3, AngleMask<6>, Euclidean, AngleMask<3>>;
 type Joint = SVector<f64, 10>;
 type Matrix10 = SMatrix<f64, 10, 10>;
 type ImmFilter = Imm<10, 3, AngleMask<10>>;
+
+/// One step of a [`FormationFilter`]'s forward pass, as the smoother needs it: the filtered
+/// estimates after the step and the follower inputs applied over it. Recorded with
+/// [`FormationFilter::record`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FilterStep {
+    /// The follower's inputs `(v2, w2)` applied over the step that ended here (ignored for
+    /// the first step of a history).
+    pub inputs: Inputs,
+    /// The measurement `y = [l12, alpha12, beta12]` applied at this step, with its noise
+    /// covariance `R` (`None` for a predict-only step and for the initial estimate).
+    pub measurement: Option<(Vector3<f64>, Matrix3<f64>)>,
+    /// State estimate `[x1, y1, theta1, l12, alpha12, beta12]`.
+    pub state: PolarState,
+    /// Its covariance.
+    pub state_covariance: Matrix6,
+    /// Leader-velocity estimate `[v1, w1]`.
+    pub velocity: Vector2<f64>,
+    /// Its covariance.
+    pub velocity_covariance: Matrix2<f64>,
+    /// The IMM's whole mixed estimate over `[x, v1, w1, a_v, a_w]` after the step (`None`
+    /// for the dual UKF); the IMM smoother starts from the first step's.
+    pub joint: Option<dukf::Gaussian<10>>,
+    /// The IMM's model probabilities after the step (`None` for the dual UKF); the IMM
+    /// smoother's forward pass mixes the models' transitions with them.
+    pub model_probabilities: Option<[f64; 3]>,
+    /// The follower's controller the filter was told for the step that ended here
+    /// ([`FormationFilter::set_follower_controller`]; `None` if not told): the IMM
+    /// smoother's forward pass predicts that step with it, set-point changes included.
+    pub controller: Option<ControllerConfig>,
+}
+
+/// One smoothed step: the estimate of the state and the leader velocities given the whole
+/// recording.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SmoothedStep {
+    /// State estimate `[x1, y1, theta1, l12, alpha12, beta12]`.
+    pub state: PolarState,
+    /// Its covariance.
+    pub state_covariance: Matrix6,
+    /// Leader velocities `(v1, w1)` over the step that ended here (see the module
+    /// documentation).
+    pub velocity: Inputs,
+    /// Their covariance.
+    pub velocity_covariance: Matrix2<f64>,
+}
+
+impl SmoothedStep {
+    /// The smoothed formation variables.
+    pub fn formation(&self) -> Formation {
+        Formation::from_vector(&PolarModel::h(&self.state))
+    }
+
+    /// Standard deviations of `[l12, alpha12, beta12]`.
+    pub fn formation_std(&self) -> Vector3<f64> {
+        let d = self.state_covariance.diagonal();
+        Vector3::new(d[3], d[4], d[5]).map(|v| v.max(0.0).sqrt())
+    }
+
+    /// Standard deviations of `(v1, w1)`.
+    pub fn velocity_std(&self) -> Vector2<f64> {
+        self.velocity_covariance
+            .diagonal()
+            .map(|v| v.max(0.0).sqrt())
+    }
+}
 
 /// Errors of the formation filter.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -91,9 +91,8 @@ mod smooth;
 pub use config::{CHI2_3_999, TrackerConfig, TrackerError};
 pub use io::{
     FitResidual, FormationMeasurement, FrameInput, FrameReport, LeaderReport, LostReason,
-    MeasurementUse, Observation, PoseMeasurement, Status,
+    MeasurementUse, Observation, PoseMeasurement, PredictedLeader, Status,
 };
-pub use predict::PredictedLeader;
 pub use smooth::SmoothedLeader;
 
 use std::collections::BTreeMap;

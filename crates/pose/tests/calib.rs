@@ -15,7 +15,9 @@ fn fixture(name: &str) -> PathBuf {
 /// The format a fixture's text is read as.
 fn format_of(name: &str) -> CalibrationFormat {
     let text = std::fs::read_to_string(fixture(name)).expect("the fixture is readable");
-    Camera::from_yaml_str_with_format(&text).expect("the fixture parses").1
+    Camera::from_yaml_str_with_format(&text)
+        .expect("the fixture parses")
+        .1
 }
 
 #[test]

@@ -9,7 +9,7 @@ use formation_sim::reproduce::{Reproduction, Summary, reproduce, run_filter};
 use formation_sim::scenario_file::ScenarioSpec;
 use formation_tracker::filter::FilterDesign;
 
-use super::{CHECK_SEEDS, SEEDS, median, verdict, workspace_root};
+use super::common::{CHECK_SEEDS, SEEDS, median, verdict, workspace_root};
 use crate::Result;
 
 /// The smoothed median MSE of `l12` and `alpha12` must be at most this fraction of the
@@ -29,11 +29,11 @@ enum Target {
 }
 
 const FIELDS: [Field; 7] = [
-    ("MSE l12 [m^2]", |s| s.mse_l12, Target::Half),
-    ("MSE alpha12 [rad^2]", |s| s.mse_alpha12, Target::Half),
-    ("MSE beta12 [rad^2]", |s| s.mse_beta12, Target::None),
-    ("MSE v1 [(m/s)^2]", |s| s.mse_v1, Target::None),
-    ("MSE w1 [(rad/s)^2]", |s| s.mse_w1, Target::None),
+    ("MSE l12 [m^2]", |s| s.mse.l12, Target::Half),
+    ("MSE alpha12 [rad^2]", |s| s.mse.alpha12, Target::Half),
+    ("MSE beta12 [rad^2]", |s| s.mse.beta12, Target::None),
+    ("MSE v1 [(m/s)^2]", |s| s.mse.v1, Target::None),
+    ("MSE w1 [(rad/s)^2]", |s| s.mse.w1, Target::None),
     (
         "RMS v1 error after 2 s [m/s]",
         |s| s.rms_v1_after_2s,

@@ -60,53 +60,10 @@ pub struct Args {
 
 /// Runs `demo`.
 pub fn run(args: Args) -> Result<(), CliError> {
-    let mut config = match &args.scenario {
-        Some(path) => {
-            if args.robots != 2 {
-                return Err(super::Usage(format!(
-                    "--robots {} with --scenario: a scenario file describes two robots (a leader and one follower)",
-                    args.robots
-                ))
-                .into());
-            }
-            let spec = formation_sim::scenario_file::ScenarioSpec::load(path)?;
-            DemoConfig {
-                closed_loop: args.closed_loop,
-                ..DemoConfig::from_scenario(&spec)
-            }
-        }
-        None => DemoConfig {
-            robots: args.robots,
-            closed_loop: args.closed_loop,
-            ..DemoConfig::default()
-        },
-    };
-    config.render.seed = args.seed;
-    if let Some(frames) = &args.save_frames {
-        super::output::refuse_inputs_as_outputs(
-            &[("--save-frames", frames)],
-            &[("--out", &args.out)],
-        )?;
-    }
-    if let Some(scenario) = &args.scenario {
-        super::output::refuse_inputs_as_outputs(
-            &[("--out", &args.out)],
-            &[("--scenario", scenario)],
-        )?;
-    }
+    let config = config_of(&args)?;
+    refuse_inputs_as_outputs(&args)?;
     super::interrupt::install()?;
-    let estimate = formation_sim::demo::estimate_render_seconds(&config)?;
-    if estimate > 60.0 {
-        let subframes = config.motion_blur.map_or(1, |mb| mb.subframes.max(1));
-        errln!(
-            "demo: rendering will take about {} (estimated from a probe frame: {} frames of {}x{}, supersampling {}, {subframes} sub-frame(s)); lower them in the scenario's vision section to go faster",
-            duration_text(estimate),
-            ((config.duration / config.dt).round() as usize + 1) * (config.robots - 1),
-            config.camera.width,
-            config.camera.height,
-            config.render.supersampling,
-        );
-    }
+    announce_long_render(&config)?;
     super::prepare_out_dir(&args.out)?;
     // Every file goes to a temporary name and is renamed when the whole run is done: an
     // interrupted or failed demo leaves an earlier folder as it was.
@@ -172,6 +129,68 @@ pub fn run(args: Args) -> Result<(), CliError> {
         summary_text(&run.summary, started.elapsed().as_secs_f64())
     ))?;
     errln!("demo: wrote {}", args.out.display());
+    Ok(())
+}
+
+/// The demo's configuration: the scenario file's, or the built-in reference with `--robots`;
+/// `--closed-loop` and `--seed` on top.
+fn config_of(args: &Args) -> Result<DemoConfig, CliError> {
+    let mut config = match &args.scenario {
+        Some(path) => {
+            if args.robots != 2 {
+                return Err(super::Usage(format!(
+                    "--robots {} with --scenario: a scenario file describes two robots (a leader and one follower)",
+                    args.robots
+                ))
+                .into());
+            }
+            let spec = formation_sim::scenario_file::ScenarioSpec::load(path)?;
+            DemoConfig {
+                closed_loop: args.closed_loop,
+                ..DemoConfig::from_scenario(&spec)
+            }
+        }
+        None => DemoConfig {
+            robots: args.robots,
+            closed_loop: args.closed_loop,
+            ..DemoConfig::default()
+        },
+    };
+    config.render.seed = args.seed;
+    Ok(config)
+}
+
+/// Refuses, before any work, `--save-frames` inside `--out` and `--out` onto `--scenario`.
+fn refuse_inputs_as_outputs(args: &Args) -> Result<(), CliError> {
+    if let Some(frames) = &args.save_frames {
+        super::output::refuse_inputs_as_outputs(
+            &[("--save-frames", frames)],
+            &[("--out", &args.out)],
+        )?;
+    }
+    if let Some(scenario) = &args.scenario {
+        super::output::refuse_inputs_as_outputs(
+            &[("--out", &args.out)],
+            &[("--scenario", scenario)],
+        )?;
+    }
+    Ok(())
+}
+
+/// Says on stderr how long rendering will take when it is over a minute.
+fn announce_long_render(config: &DemoConfig) -> Result<(), CliError> {
+    let estimate = formation_sim::demo::estimate_render_seconds(config)?;
+    if estimate > 60.0 {
+        let subframes = config.motion_blur.map_or(1, |mb| mb.subframes.max(1));
+        errln!(
+            "demo: rendering will take about {} (estimated from a probe frame: {} frames of {}x{}, supersampling {}, {subframes} sub-frame(s)); lower them in the scenario's vision section to go faster",
+            duration_text(estimate),
+            ((config.duration / config.dt).round() as usize + 1) * (config.robots - 1),
+            config.camera.width,
+            config.camera.height,
+            config.render.supersampling,
+        );
+    }
     Ok(())
 }
 
@@ -365,20 +384,20 @@ fn summary_text(s: &DemoSummary, wall_s: f64) -> String {
     let _ = writeln!(
         t,
         "  l12        {:10.3e}   {:11.3e}   1.88e-4",
-        s.mse_meas_l12, s.mse_l12
+        s.mse.meas_l12, s.mse.l12
     );
     let _ = writeln!(
         t,
         "  alpha12    {:10.3e}   {:11.3e}   7.22e-5",
-        s.mse_meas_alpha12, s.mse_alpha12
+        s.mse.meas_alpha12, s.mse.alpha12
     );
     let _ = writeln!(
         t,
         "  beta12     {:10.3e}   {:11.3e}",
-        s.mse_meas_beta12, s.mse_beta12
+        s.mse.meas_beta12, s.mse.beta12
     );
-    let _ = writeln!(t, "  v1                      {:11.3e}", s.mse_v1);
-    let _ = writeln!(t, "  w1                      {:11.3e}", s.mse_w1);
+    let _ = writeln!(t, "  v1                      {:11.3e}", s.mse.v1);
+    let _ = writeln!(t, "  w1                      {:11.3e}", s.mse.w1);
     let _ = writeln!(
         t,
         "  tracked MSE over the {} frames with a measurement: l12 {:.3e}, alpha12 {:.3e}, beta12 {:.3e}; over the {} coasting frames: l12 {:.3e}, alpha12 {:.3e}, beta12 {:.3e}",

@@ -231,6 +231,18 @@ fn dictionaries(
     Ok(out)
 }
 
+/// What every image of a run is read with.
+struct Context<'a> {
+    args: &'a Args,
+    stage: Option<super::detect_robots::RobotStage>,
+    rig: RigModel,
+    sizes: super::marker_pose::MarkerSizes,
+    /// Each dictionary's standard name, in the detector's order.
+    names: Vec<&'static str>,
+    /// The rig's dictionary among them (the robot stage reads it only).
+    rig_dict: Option<usize>,
+}
+
 /// Reads every image; reports unreadable ones on stderr and, at the end, ends with a partial
 /// result (exit code 3) if some were, or an error if all were.
 pub fn run(args: &Args) -> Result<(), CliError> {
@@ -240,13 +252,11 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         Some(stage) => stage.rig.clone(),
         None => super::detect_robots::RobotStage::rig(&args.robots, dict)?,
     };
-    let sizes = super::marker_pose::MarkerSizes::new(&args.marker_size);
     let dicts = dictionaries(&args.dictionaries, &rig)?;
     let names: Vec<&'static str> = dicts
         .iter()
         .map(|d| d.name().unwrap_or(fiducial::PAPER_NAME))
         .collect();
-    // The robot stage reads the rig's dictionary only.
     let rig_dict = names.iter().position(|n| *n == rig.dictionary);
     let mut detector = Detector::with_dictionaries(
         DetectorConfig {
@@ -257,161 +267,22 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         dicts.into_iter().cloned().collect(),
     )
     .map_err(|e| e.to_string())?;
-    let mut rig_markers = Vec::new();
+    let context = Context {
+        args,
+        stage,
+        rig,
+        sizes: super::marker_pose::MarkerSizes::new(&args.marker_size),
+        names,
+        rig_dict,
+    };
     let mut found = Vec::new();
     let mut failed = 0usize;
     for path in &args.images {
-        let grey = match formation_io::frames::read_grey_with_max_side(path, args.max_side) {
-            Ok(grey) => grey,
+        match detect_image(&context, &mut detector, path, &mut found) {
+            Ok(out) => write_image(args.json, &out)?,
             Err(err) => {
                 super::progress::errln!("formation-tracker: error: {}: {err}", path.display());
                 failed += 1;
-                continue;
-            }
-        };
-        let (w, h) = (grey.width, grey.height);
-        let view = match GrayView::new(&grey.data, w, h) {
-            Ok(v) => v,
-            Err(err) => {
-                super::progress::errln!("formation-tracker: error: {}: {err}", path.display());
-                failed += 1;
-                continue;
-            }
-        };
-        let t0 = Instant::now();
-        detector.find_quads(&view);
-        let t1 = Instant::now();
-        detector.decode_quads(&view, &mut found);
-        let t2 = Instant::now();
-        rig_markers.clear();
-        rig_markers.extend(
-            found
-                .iter()
-                .filter(|d| Some(d.dictionary) == rig_dict)
-                .copied(),
-        );
-        let (robots, rejected) = match &stage {
-            None => (Vec::new(), Vec::new()),
-            Some(stage) => match stage.measure(&rig_markers, w as u32, h as u32) {
-                Ok((robots, failures)) => (
-                    robots.iter().map(RobotOut::from).collect(),
-                    failures
-                        .iter()
-                        .map(|f| RejectedOut {
-                            robot: f.robot(),
-                            marker: None,
-                            reason: f.to_string(),
-                        })
-                        .collect(),
-                ),
-                Err(err) => {
-                    super::progress::errln!("formation-tracker: error: {}: {err}", path.display());
-                    failed += 1;
-                    continue;
-                }
-            },
-        };
-        let mut markers: Vec<MarkerOut> = found
-            .iter()
-            .map(|d| marker_out(d, names[d.dictionary], &rig))
-            .collect();
-        let mut rejected = rejected;
-        if let Some(stage) = stage.as_ref().filter(|_| !sizes.is_empty()) {
-            let calibration = match stage.calibration_for(w as u32, h as u32) {
-                Ok(c) => c,
-                Err(err) => {
-                    super::progress::errln!("formation-tracker: error: {}: {err}", path.display());
-                    failed += 1;
-                    continue;
-                }
-            };
-            for (m, d) in markers.iter_mut().zip(&found) {
-                match super::marker_pose::marker_pose(&calibration, &sizes, d.index, &d.corners) {
-                    Ok(pose) => m.pose = pose,
-                    Err(reason) => {
-                        super::progress::errln!("formation-tracker: warning: {reason}");
-                        rejected.push(RejectedOut {
-                            robot: None,
-                            marker: Some(d.index),
-                            reason,
-                        });
-                    }
-                }
-            }
-        }
-        let out = ImageOut {
-            image: path.display().to_string(),
-            width: w,
-            height: h,
-            markers,
-            robots,
-            rejected,
-            timing: Timing {
-                detect_ms: (t1 - t0).as_secs_f64() * 1e3,
-                decode_ms: (t2 - t1).as_secs_f64() * 1e3,
-            },
-        };
-        if args.json {
-            super::outln!("{}", serde_json::to_string(&out)?)?;
-        } else {
-            super::outln!(
-                "{}: {}x{}, {} marker(s), detect {:.2} ms",
-                out.image,
-                w,
-                h,
-                out.markers.len(),
-                out.timing.detect_ms
-            )?;
-            for m in &out.markers {
-                let c = m.corners;
-                let who = match (m.robot, m.face, m.code) {
-                    (Some(r), Some(f), Some(code)) => {
-                        format!("robot {r} face {f} (code {code}, index {}, ", m.index)
-                    }
-                    (Some(r), Some(f), None) => {
-                        format!("robot {r} face {f} ({} id {}, ", m.dictionary, m.id)
-                    }
-                    _ => format!("{} id {} (", m.dictionary, m.id),
-                };
-                super::outln!(
-                    "  {}{} bit(s) corrected) NW ({:.2}, {:.2}) NE ({:.2}, {:.2}) SE ({:.2}, {:.2}) SW ({:.2}, {:.2})",
-                    who,
-                    m.hamming,
-                    c[0][0],
-                    c[0][1],
-                    c[1][0],
-                    c[1][1],
-                    c[2][0],
-                    c[2][1],
-                    c[3][0],
-                    c[3][1]
-                )?;
-                if let Some(p) = &m.pose {
-                    let t = p.translation;
-                    super::outln!(
-                        "    pose: centre ({:.3}, {:.3}, {:.3}) m, {:.3} m away, rotation {:.1} deg, reprojection {:.2} px",
-                        t[0],
-                        t[1],
-                        t[2],
-                        (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt(),
-                        (p.rotation[0].powi(2) + p.rotation[1].powi(2) + p.rotation[2].powi(2))
-                            .sqrt()
-                            .to_degrees(),
-                        p.reprojection_rms_px
-                    )?;
-                }
-            }
-            for r in &out.robots {
-                super::outln!(
-                    "  robot {} pose from faces {:?}: l12 {:.3} m, alpha12 {:.2} deg, beta12 {:.2} deg, reprojection {:.2} px{}",
-                    r.robot,
-                    r.faces,
-                    r.l12,
-                    r.alpha12.to_degrees(),
-                    r.beta12.to_degrees(),
-                    r.reprojection_rms_px,
-                    if r.ambiguous { " (ambiguous)" } else { "" }
-                )?;
             }
         }
     }
@@ -421,4 +292,147 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         f if f == total => Err(format!("none of the {total} image(s) could be read").into()),
         f => Err(super::Partial(format!("{f} of {total} image(s) could not be read")).into()),
     }
+}
+
+/// One image: its markers (in every dictionary), its robots and their rejections, and with
+/// `--marker-size` each marker's own pose; the error says why the image could not be read.
+fn detect_image(
+    c: &Context<'_>,
+    detector: &mut Detector,
+    path: &std::path::Path,
+    found: &mut Vec<Decoded>,
+) -> Result<ImageOut, String> {
+    let grey = formation_io::frames::read_grey_with_max_side(path, c.args.max_side)?;
+    let (w, h) = (grey.width, grey.height);
+    let view = GrayView::new(&grey.data, w, h).map_err(|e| e.to_string())?;
+    let t0 = Instant::now();
+    detector.find_quads(&view);
+    let t1 = Instant::now();
+    detector.decode_quads(&view, found);
+    let t2 = Instant::now();
+    let rig_markers: Vec<Decoded> = found
+        .iter()
+        .filter(|d| Some(d.dictionary) == c.rig_dict)
+        .copied()
+        .collect();
+    let (robots, mut rejected) = match &c.stage {
+        None => (Vec::new(), Vec::new()),
+        Some(stage) => {
+            let (robots, failures) = stage
+                .measure(&rig_markers, w as u32, h as u32)
+                .map_err(|e| e.to_string())?;
+            let rejected = failures
+                .iter()
+                .map(|f| RejectedOut {
+                    robot: f.robot(),
+                    marker: None,
+                    reason: f.to_string(),
+                })
+                .collect();
+            (robots.iter().map(RobotOut::from).collect(), rejected)
+        }
+    };
+    let mut markers: Vec<MarkerOut> = found
+        .iter()
+        .map(|d| marker_out(d, c.names[d.dictionary], &c.rig))
+        .collect();
+    if let Some(stage) = c.stage.as_ref().filter(|_| !c.sizes.is_empty()) {
+        let calibration = stage
+            .calibration_for(w as u32, h as u32)
+            .map_err(|e| e.to_string())?;
+        for (m, d) in markers.iter_mut().zip(found.iter()) {
+            match super::marker_pose::marker_pose(&calibration, &c.sizes, d.index, &d.corners) {
+                Ok(pose) => m.pose = pose,
+                Err(reason) => {
+                    super::progress::errln!("formation-tracker: warning: {reason}");
+                    rejected.push(RejectedOut {
+                        robot: None,
+                        marker: Some(d.index),
+                        reason,
+                    });
+                }
+            }
+        }
+    }
+    Ok(ImageOut {
+        image: path.display().to_string(),
+        width: w,
+        height: h,
+        markers,
+        robots,
+        rejected,
+        timing: Timing {
+            detect_ms: (t1 - t0).as_secs_f64() * 1e3,
+            decode_ms: (t2 - t1).as_secs_f64() * 1e3,
+        },
+    })
+}
+
+/// One image's output: a JSON line with `--json`, else text lines.
+fn write_image(json: bool, out: &ImageOut) -> Result<(), CliError> {
+    let (w, h) = (out.width, out.height);
+    if json {
+        super::outln!("{}", serde_json::to_string(out)?)?;
+    } else {
+        super::outln!(
+            "{}: {}x{}, {} marker(s), detect {:.2} ms",
+            out.image,
+            w,
+            h,
+            out.markers.len(),
+            out.timing.detect_ms
+        )?;
+        for m in &out.markers {
+            let c = m.corners;
+            let who = match (m.robot, m.face, m.code) {
+                (Some(r), Some(f), Some(code)) => {
+                    format!("robot {r} face {f} (code {code}, index {}, ", m.index)
+                }
+                (Some(r), Some(f), None) => {
+                    format!("robot {r} face {f} ({} id {}, ", m.dictionary, m.id)
+                }
+                _ => format!("{} id {} (", m.dictionary, m.id),
+            };
+            super::outln!(
+                "  {}{} bit(s) corrected) NW ({:.2}, {:.2}) NE ({:.2}, {:.2}) SE ({:.2}, {:.2}) SW ({:.2}, {:.2})",
+                who,
+                m.hamming,
+                c[0][0],
+                c[0][1],
+                c[1][0],
+                c[1][1],
+                c[2][0],
+                c[2][1],
+                c[3][0],
+                c[3][1]
+            )?;
+            if let Some(p) = &m.pose {
+                let t = p.translation;
+                super::outln!(
+                    "    pose: centre ({:.3}, {:.3}, {:.3}) m, {:.3} m away, rotation {:.1} deg, reprojection {:.2} px",
+                    t[0],
+                    t[1],
+                    t[2],
+                    (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt(),
+                    (p.rotation[0].powi(2) + p.rotation[1].powi(2) + p.rotation[2].powi(2))
+                        .sqrt()
+                        .to_degrees(),
+                    p.reprojection_rms_px
+                )?;
+            }
+        }
+        for r in &out.robots {
+            super::outln!(
+                "  robot {} pose from faces {:?}: l12 {:.3} m, alpha12 {:.2} deg, beta12 {:.2} deg, reprojection {:.2} px{}",
+                r.robot,
+                r.faces,
+                r.l12,
+                r.alpha12.to_degrees(),
+                r.beta12.to_degrees(),
+                r.reprojection_rms_px,
+                if r.ambiguous { " (ambiguous)" } else { "" }
+            )?;
+        }
+    }
+    Ok(())
 }

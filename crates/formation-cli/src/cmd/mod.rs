@@ -279,4 +279,3 @@ pub mod render;
 pub mod reproduce;
 pub mod reproduce_scenes;
 pub mod track;
-pub mod track_bag;

@@ -399,9 +399,9 @@ pub fn summary_table(s: &Summary) -> String {
         "variable", "MSE estimate", "MSE measured", "ratio"
     );
     for (name, est, meas) in [
-        ("l12", s.mse_l12, s.mse_meas_l12),
-        ("alpha12", s.mse_alpha12, s.mse_meas_alpha12),
-        ("beta12", s.mse_beta12, s.mse_meas_beta12),
+        ("l12", s.mse.l12, s.mse.meas_l12),
+        ("alpha12", s.mse.alpha12, s.mse.meas_alpha12),
+        ("beta12", s.mse.beta12, s.mse.meas_beta12),
     ] {
         let _ = writeln!(
             t,
@@ -409,8 +409,8 @@ pub fn summary_table(s: &Summary) -> String {
             meas / est
         );
     }
-    let _ = writeln!(t, "{:<10} {:>14.3e}", "v1", s.mse_v1);
-    let _ = writeln!(t, "{:<10} {:>14.3e}", "w1", s.mse_w1);
+    let _ = writeln!(t, "{:<10} {:>14.3e}", "v1", s.mse.v1);
+    let _ = writeln!(t, "{:<10} {:>14.3e}", "w1", s.mse.w1);
     let _ = writeln!(
         t,
         "RMS error after t = 2 s: v1 {:.4} m/s, w1 {:.4} rad/s",

@@ -74,17 +74,14 @@
 use std::cell::Cell;
 
 use dukf::{AngleMask, Gaussian, UkfError};
-use nalgebra::{Matrix2, Matrix3, SMatrix, SVector, Vector2, Vector3};
-use unicycle::{
-    ControllerConfig, Formation, Inputs, MEASUREMENT_ANGLES, PolarModel, PolarState, STATE_ANGLES,
-    UnicycleError,
-};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3};
+use unicycle::{Inputs, MEASUREMENT_ANGLES, PolarState, STATE_ANGLES, UnicycleError};
 
 use crate::mount::MEASUREMENT_SPACE;
 
 use super::{
-    Engine, FilterDesign, FilterError, FormationFilter, ImmEngine, Joint, Matrix6, imm_process,
-    outcome, remember,
+    Engine, FilterDesign, FilterError, FilterStep, FormationFilter, ImmEngine, Joint, Matrix6,
+    SmoothedStep, imm_process, outcome, remember,
 };
 
 type Augmented = SVector<f64, 8>;
@@ -95,72 +92,6 @@ type Matrix7 = SMatrix<f64, 7, 7>;
 /// The leader's pose in the world, `[x1, y1, theta1]`, heads the state: no measurement sees
 /// it and no other component's motion depends on it, so it is left out of the IMM's smoother.
 const HIDDEN: usize = 3;
-
-/// One step of a [`FormationFilter`]'s forward pass, as the smoother needs it: the filtered
-/// estimates after the step and the follower inputs applied over it. Recorded with
-/// [`FormationFilter::record`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FilterStep {
-    /// The follower's inputs `(v2, w2)` applied over the step that ended here (ignored for
-    /// the first step of a history).
-    pub inputs: Inputs,
-    /// The measurement `y = [l12, alpha12, beta12]` applied at this step, with its noise
-    /// covariance `R` (`None` for a predict-only step and for the initial estimate).
-    pub measurement: Option<(Vector3<f64>, Matrix3<f64>)>,
-    /// State estimate `[x1, y1, theta1, l12, alpha12, beta12]`.
-    pub state: PolarState,
-    /// Its covariance.
-    pub state_covariance: Matrix6,
-    /// Leader-velocity estimate `[v1, w1]`.
-    pub velocity: Vector2<f64>,
-    /// Its covariance.
-    pub velocity_covariance: Matrix2<f64>,
-    /// The IMM's whole mixed estimate over `[x, v1, w1, a_v, a_w]` after the step (`None`
-    /// for the dual UKF); the IMM smoother starts from the first step's.
-    pub joint: Option<Gaussian<10>>,
-    /// The IMM's model probabilities after the step (`None` for the dual UKF); the IMM
-    /// smoother's forward pass mixes the models' transitions with them.
-    pub model_probabilities: Option<[f64; 3]>,
-    /// The follower's controller the filter was told for the step that ended here
-    /// ([`FormationFilter::set_follower_controller`]; `None` if not told): the IMM
-    /// smoother's forward pass predicts that step with it, set-point changes included.
-    pub controller: Option<ControllerConfig>,
-}
-
-/// One smoothed step: the estimate of the state and the leader velocities given the whole
-/// recording.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SmoothedStep {
-    /// State estimate `[x1, y1, theta1, l12, alpha12, beta12]`.
-    pub state: PolarState,
-    /// Its covariance.
-    pub state_covariance: Matrix6,
-    /// Leader velocities `(v1, w1)` over the step that ended here (see the module
-    /// documentation).
-    pub velocity: Inputs,
-    /// Their covariance.
-    pub velocity_covariance: Matrix2<f64>,
-}
-
-impl SmoothedStep {
-    /// The smoothed formation variables.
-    pub fn formation(&self) -> Formation {
-        Formation::from_vector(&PolarModel::h(&self.state))
-    }
-
-    /// Standard deviations of `[l12, alpha12, beta12]`.
-    pub fn formation_std(&self) -> Vector3<f64> {
-        let d = self.state_covariance.diagonal();
-        Vector3::new(d[3], d[4], d[5]).map(|v| v.max(0.0).sqrt())
-    }
-
-    /// Standard deviations of `(v1, w1)`.
-    pub fn velocity_std(&self) -> Vector2<f64> {
-        self.velocity_covariance
-            .diagonal()
-            .map(|v| v.max(0.0).sqrt())
-    }
-}
 
 impl FormationFilter {
     /// The current estimates as one step of a history for [`smooth`](Self::smooth); `u` are

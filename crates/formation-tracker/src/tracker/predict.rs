@@ -4,20 +4,8 @@
 use nalgebra::Vector3;
 use unicycle::Inputs;
 
+use super::io::PredictedLeader;
 use super::{Hypothesis, Tracker};
-
-/// One hypothesis of one leader, predicted to a coming frame.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PredictedLeader {
-    /// Robot id.
-    pub robot: u32,
-    /// Predicted `[l12, alpha12, beta12]` (m, rad, rad).
-    pub formation: Vector3<f64>,
-    /// Their predicted standard deviations (m, rad, rad).
-    pub std: Vector3<f64>,
-    /// The track was not updated by the last frame (it is coasting).
-    pub coasting: bool,
-}
 
 impl Tracker {
     /// Every live hypothesis of every track (a single-face start still being confirmed has

@@ -1,0 +1,98 @@
+//! Every tunable of the detector, in one struct with documented defaults.
+
+use crate::decode::DecodeParams;
+use crate::refine::RefineConfig;
+use crate::sides::SideCheck;
+use crate::threshold::Threshold;
+
+/// Every tunable of the detector, with documented defaults ([`DetectorConfig::default`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DetectorConfig {
+    /// Binarization (default: adaptive tiles of 8 px, minimum contrast 30).
+    pub threshold: Threshold,
+    /// Shortest marker side in pixels (default 10).
+    pub min_side: f64,
+    /// Smallest interior corner angle in degrees, allowing for perspective (default 30).
+    pub min_angle_deg: f64,
+    /// Straightness tolerance of a side: absolute pixels (default 1.5)...
+    pub line_tolerance: f64,
+    /// ...plus this fraction of the side length (default 0.05).
+    pub line_tolerance_rel: f64,
+    /// Components closer than this many pixels to the frame border are rejected (default 2).
+    pub border_margin: u32,
+    /// Sub-pixel refinement settings (default: [`RefineConfig::default`]).
+    pub refine: RefineConfig,
+    /// Decoding settings (default: [`DecodeParams::default`] but with soft-decision instead
+    /// of hard bit correction and samples over +-0.1 cell, see [`DetectorConfig::default`]).
+    pub decode: DecodeParams,
+    /// Read a quad whose sampled cells are not an entry once more as a motion-blurred
+    /// marker (blur estimated from its edges, cell levels solved by least squares; issue
+    /// #16). Default on: only quads whose plain reading had a marker's contrast and dark
+    /// border, and whose edges show a motion of at least 1.5 cells, are re-read (counted by
+    /// [`crate::Detector::blurred_reads`]); its systems are solved in scratch the detector owns (no
+    /// allocation in steady state), and a marker it reads passes the side check like any
+    /// other. With it on, the boxes of dark components that gave no quad (up to 160 px)
+    /// are also cut nearer the white level, where a marker smeared by two cells or more
+    /// still has a closed outline ([`crate::Detector`]'s light cut).
+    pub motion_blur: bool,
+    /// Drop a decoded marker one of whose sides is not its border's outer edge, as when the
+    /// side runs along an occluder ([`crate::sides`], issue #16). Default on, with
+    /// [`SideCheck::default`]; `None` turns it off.
+    pub side_check: Option<SideCheck>,
+    /// Look for quads in the boundary clusters of large dark components that gave no quad
+    /// ([`crate::cluster::Clusterer`], AprilTag 3's quad search; issue #13): finds markers whose border has
+    /// merged with something as dark as their ink, e.g. flat tags at grazing angles on real
+    /// frames (it reads the last 4 of the 56 Duckietown tags). Default off here (the
+    /// per-frame loop of a robot; `formation-tracker detect` turns it on): it labels the
+    /// boxes of every large component that gave no quad, often most of a real or
+    /// cluttered frame (measured on one core: 640x480 clutter frames 2.2-6.1 ms a frame
+    /// without it, 9.5-13.1 ms with it; the 11 Duckietown frames 2.0 ms a frame without,
+    /// 5.6 ms with; nothing on the synthetic marker scenes, whose dark components are all
+    /// quads).
+    pub boundary_clusters: bool,
+}
+
+impl Default for DetectorConfig {
+    /// The defaults documented on each field.
+    ///
+    /// Hard bit correction is off (`decode.max_errors = 0`): a black-bordered square with
+    /// random content lies within two bits of one of the paper dictionary's 100 codes (in
+    /// either orientation) with probability about 4 %, within one bit about 0.4 %, so in
+    /// cluttered scenes hard correction invents markers (`docs/detector-accuracy.md` counts
+    /// them: 1-bit correction read 8 codes in 1000 clutter frames, 2-bit 79).
+    ///
+    /// Soft-decision correction is on (`decode.soft_errors = 2`, `decode.soft_margin =
+    /// 0.3`): a reading may have its one or two *least confident* cells flipped, each only if
+    /// its level is within 0.3 of half the contrast from the threshold, and the result must
+    /// then be an entry exactly. Real markers that misread do so in a cell at the threshold
+    /// (all 6 markers lost on the accuracy scenes without it were ~20 px markers, cells of
+    /// ~3 px under blur 1, with one wrong bit of margin below 0.12), while a clutter square
+    /// or a foreign marker that is one bit from an entry is so in a confident cell. On the
+    /// accuracy scenes this finds 1600/1600 markers with no false read in 1000 clutter
+    /// frames or 800 foreign markers.
+    ///
+    /// Cells are sampled over +-0.1 cell rather than +-0.25: on the smallest markers (cells
+    /// of about 3 px, blur sigma 1) the wider square reaches into the blur of neighbouring
+    /// cells, and 8 of 9 markers lost on the accuracy scenes were such misreads.
+    fn default() -> Self {
+        Self {
+            threshold: Threshold::default(),
+            min_side: 10.0,
+            min_angle_deg: 30.0,
+            line_tolerance: 1.5,
+            line_tolerance_rel: 0.05,
+            border_margin: 2,
+            refine: RefineConfig::default(),
+            decode: DecodeParams {
+                max_errors: 0,
+                sample_radius: 0.1,
+                soft_errors: 2,
+                soft_margin: 0.3,
+                ..DecodeParams::default()
+            },
+            motion_blur: true,
+            side_check: Some(SideCheck::default()),
+            boundary_clusters: false,
+        }
+    }
+}

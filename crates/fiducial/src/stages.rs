@@ -1,0 +1,262 @@
+//! The per-component stages that serial and banded-parallel detection share: what one scan
+//! needs to examine a component (trace, fit, refine), what decoding a quad needs, and the
+//! merge of readings. `detector` runs them on the calling thread, `parallel` on rayon's
+//! threads; neither module imports the other's internals, both import these.
+
+use nalgebra::Point2;
+
+use crate::contour::{Component, trace_outer};
+use crate::decode::{
+    CellReading, Decoded, Rejection, WhiteReference, match_reading, read_oriented,
+};
+use crate::dictionary::Dictionary;
+use crate::image::{Corners, GrayView};
+use crate::quad::{QuadLimits, fit_quad};
+use crate::refine::Refiner;
+use crate::sides::side_offsets;
+use crate::split::Rect;
+
+use crate::config::DetectorConfig;
+
+/// A candidate marker outline with sub-pixel corners.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Quad {
+    /// Corners in pixel-centre coordinates, clockwise in the image (v down). Which corner is
+    /// the marker's north-west is only known after decoding.
+    pub corners: Corners,
+    /// Mean grey-level step across the four edges (0-255): a confidence measure.
+    pub contrast: f64,
+}
+
+/// What one scan of [`Detector::find_quads_scaled`] needs to examine a component.
+pub(crate) struct Scan<'a, 'i> {
+    pub(crate) img: &'a GrayView<'i>,
+    pub(crate) bin: &'a [u8],
+    pub(crate) w: usize,
+    pub(crate) h: usize,
+    pub(crate) limits: &'a QuadLimits,
+    pub(crate) margin: u32,
+    pub(crate) min_side: u32,
+    pub(crate) factor: usize,
+    pub(crate) config: &'a DetectorConfig,
+    pub(crate) cells_across: f64,
+}
+
+/// The fate of one component.
+pub(crate) enum Examined {
+    /// A refined quad.
+    Quad(Quad),
+    /// No quad: its box goes to the re-cut ([`Splitter`]).
+    Retry(Rect),
+    /// Rejected outright.
+    Dropped,
+}
+
+impl Scan<'_, '_> {
+    /// Whether `c` is too small to hold a marker: [`Scan::examine`] drops it first thing.
+    pub(crate) fn too_small(&self, c: &Component) -> bool {
+        let bw = c.x_max - c.x_min + 1;
+        let bh = c.y_max - c.y_min + 1;
+        bw.max(bh) < self.min_side || bw.min(bh) < self.min_side / 2
+    }
+
+    /// Cheap rejections, tracing, quad fit and refinement of one component.
+    pub(crate) fn examine(
+        &self,
+        c: &Component,
+        contour: &mut Vec<[i32; 2]>,
+        refiner: &mut Refiner,
+    ) -> Examined {
+        let (w, h, m) = (self.w, self.h, self.margin);
+        let cfg = self.config;
+        let bw = c.x_max - c.x_min + 1;
+        let bh = c.y_max - c.y_min + 1;
+        // Cheap rejections first: size, frame border, sparsity.
+        if self.too_small(c) {
+            return Examined::Dropped;
+        }
+        let rect = Rect {
+            x0: c.x_min,
+            y0: c.y_min,
+            x1: c.x_max,
+            y1: c.y_max,
+        };
+        if c.pixels < bw.max(bh) + bw.min(bh)
+            || c.x_min < m
+            || c.y_min < m
+            || c.x_max as usize + m as usize >= w
+            || c.y_max as usize + m as usize >= h
+        {
+            return Examined::Retry(rect);
+        }
+        let max_len = 2 * (bw + bh) as usize + 16;
+        if !trace_outer(self.bin, w, c.start_x, c.y_min, max_len, contour) {
+            return Examined::Retry(rect);
+        }
+        let Some(mut coarse) = fit_quad(contour, self.limits) else {
+            return Examined::Retry(rect);
+        };
+        if self.factor > 1 {
+            // Small pixel i covers full pixels f i .. f i + f - 1: its centre is at
+            // f i + (f - 1) / 2 in full-resolution pixel-centre coordinates.
+            let scale = self.factor as f64;
+            let off = 0.5 * (scale - 1.0);
+            for c in &mut coarse {
+                c[0] = c[0] * scale + off;
+                c[1] = c[1] * scale + off;
+            }
+        }
+        let Some((corners, contrast)) = refiner.refine(
+            self.img,
+            &coarse,
+            &cfg.refine,
+            cfg.min_angle_deg,
+            self.cells_across,
+        ) else {
+            return Examined::Dropped;
+        };
+        Examined::Quad(Quad {
+            corners: corners.map(|[x, y]| Point2::new(x, y)),
+            contrast,
+        })
+    }
+}
+
+/// Scratch of decoding one quad at a time, owned by the detector (one per thread in
+/// [`Detector::detect_parallel`]).
+#[derive(Debug, Clone)]
+pub(crate) struct Decoding {
+    /// Per dictionary, the reading of the current quad (valid where `grid_of[i] == i`).
+    readings: Vec<Option<(u8, CellReading)>>,
+    pattern: crate::pattern::PatternRefiner,
+    /// Scratch of the motion-blurred reading ([`DetectorConfig::motion_blur`]).
+    pub(crate) blur: crate::blur::BlurScratch,
+}
+
+impl Decoding {
+    /// Scratch for `dictionaries` dictionaries.
+    pub(crate) fn new(dictionaries: usize) -> Self {
+        Self {
+            readings: vec![None; dictionaries],
+            pattern: crate::pattern::PatternRefiner::default(),
+            blur: crate::blur::BlurScratch::default(),
+        }
+    }
+}
+
+/// What decoding a quad reads from the detector (shared by its threads).
+pub(crate) struct DecodeContext<'a> {
+    pub(crate) config: &'a DetectorConfig,
+    pub(crate) dictionaries: &'a [Dictionary],
+    pub(crate) grid_of: &'a [usize],
+}
+
+impl DecodeContext<'_> {
+    /// The number of dictionaries.
+    pub(crate) fn dictionaries(&self) -> usize {
+        self.dictionaries.len()
+    }
+
+    /// Reads quad `q` of `img`: the decoded marker with its corners refined against its
+    /// pattern, or `None` when it is not a marker (or a side of it runs along an occluder).
+    pub(crate) fn decode(
+        &self,
+        img: &GrayView<'_>,
+        q: &Quad,
+        scratch: &mut Decoding,
+    ) -> Option<Decoded> {
+        let params = &self.config.decode;
+        let mut best: Option<Decoded> = None;
+        // Whether some grid read as a marker's (contrast, and a dark border or nearly):
+        // only such a quad is worth the motion-blurred reading.
+        let mut marker_like = false;
+        for (i, dict) in self.dictionaries.iter().enumerate() {
+            let g = self.grid_of[i];
+            if g == i {
+                let r = read_oriented(
+                    img,
+                    &q.corners,
+                    dict.family(),
+                    WhiteReference::of(dict),
+                    params,
+                );
+                marker_like |= matches!(r, Ok(_) | Err(Rejection::BorderNotDark { .. }));
+                scratch.readings[i] = r.ok();
+            }
+            let Some((s, reading)) = &scratch.readings[g] else {
+                continue;
+            };
+            if let Some(mut d) = match_reading(&q.corners, *s, reading, dict, params)
+                && best.is_none_or(|b| d.distance < b.distance)
+            {
+                d.dictionary = i;
+                best = Some(d);
+            }
+        }
+        // Not an entry as sampled: read it as a motion-blurred marker (issue #16).
+        let best = best.or_else(|| {
+            (self.config.motion_blur && marker_like)
+                .then(|| {
+                    crate::blur::decode_blurred(
+                        img,
+                        &q.corners,
+                        self.dictionaries,
+                        params,
+                        &mut scratch.blur,
+                    )
+                })
+                .flatten()
+        });
+        let mut d = best?;
+        // A side along an occluder, not the border (issue #16).
+        if let Some(check) = &self.config.side_check {
+            let family = self.dictionaries[d.dictionary].family();
+            if side_offsets(img, &d, family, check).is_some_and(|o| !o.consistent()) {
+                return None;
+            }
+        }
+        if self.config.refine.with_pattern {
+            let family = self.dictionaries[d.dictionary].family();
+            if let Some(c) = scratch.pattern.refine(
+                img,
+                &d.corners.map(|p| [p.x, p.y]),
+                family,
+                d.code,
+                &self.config.refine,
+            ) {
+                d.corners = c.map(|[x, y]| Point2::new(x, y));
+            }
+        }
+        Some(d)
+    }
+}
+
+/// Adds `d` to `out` unless a reading of the same marker is there (then the better of the
+/// two is kept: fewer bit errors, then higher contrast).
+pub(crate) fn push_unique(out: &mut Vec<Decoded>, d: Decoded) {
+    match out
+        .iter_mut()
+        .find(|o| o.dictionary == d.dictionary && o.index == d.index && overlaps(o, &d))
+    {
+        Some(o) => {
+            if (d.distance, -d.contrast) < (o.distance, -o.contrast) {
+                *o = d;
+            }
+        }
+        None => out.push(d),
+    }
+}
+
+/// Two readings of one marker: their centres are within half a side of each other.
+fn overlaps(a: &Decoded, b: &Decoded) -> bool {
+    let ca = a
+        .corners
+        .iter()
+        .fold([0.0, 0.0], |s, p| [s[0] + p.x / 4.0, s[1] + p.y / 4.0]);
+    let cb = b
+        .corners
+        .iter()
+        .fold([0.0, 0.0], |s, p| [s[0] + p.x / 4.0, s[1] + p.y / 4.0]);
+    let side = (a.corners[1] - a.corners[0]).norm();
+    (ca[0] - cb[0]).hypot(ca[1] - cb[1]) < 0.5 * side
+}

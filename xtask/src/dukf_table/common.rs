@@ -1,0 +1,37 @@
+//! What the dukf table and its smoothing section share: the seeds and small helpers.
+
+use std::path::PathBuf;
+
+use crate::Result;
+
+/// The seeds the tables are tuned and reported on.
+pub const SEEDS: std::ops::RangeInclusive<u64> = 1..=20;
+/// Seeds never used for tuning, reported as a check.
+pub const CHECK_SEEDS: std::ops::RangeInclusive<u64> = 21..=40;
+
+/// The median of `v` (NaN when empty).
+pub fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n == 0 {
+        f64::NAN
+    } else if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// `pass` or `FAIL`.
+pub fn verdict(ok: bool) -> &'static str {
+    if ok { "pass" } else { "FAIL" }
+}
+
+/// The repository's root folder.
+pub fn workspace_root() -> Result<PathBuf> {
+    let manifest = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    Ok(manifest
+        .parent()
+        .ok_or("xtask has no parent directory")?
+        .to_path_buf())
+}
