@@ -534,7 +534,7 @@ fn inspect(
                 m.faces,
                 m.rejections,
                 m.reprojection_rms_px,
-                m.l12,
+                m.formation.l12,
                 m.relative_heading().to_degrees()
             );
         }

@@ -58,9 +58,9 @@ fn robots_match_the_truth_of_a_rendered_scene() {
         let t = truth.robot(n).unwrap();
         let l12 = r["l12"].as_f64().unwrap();
         assert!(
-            (l12 - t.l12).abs() / t.l12 < 0.01,
+            (l12 - t.formation.l12).abs() / t.formation.l12 < 0.01,
             "robot {n}: l12 {l12} vs {}",
-            t.l12
+            t.formation.l12
         );
         for i in 0..3 {
             let tr = r["translation"][i].as_f64().unwrap();

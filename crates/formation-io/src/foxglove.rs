@@ -251,7 +251,7 @@ impl<W: Write> FoxgloveWriter<W> {
                 json!({
                     "robot": l.robot,
                     "status": format!("{:?}", l.status).to_lowercase(),
-                    "l12": l.l12, "alpha12": l.alpha12, "beta12": l.beta12,
+                    "l12": l.formation.l12, "alpha12": l.formation.alpha12, "beta12": l.formation.beta12,
                     "v1": l.v1, "w1": l.w1, "std": std, "covariance": cov,
                     "since_seen": l.since_seen,
                 })

@@ -76,11 +76,11 @@ fn frame_pipeline(c: &mut Criterion) {
     use formation_tracker::pipeline::Pipeline;
     use formation_tracker::rig::RigModel;
     use formation_tracker::robots::RobotConfig;
-    use unicycle::Pose;
+    use unicycle::PlanarPose;
 
     let spec = SceneSpec {
         name: String::new(),
-        camera_robot: Pose::default(),
+        camera_robot: PlanarPose::default(),
         mount: CameraMount::default(),
         camera: Default::default(),
         render: Default::default(),

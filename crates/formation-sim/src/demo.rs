@@ -38,7 +38,7 @@ use fiducial::{Detector, DetectorConfig, Dictionary};
 use nalgebra::Vector3;
 use serde::Serialize;
 use unicycle::{
-    ControllerConfig, Formation, Inputs, Pose, SeparationBearingController, UnicycleError,
+    ControllerConfig, Formation, Inputs, PlanarPose, SeparationBearingController, UnicycleError,
 };
 
 use crate::annotate::{AnnotateError, MarkerLabel, RigOverlay, annotate};
@@ -478,9 +478,9 @@ struct StepContext<'a> {
     step: usize,
     t: f64,
     occluded: bool,
-    poses: &'a [Pose],
+    poses: &'a [PlanarPose],
     /// The poses one step earlier (at step 0, the start).
-    previous: &'a [Pose],
+    previous: &'a [PlanarPose],
     /// Inputs over `(t_{k-1}, t_k]` of every robot (index 0 the leader's).
     applied: &'a [Inputs],
 }
@@ -636,12 +636,12 @@ impl<'a> World<'a> {
 }
 
 /// The robots' poses at `t = 0`: the scenario file's, else the starting line.
-fn start_poses(config: &DemoConfig) -> Vec<Pose> {
+fn start_poses(config: &DemoConfig) -> Vec<PlanarPose> {
     match &config.scenario {
         Some(spec) => {
             let [fx, fy, ft] = spec.follower;
             let [lx, ly, lt] = spec.leader;
-            vec![Pose::new(lx, ly, lt), Pose::new(fx, fy, ft)]
+            vec![PlanarPose::new(lx, ly, lt), PlanarPose::new(fx, fy, ft)]
         }
         None => starting_line(config.robots),
     }
@@ -739,17 +739,17 @@ fn validate(config: &DemoConfig) -> Result<(), DemoError> {
 }
 
 /// Robot `i` of `n` at `((n - i) 1.5, (n - i) 0.25, 0)`.
-fn starting_line(n: usize) -> Vec<Pose> {
+fn starting_line(n: usize) -> Vec<PlanarPose> {
     (1..=n)
         .map(|i| {
             let back = (n - i) as f64;
-            Pose::new(1.5 * back, 0.25 * back, 0.0)
+            PlanarPose::new(1.5 * back, 0.25 * back, 0.0)
         })
         .collect()
 }
 
 /// One follower per robot behind the leader, each holding its starting formation.
-fn start_followers(world: &World<'_>, poses: &[Pose]) -> Result<Vec<Follower>, DemoError> {
+fn start_followers(world: &World<'_>, poses: &[PlanarPose]) -> Result<Vec<Follower>, DemoError> {
     let d = world.mount.offset;
     let (w, h) = (world.camera.width as u32, world.camera.height as u32);
     (1..poses.len())
@@ -784,7 +784,7 @@ fn start_followers(world: &World<'_>, poses: &[Pose]) -> Result<Vec<Follower>, D
 fn follower_scene(
     world: &World<'_>,
     ctx: &StepContext<'_>,
-    poses: &[Pose],
+    poses: &[PlanarPose],
     me: usize,
 ) -> SceneSpec {
     let n = poses.len();
@@ -801,7 +801,7 @@ fn follower_scene(
         .collect();
     SceneSpec {
         name: String::new(),
-        camera_robot: Pose {
+        camera_robot: PlanarPose {
             x: poses[me].x,
             y: poses[me].y,
             theta: poses[me].theta,
@@ -822,7 +822,10 @@ fn follower_scene(
 
 /// The robots' poses at the sub-frame times of the exposure of step `ctx.step` (see the
 /// module documentation); without motion blur, only the poses at the frame time.
-fn exposure_poses(config: &DemoConfig, ctx: &StepContext<'_>) -> Result<Vec<Vec<Pose>>, DemoError> {
+fn exposure_poses(
+    config: &DemoConfig,
+    ctx: &StepContext<'_>,
+) -> Result<Vec<Vec<PlanarPose>>, DemoError> {
     let Some(mb) = config.motion_blur else {
         return Ok(vec![ctx.poses.to_vec()]);
     };
@@ -843,7 +846,7 @@ fn exposure_poses(config: &DemoConfig, ctx: &StepContext<'_>) -> Result<Vec<Vec<
                         Ok(*now)
                     }
                 })
-                .collect::<Result<Vec<Pose>, _>>()
+                .collect::<Result<Vec<PlanarPose>, _>>()
                 .map_err(DemoError::from)
         })
         .collect()
@@ -893,7 +896,9 @@ impl Follower {
             .robots
             .iter()
             .find(|m| m.robot == leader_id)
-            .map_or_else(nan3, |m| Vector3::new(m.l12, m.alpha12, m.beta12));
+            .map_or_else(nan3, |m| {
+                Vector3::new(m.formation.l12, m.formation.alpha12, m.formation.beta12)
+            });
         let track = done.report.leaders.iter().find(|l| l.robot == leader_id);
         let strip_step =
             world.config.strip_every > 0 && ctx.step.is_multiple_of(world.config.strip_every);
@@ -909,9 +914,9 @@ impl Follower {
             track
                 .and_then(|l| {
                     let form = Formation {
-                        l12: l.l12,
-                        alpha12: l.alpha12,
-                        beta12: l.beta12,
+                        l12: l.formation.l12,
+                        alpha12: l.formation.alpha12,
+                        beta12: l.formation.beta12,
                     };
                     self.controller.inputs(&form, Inputs::new(l.v1, l.w1)).ok()
                 })
@@ -926,8 +931,9 @@ impl Follower {
                     t: ctx.t,
                     truth: truth.to_vector(),
                     measured,
-                    estimated: track
-                        .map_or_else(nan3, |l| Vector3::new(l.l12, l.alpha12, l.beta12)),
+                    estimated: track.map_or_else(nan3, |l| {
+                        Vector3::new(l.formation.l12, l.formation.alpha12, l.formation.beta12)
+                    }),
                     estimated_std: track.map_or_else(nan3, |l| {
                         Vector3::new(l.l12_std, l.alpha12_std, l.beta12_std)
                     }),

@@ -210,8 +210,9 @@ pub fn evaluate_scene(
         faces_read.sort_unstable();
         faces_read.dedup();
         let m = robots.robots.iter().find(|m| m.robot == t.robot);
-        let true_heading = wrap_angle(t.beta12 - t.alpha12);
-        let distance_error_pct = m.map(|m| 100.0 * (m.l12 - t.l12).abs() / t.l12);
+        let true_heading = wrap_angle(t.formation.beta12 - t.formation.alpha12);
+        let distance_error_pct =
+            m.map(|m| 100.0 * (m.formation.l12 - t.formation.l12).abs() / t.formation.l12);
         let heading_error = m.map(|m| wrap_angle(m.relative_heading() - true_heading).abs());
         let all_read = faces_required.iter().all(|f| faces_read.contains(f));
         let pose_ok = match (distance_error_pct, heading_error) {
@@ -245,9 +246,9 @@ pub fn evaluate_scene(
             corner_error_px,
             distance_error_pct,
             heading_error,
-            l12_error: m.map(|m| m.l12 - t.l12),
-            alpha12_error: m.map(|m| wrap_angle(m.alpha12 - t.alpha12)),
-            beta12_error: m.map(|m| wrap_angle(m.beta12 - t.beta12)),
+            l12_error: m.map(|m| m.formation.l12 - t.formation.l12),
+            alpha12_error: m.map(|m| wrap_angle(m.formation.alpha12 - t.formation.alpha12)),
+            beta12_error: m.map(|m| wrap_angle(m.formation.beta12 - t.formation.beta12)),
             ambiguous: m.is_some_and(|m| m.ambiguous),
             pass: all_read && wrong[ri] == 0 && pose_ok,
         });

@@ -11,7 +11,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use unicycle::{
-    ControllerConfig, Formation, FormationMeasurement, Inputs, PolarModel, PolarState, Pose,
+    ControllerConfig, Formation, FormationMeasurement, Inputs, PlanarPose, PolarModel, PolarState,
     SeparationBearingController, UnicycleError, wrap_angle,
 };
 
@@ -55,9 +55,9 @@ pub struct ScenarioConfig {
     /// Duration, seconds.
     pub duration: f64,
     /// Follower's initial pose.
-    pub follower0: Pose,
+    pub follower0: PlanarPose,
     /// Leader's initial pose.
-    pub leader0: Pose,
+    pub leader0: PlanarPose,
     /// Standard deviations of the measurement noise `[l12, alpha12, beta12]`.
     pub noise_std: [f64; 3],
     /// Constant bias added to every measurement, if any.
@@ -75,8 +75,8 @@ impl ScenarioConfig {
             d: 0.5,
             dt: 1.0 / 30.0,
             duration: 8.0,
-            follower0: Pose::new(0.0, 0.0, 0.0),
-            leader0: Pose::new(1.5, 0.25, 0.0),
+            follower0: PlanarPose::new(0.0, 0.0, 0.0),
+            leader0: PlanarPose::new(1.5, 0.25, 0.0),
             noise_std: [0.07, 0.03, 0.03],
             bias: None,
             seed,
@@ -120,7 +120,7 @@ pub struct Sample {
     /// True polar state `[x1, y1, theta1, l12, alpha12, beta12]`.
     pub truth: PolarState,
     /// True follower pose.
-    pub follower: Pose,
+    pub follower: PlanarPose,
     /// Leader inputs applied from `t_k` to `t_{k+1}`.
     pub leader_inputs: Inputs,
     /// Follower inputs (from the formation controller) applied from `t_k` to `t_{k+1}`.
@@ -213,8 +213,8 @@ pub struct Simulation<F> {
     schedule: Vec<SetpointChange>,
     next_change: usize,
     rng: ChaCha8Rng,
-    leader: Pose,
-    follower: Pose,
+    leader: PlanarPose,
+    follower: PlanarPose,
     /// The next sample's index `k`; `None` once finished or failed.
     k: Option<usize>,
     n: usize,
@@ -427,7 +427,7 @@ mod tests {
         cfg.duration = 0.0;
         assert!(matches!(simulate(&cfg), Err(ScenarioError::NoSteps { .. })));
         let mut cfg = ScenarioConfig::reference(1);
-        cfg.leader0 = Pose::new(0.5, 0.0, 0.0);
+        cfg.leader0 = PlanarPose::new(0.5, 0.0, 0.0);
         assert!(matches!(
             simulate(&cfg),
             Err(ScenarioError::Model(

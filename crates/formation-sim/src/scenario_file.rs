@@ -41,7 +41,7 @@ use std::path::{Path, PathBuf};
 use formation_io::textfile;
 use formation_tracker::filter::{FilterConfig, FilterDesign};
 use serde::Deserialize;
-use unicycle::{Inputs, PolarState, Pose};
+use unicycle::{Inputs, PlanarPose, PolarState};
 
 use crate::reproduce::{ReproduceError, Reproduction, run_filter};
 use crate::scenario::{
@@ -719,8 +719,8 @@ impl ScenarioSpec {
             d: self.camera_offset,
             dt: 1.0 / self.frame_rate,
             duration: self.duration,
-            follower0: Pose::new(fx, fy, ft),
-            leader0: Pose::new(lx, ly, lt),
+            follower0: PlanarPose::new(fx, fy, ft),
+            leader0: PlanarPose::new(lx, ly, lt),
             noise_std: self.noise_std,
             bias: self.bias.or(paper_bias.then_some(PAPER_BIAS)),
             seed,

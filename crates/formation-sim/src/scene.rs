@@ -28,7 +28,7 @@ use formation_tracker::mount::{self, CameraMount, MeasurementError};
 use formation_tracker::rig::RigError;
 use formation_tracker::rig::RigModel;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
-use unicycle::Pose;
+use unicycle::{Formation, PlanarPose};
 
 /// Faces seen more obliquely than this (degrees) are not required to be read.
 pub const MAX_OFF_AXIS_DEG: f64 = 75.0;
@@ -165,8 +165,8 @@ pub struct RobotSpec {
 
 impl RobotSpec {
     /// The leader's planar pose.
-    pub fn pose(&self) -> Pose {
-        Pose::new(self.x, self.y, self.theta)
+    pub fn pose(&self) -> PlanarPose {
+        PlanarPose::new(self.x, self.y, self.theta)
     }
 }
 
@@ -189,7 +189,7 @@ pub struct SceneSpec {
     pub name: String,
     /// The camera robot's pose (default: the origin, heading 0).
     #[serde(default)]
-    pub camera_robot: Pose,
+    pub camera_robot: PlanarPose,
     /// Camera mount on the camera robot (default: [`paper_mount`]).
     #[serde(default = "paper_mount")]
     pub mount: CameraMount,
@@ -511,19 +511,17 @@ pub struct RobotTruthOut {
     /// Robot number.
     pub robot: u32,
     /// World pose.
-    pub pose: Pose,
+    pub pose: PlanarPose,
     /// Rotation vector, rig (body) frame -> camera frame.
     pub rotation: [f64; 3],
     /// Rig origin in the camera frame, metres.
     pub translation: [f64; 3],
     /// Heading of the leader relative to the camera robot, radians.
     pub relative_heading: f64,
-    /// True `l12`, metres (from the camera point).
-    pub l12: f64,
-    /// True `alpha12`, radians.
-    pub alpha12: f64,
-    /// True `beta12`, radians.
-    pub beta12: f64,
+    /// True formation: `l12` (m, from the camera point), `alpha12`, `beta12` (rad); flat
+    /// in JSON.
+    #[serde(flatten)]
+    pub formation: Formation,
     /// Every face of the rig.
     pub faces: Vec<FaceTruthOut>,
 }
@@ -612,9 +610,7 @@ fn truth_from(
             rotation: [rv.x, rv.y, rv.z],
             translation: [t.x, t.y, t.z],
             relative_heading: unicycle::wrap_angle(rb.theta - spec.camera_robot.theta),
-            l12: f[0],
-            alpha12: f[1],
-            beta12: f[2],
+            formation: Formation::from_vector(&f),
             faces,
         });
     }

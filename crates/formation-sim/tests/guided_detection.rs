@@ -12,7 +12,7 @@ use formation_tracker::pipeline::{Pipeline, Scan};
 use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotConfig;
 use formation_tracker::tracker::{Tracker, TrackerConfig};
-use unicycle::{Inputs, Pose};
+use unicycle::{Inputs, PlanarPose};
 
 fn demo(camera: CameraSpec, duration: f64, supersampling: usize, guided: bool) -> DemoRun {
     let mut c = DemoConfig {
@@ -150,7 +150,7 @@ fn robot_entering_mid_sequence_is_picked_up_within_the_period() {
         }
         let spec = SceneSpec {
             name: String::new(),
-            camera_robot: Pose::new(0.0, 0.0, 0.0),
+            camera_robot: PlanarPose::new(0.0, 0.0, 0.0),
             mount,
             camera,
             render: RenderSpec {

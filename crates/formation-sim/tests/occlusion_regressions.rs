@@ -196,7 +196,7 @@ proptest! {
             "cut face {} used: faces {:?}, rejections {:?}",
             cut_face.face, m.faces, m.rejections
         );
-        prop_assert!((m.l12 - t.l12).abs() / t.l12 < 0.01, "l12 {} vs {}", m.l12, t.l12);
+        prop_assert!((m.formation.l12 - t.formation.l12).abs() / t.formation.l12 < 0.01, "l12 {} vs {}", m.formation.l12, t.formation.l12);
     }
 }
 

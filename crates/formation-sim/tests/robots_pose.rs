@@ -66,9 +66,9 @@ fn errors(truth: &SceneTruth, config: &RobotConfig, obs: &[MarkerObservation]) -
                 .robot(m.robot)
                 .expect("measured robots are in the scene");
             [
-                (m.l12 - t.l12).abs() / t.l12,
-                wrap_angle(m.alpha12 - t.alpha12).abs(),
-                wrap_angle(m.beta12 - t.beta12).abs(),
+                (m.formation.l12 - t.formation.l12).abs() / t.formation.l12,
+                wrap_angle(m.formation.alpha12 - t.formation.alpha12).abs(),
+                wrap_angle(m.formation.beta12 - t.formation.beta12).abs(),
                 wrap_angle(m.relative_heading() - t.relative_heading).abs(),
             ]
         })
@@ -147,7 +147,7 @@ fn noisy_corners_stay_within_the_propagated_covariance() {
         let found = measure_robots(&obs, &rig, &solver, &truth.mount, &RobotConfig::default());
         let m = found.robots.iter().find(|m| m.robot == 2).unwrap();
         let t = truth.robot(2).unwrap();
-        sq += (m.l12 - t.l12).powi(2);
+        sq += (m.formation.l12 - t.formation.l12).powi(2);
         var += m.covariance[0][0];
     }
     let ratio = (sq / var).sqrt();
@@ -185,7 +185,7 @@ fn a_wrong_code_and_a_bad_corner_are_rejected() {
     assert_eq!(m.rejected_faces, vec![5]);
     assert_eq!(m.faces, vec![2, 3, 4]);
     let t = truth.robot(1).unwrap();
-    assert!((m.l12 - t.l12).abs() < 1e-6);
+    assert!((m.formation.l12 - t.formation.l12).abs() < 1e-6);
 
     // A corner of robot 2's face 3 caught 4 px off.
     let mut obs = observations(&truth, 0.0, 0);
@@ -204,7 +204,7 @@ fn a_wrong_code_and_a_bad_corner_are_rejected() {
     let m = found.robots.iter().find(|m| m.robot == 2).unwrap();
     assert_eq!(m.rejected_faces, vec![3]);
     let t = truth.robot(2).unwrap();
-    assert!((m.l12 - t.l12).abs() / t.l12 < 1e-6);
+    assert!((m.formation.l12 - t.formation.l12).abs() / t.formation.l12 < 1e-6);
 }
 
 #[test]

@@ -32,14 +32,18 @@ fn formation_2_3(spec: &SceneSpec, q1: (f64, f64, f64)) -> [f64; 3] {
 fn check_truth_formation(spec: &SceneSpec, truth: &SceneTruth) {
     for r in &truth.robots {
         let want = formation_2_3(spec, (r.pose.x, r.pose.y, r.pose.theta));
-        assert!((r.l12 - want[0]).abs() < 1e-9, "{}: l12", spec.name);
         assert!(
-            wrap_angle(r.alpha12 - want[1]).abs() < 1e-9,
+            (r.formation.l12 - want[0]).abs() < 1e-9,
+            "{}: l12",
+            spec.name
+        );
+        assert!(
+            wrap_angle(r.formation.alpha12 - want[1]).abs() < 1e-9,
             "{}: alpha12",
             spec.name
         );
         assert!(
-            wrap_angle(r.beta12 - want[2]).abs() < 1e-9,
+            wrap_angle(r.formation.beta12 - want[2]).abs() < 1e-9,
             "{}: beta12",
             spec.name
         );
@@ -240,7 +244,7 @@ proptest::proptest! {
         let truth = formation_sim::scene::scene_truth(&spec, &built, &rig, Dictionary::paper()).unwrap();
         proptest::prop_assert_eq!(truth.robots.len(), spec.robots.len());
         for r in &truth.robots {
-            proptest::prop_assert!(r.l12.is_finite() && r.l12 >= 0.3 - 1e-9 && r.l12 <= 3.0 + 1e-9);
+            proptest::prop_assert!(r.formation.l12.is_finite() && r.formation.l12 >= 0.3 - 1e-9 && r.formation.l12 <= 3.0 + 1e-9);
         }
     }
 }

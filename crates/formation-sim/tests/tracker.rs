@@ -116,9 +116,9 @@ fn leader(report: &FrameReport) -> &LeaderReport {
 
 fn error(l: &LeaderReport, truth: &Vector3<f64>) -> Vector3<f64> {
     Vector3::new(
-        l.l12 - truth[0],
-        wrap_angle(l.alpha12 - truth[1]),
-        wrap_angle(l.beta12 - truth[2]),
+        l.formation.l12 - truth[0],
+        wrap_angle(l.formation.alpha12 - truth[1]),
+        wrap_angle(l.formation.beta12 - truth[2]),
     )
 }
 
@@ -129,7 +129,14 @@ fn measured(pose: &pose::Pose) -> Vector3<f64> {
 
 /// Every reported number is finite and every standard deviation non-negative.
 fn sane(l: &LeaderReport) -> bool {
-    let values = [l.l12, l.alpha12, l.beta12, l.v1, l.w1, l.since_seen];
+    let values = [
+        l.formation.l12,
+        l.formation.alpha12,
+        l.formation.beta12,
+        l.v1,
+        l.w1,
+        l.since_seen,
+    ];
     let stds = [l.l12_std, l.alpha12_std, l.beta12_std, l.v1_std, l.w1_std];
     let c = l.covariance;
     // The covariance: symmetric, its diagonal the squared standard deviations, and positive
@@ -223,7 +230,7 @@ fn coasts_through_occlusion_and_reacquires_same_robot() {
             assert_eq!(l.status, Status::Coasting);
             assert_eq!(l.measurement, MeasurementUse::Missing);
             coasting_std.push(l.l12_std);
-            max_coast_err = max_coast_err.max((l.l12 - f.truth[0]).abs());
+            max_coast_err = max_coast_err.max((l.formation.l12 - f.truth[0]).abs());
         } else if f.t >= 4.0 && f.t < 4.0 + 1e-9 + 1.0 / 30.0 {
             // First frame after the occlusion: the same track, updated, not restarted.
             assert_eq!(l.status, Status::Tracking);
@@ -351,13 +358,17 @@ fn outlier_is_gated_and_would_hurt_without_the_gate() {
     assert_eq!(gated.status, Status::Coasting);
     assert!(gated.nis.unwrap() > 100.0);
     assert!(
-        (gated.l12 - truth[0]).abs() < 0.05,
+        (gated.formation.l12 - truth[0]).abs() < 0.05,
         "{}",
-        gated.l12 - truth[0]
+        gated.formation.l12 - truth[0]
     );
     let (open, truth) = outlier_run(f64::INFINITY);
     assert_eq!(open.measurement, MeasurementUse::Updated);
-    assert!((open.l12 - truth[0]).abs() > 0.1, "{}", open.l12 - truth[0]);
+    assert!(
+        (open.formation.l12 - truth[0]).abs() > 0.1,
+        "{}",
+        open.formation.l12 - truth[0]
+    );
 }
 
 #[test]
@@ -446,8 +457,8 @@ fn leaders_are_tracked_independently_by_robot_id() {
         assert_eq!(ids, vec![ROBOT, 9]);
         if f.t > 2.0 {
             let other = measured(&shift(&f.true_pose));
-            assert!((rep.leaders[0].beta12 - f.truth[2]).abs() < 0.05);
-            assert!((rep.leaders[1].beta12 - other[2]).abs() < 0.05);
+            assert!((rep.leaders[0].formation.beta12 - f.truth[2]).abs() < 0.05);
+            assert!((rep.leaders[1].formation.beta12 - other[2]).abs() < 0.05);
         }
     }
 }
@@ -584,12 +595,17 @@ fn formation_measurements_are_filtered_and_checked() {
         assert!(sane(l));
         let truth = PolarModel::h(&s.truth);
         if k > 0 {
-            est += (l.l12 - truth[0]).powi(2) + wrap_angle(l.alpha12 - truth[1]).powi(2);
+            est += (l.formation.l12 - truth[0]).powi(2)
+                + wrap_angle(l.formation.alpha12 - truth[1]).powi(2);
             raw += (s.measurement[0] - truth[0]).powi(2)
                 + wrap_angle(s.measurement[1] - truth[1]).powi(2);
         }
         if s.t > 1.0 {
-            assert!(wrap_angle(l.alpha12 - truth[1]).abs() < 0.1, "t = {}", s.t);
+            assert!(
+                wrap_angle(l.formation.alpha12 - truth[1]).abs() < 0.1,
+                "t = {}",
+                s.t
+            );
         }
     }
     assert!(est < 0.2 * raw, "filtered {est} vs raw {raw}");

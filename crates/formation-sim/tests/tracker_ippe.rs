@@ -38,7 +38,7 @@ struct Run {
 /// 0.5 px corner noise: the regime where IPPE's two candidates are close in reprojection error.
 fn run(seed: u64, confirm_time: f64) -> Run {
     let mut config = ScenarioConfig::reference(1);
-    config.leader0 = unicycle::Pose::new(2.0, 0.3, 0.0);
+    config.leader0 = unicycle::PlanarPose::new(2.0, 0.3, 0.0);
     let scenario = simulate(&config).unwrap();
     let mount = CameraMount::default();
     let k = Intrinsics::from_hfov(60f64.to_radians(), 640, 480).unwrap();
@@ -82,7 +82,7 @@ fn run(seed: u64, confirm_time: f64) -> Run {
                 }],
             })
             .unwrap();
-        let e = wrap_angle(rep.leaders[0].alpha12 - truth[1]).abs();
+        let e = wrap_angle(rep.leaders[0].formation.alpha12 - truth[1]).abs();
         if s.t > 1.0 {
             out.tracked_max = out.tracked_max.max(e);
             if e > 0.15 {

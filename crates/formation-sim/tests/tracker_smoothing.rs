@@ -112,9 +112,9 @@ fn alpha_error(alpha: f64, f: &Frame) -> f64 {
 
 fn finite(s: &SmoothedLeader) -> bool {
     [
-        s.l12,
-        s.alpha12,
-        s.beta12,
+        s.formation.l12,
+        s.formation.alpha12,
+        s.formation.beta12,
         s.v1,
         s.w1,
         s.l12_std,
@@ -146,10 +146,10 @@ fn smoothing_beats_the_causal_track_and_bridges_an_occlusion() {
         assert_eq!((s.robot, s.segment), (ROBOT, 0));
         assert!(finite(s));
         assert_eq!(s.measured, !hidden(f.t) && f.t > 0.0);
-        c_l += l12_error(c.l12, f).powi(2);
-        s_l += l12_error(s.l12, f).powi(2);
-        c_a += alpha_error(c.alpha12, f).powi(2);
-        s_a += alpha_error(s.alpha12, f).powi(2);
+        c_l += l12_error(c.formation.l12, f).powi(2);
+        s_l += l12_error(s.formation.l12, f).powi(2);
+        c_a += alpha_error(c.formation.alpha12, f).powi(2);
+        s_a += alpha_error(s.formation.alpha12, f).powi(2);
         if f.t > 2.0 {
             c_v += (c.v1 - f.leader_velocity.v).powi(2);
             s_v += (s.v1 - f.leader_velocity.v).powi(2);
@@ -157,8 +157,8 @@ fn smoothing_beats_the_causal_track_and_bridges_an_occlusion() {
         }
         if hidden(f.t) {
             assert_eq!(c.status, Status::Coasting);
-            c_gap = c_gap.max(l12_error(c.l12, f).abs());
-            s_gap = s_gap.max(l12_error(s.l12, f).abs());
+            c_gap = c_gap.max(l12_error(c.formation.l12, f).abs());
+            s_gap = s_gap.max(l12_error(s.formation.l12, f).abs());
         }
     }
     assert!(late > 100);

@@ -46,7 +46,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             for l in &report.leaders {
                 println!(
                     "t {t:.1} s  robot {} {:?}: l12 {:.3} m  alpha12 {:.3} rad  v1 {:.2} m/s (true {V1})",
-                    l.robot, l.status, l.l12, l.alpha12, l.v1
+                    l.robot, l.status, l.formation.l12, l.formation.alpha12, l.v1
                 );
             }
         }

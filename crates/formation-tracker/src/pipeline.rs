@@ -378,7 +378,7 @@ fn observation(m: &RobotMeasurement) -> Observation {
             robot: m.robot,
             points: 4 * m.faces.len(),
             pose: PoseMeasurement::Formation(FormationMeasurement {
-                y: Vector3::new(m.l12, m.alpha12, m.beta12),
+                y: Vector3::new(m.formation.l12, m.formation.alpha12, m.formation.beta12),
                 r: Matrix3::from_fn(|i, j| m.covariance[i][j]),
                 fit: Some(FitResidual {
                     rms_px: m.reprojection_rms_px,

@@ -34,6 +34,7 @@ use pose::faces::{Face, FaceCheck, consistent_faces, quad_area};
 use pose::{PlaneFrame, PoseError, PoseSolver};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
+use unicycle::Formation;
 
 use crate::mount::{self, CameraMount, MeasurementError};
 use crate::rig::RigError;
@@ -179,10 +180,10 @@ fn implausibility(
             m.reprojection_rms_px, config.max_reprojection_px
         ));
     }
-    if !(m.l12.is_finite() && m.l12 <= config.max_range_m) {
+    if !(m.formation.l12.is_finite() && m.formation.l12 <= config.max_range_m) {
         return Some(format!(
             "l12 = {:.3e} m beyond the maximum range {} m",
-            m.l12, config.max_range_m
+            m.formation.l12, config.max_range_m
         ));
     }
     if m.translation[2] <= 0.0 {
@@ -230,12 +231,9 @@ pub struct RobotMeasurement {
     pub translation: [f64; 3],
     /// Reprojection RMS over the faces used, pixels.
     pub reprojection_rms_px: f64,
-    /// Planar distance from the camera point, metres.
-    pub l12: f64,
-    /// `alpha12`, radians.
-    pub alpha12: f64,
-    /// `beta12`, radians.
-    pub beta12: f64,
+    /// The formation variables: planar distance `l12` from the camera point (m), `alpha12`
+    /// and `beta12` (rad).
+    pub formation: Formation,
     /// Covariance of `(l12, alpha12, beta12)`.
     pub covariance: [[f64; 3]; 3],
     /// A single face left two close pose candidates.
@@ -253,7 +251,7 @@ pub struct RobotMeasurement {
 impl RobotMeasurement {
     /// The leader's heading relative to the camera robot's: `beta12 - alpha12`.
     pub fn relative_heading(&self) -> f64 {
-        unicycle::wrap_angle(self.beta12 - self.alpha12)
+        unicycle::wrap_angle(self.formation.beta12 - self.formation.alpha12)
     }
 }
 
@@ -381,7 +379,7 @@ fn ground_plane_fit(
     let fits: Vec<pose::PlanarEstimate> = seeds
         .filter_map(|q0| solver.refine_on_plane(&plane, &model, &image, &q0).ok())
         .map(|mut fit| {
-            fit.pose.yaw = unicycle::wrap_angle(fit.pose.yaw);
+            fit.pose.theta = unicycle::wrap_angle(fit.pose.theta);
             fit
         })
         .collect();
@@ -487,9 +485,7 @@ fn measure_robot(
         rotation: fit.rotation.scaled_axis().into(),
         translation: fit.translation.into(),
         reprojection_rms_px: fit.rms,
-        l12: f[0],
-        alpha12: f[1],
-        beta12: f[2],
+        formation: Formation::from_vector(&f),
         covariance: [
             [cov[(0, 0)], cov[(0, 1)], cov[(0, 2)]],
             [cov[(1, 0)], cov[(1, 1)], cov[(1, 2)]],
@@ -519,9 +515,11 @@ mod tests {
             rotation: rotation.scaled_axis().into(),
             translation: translation.into(),
             reprojection_rms_px: 0.2,
-            l12: 1.0,
-            alpha12: 0.2,
-            beta12: 0.3,
+            formation: Formation {
+                l12: 1.0,
+                alpha12: 0.2,
+                beta12: 0.3,
+            },
             covariance: [[0.0; 3]; 3],
             ambiguous: false,
             ambiguity_ratio: None,
@@ -546,8 +544,14 @@ mod tests {
             "reprojection 49.0 px above 3 px",
         );
         check(&|m| m.reprojection_rms_px = f64::NAN, "reprojection");
-        check(&|m| m.l12 = 185_047_483.0, "beyond the maximum range 20 m");
-        check(&|m| m.l12 = f64::INFINITY, "beyond the maximum range");
+        check(
+            &|m| m.formation.l12 = 185_047_483.0,
+            "beyond the maximum range 20 m",
+        );
+        check(
+            &|m| m.formation.l12 = f64::INFINITY,
+            "beyond the maximum range",
+        );
         check(&|m| m.translation[2] = -1.0, "behind the camera");
         // The leader 0.5 m under the floor: its rig origin moved down in the camera frame.
         let below = {

@@ -559,7 +559,7 @@ impl Tracker {
         let d = self.config.filter.d;
         let formation = Formation::from_vector(&m.y);
         let world = formation
-            .leader_pose(&unicycle::Pose::new(0.0, 0.0, 0.0), d)
+            .leader_pose(&unicycle::PlanarPose::new(0.0, 0.0, 0.0), d)
             .ok()?;
         let mut cfg = self.config.filter.clone();
         cfg.x0 = PolarState::new(world.x, world.y, world.theta, m.y[0], m.y[1], m.y[2]);
@@ -746,9 +746,7 @@ fn report(
         hypotheses: if track.rival.is_some() { 2 } else { 1 },
         candidate: None,
         nis: None,
-        l12: f.l12,
-        alpha12: f.alpha12,
-        beta12: f.beta12,
+        formation: f,
         v1: w.v,
         w1: w.w,
         l12_std: fs[0],

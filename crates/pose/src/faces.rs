@@ -36,7 +36,9 @@
 
 use nalgebra::{Point2, Point3};
 
-use crate::{PlanarEstimate, PlanarPose, PlaneFrame, PoseError, PoseSolution, PoseSolver};
+use unicycle::PlanarPose;
+
+use crate::{PlanarEstimate, PlaneFrame, PoseError, PoseSolution, PoseSolver};
 
 /// One face of the body as read in an image: its number, its four corners in the body frame
 /// and where they were read (pixels).

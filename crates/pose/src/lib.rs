@@ -89,7 +89,7 @@ pub use distortion::{Distortion, DistortionModel, UNDISTORT_MAX_ITERATIONS, UNDI
 pub use error::PoseError;
 pub use lm::LmConfig;
 pub use marker::{MarkerPose, marker_corners};
-pub use plane::{PlanarEstimate, PlanarPose, PlaneFrame};
+pub use plane::{PlanarEstimate, PlaneFrame};
 pub use posit::{POSIT_MAX_ITERATIONS, POSIT_TOLERANCE, posit};
 pub use so3::Pose;
 pub use solve::{Estimate, PoseSolution, PoseSolver, SolverOptions};

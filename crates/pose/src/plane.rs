@@ -26,6 +26,8 @@
 use nalgebra::{Matrix2x3, Matrix3, Point2, Point3, Rotation3, Vector2, Vector3};
 
 use crate::lm::{LeastSquares, Normal};
+use unicycle::PlanarPose;
+
 use crate::{Intrinsics, Pose};
 
 /// A plane's frame in the camera frame: the rotation and translation taking plane coordinates
@@ -36,39 +38,6 @@ pub struct PlaneFrame {
     pub rotation: Rotation3<f64>,
     /// The plane frame's origin in the camera frame.
     pub translation: Vector3<f64>,
-}
-
-/// The pose of a body on a plane, in the plane's frame: origin at `(x, y, 0)`, axes those of
-/// the plane turned by `yaw` (radians) about its normal.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PlanarPose {
-    /// Position along the plane's x axis.
-    pub x: f64,
-    /// Position along the plane's y axis.
-    pub y: f64,
-    /// Heading about the plane's normal, radians.
-    pub yaw: f64,
-}
-
-impl PlanarPose {
-    /// `[x, y, yaw]`.
-    pub fn to_vector(&self) -> Vector3<f64> {
-        Vector3::new(self.x, self.y, self.yaw)
-    }
-
-    /// The pose of `[x, y, yaw]`.
-    pub fn from_vector(v: &Vector3<f64>) -> Self {
-        Self {
-            x: v.x,
-            y: v.y,
-            yaw: v.z,
-        }
-    }
-
-    /// True when all three parameters are finite.
-    pub fn is_finite(&self) -> bool {
-        self.x.is_finite() && self.y.is_finite() && self.yaw.is_finite()
-    }
 }
 
 impl PlaneFrame {
@@ -83,7 +52,7 @@ impl PlaneFrame {
 
     /// The rotation and translation taking the body frame of `pose` into the camera frame.
     pub fn body_to_camera(&self, pose: &PlanarPose) -> (Rotation3<f64>, Vector3<f64>) {
-        let yaw = Rotation3::from_axis_angle(&Vector3::z_axis(), pose.yaw);
+        let yaw = Rotation3::from_axis_angle(&Vector3::z_axis(), pose.theta);
         (
             self.rotation * yaw,
             self.rotation * Vector3::new(pose.x, pose.y, 0.0) + self.translation,
@@ -100,7 +69,7 @@ impl PlaneFrame {
         PlanarPose {
             x: t.x,
             y: t.y,
-            yaw: x_axis.y.atan2(x_axis.x),
+            theta: x_axis.y.atan2(x_axis.x),
         }
     }
 }
@@ -147,7 +116,7 @@ impl LeastSquares<3> for PlaneReprojection<'_> {
     fn normal_equations(&self, p: &PlanarPose) -> Result<Normal<3>, (usize, f64)> {
         let r = self.plane.rotation.matrix();
         let origin = Vector3::new(p.x, p.y, 0.0);
-        let (s, c) = p.yaw.sin_cos();
+        let (s, c) = p.theta.sin_cos();
         let mut jtj = Matrix3::<f64>::zeros();
         let mut jte = Vector3::<f64>::zeros();
         let mut sse = 0.0;
@@ -238,7 +207,7 @@ mod tests {
         let truth = PlanarPose {
             x: 1.7,
             y: 0.3,
-            yaw: 2.5,
+            theta: 2.5,
         };
         let (r, t) = plane.body_to_camera(&truth);
         let image: Vec<Point2<f64>> = model
@@ -252,7 +221,7 @@ mod tests {
         let start = PlanarPose {
             x: 1.6,
             y: 0.35,
-            yaw: 2.3,
+            theta: 2.3,
         };
         let est = solver
             .refine_on_plane(&plane, &model, &image, &start)
@@ -280,7 +249,7 @@ mod tests {
             Err(crate::PoseError::PointBehindCamera { .. })
         ));
         let nan = PlanarPose {
-            yaw: f64::NAN,
+            theta: f64::NAN,
             ..start
         };
         assert!(matches!(
@@ -304,7 +273,7 @@ mod tests {
             let plane = plane(tilt, pan);
             let k = k();
             let model = box_corners();
-            let p = PlanarPose { x, y, yaw };
+            let p = PlanarPose { x, y, theta: yaw };
             let (r, t) = plane.body_to_camera(&p);
             let mut image = Vec::new();
             for (i, m) in model.iter().enumerate() {
@@ -348,12 +317,12 @@ mod tests {
             tilt in -0.5..0.5f64, pan in -1.0..1.0f64,
         ) {
             let plane = plane(tilt, pan);
-            let p = PlanarPose { x, y, yaw };
+            let p = PlanarPose { x, y, theta: yaw };
             let (r, t) = plane.body_to_camera(&p);
             let back = plane.planar_from_pose(&Pose::new(r.scaled_axis(), t));
             prop_assert!((back.x - x).abs() < 1e-9 && (back.y - y).abs() < 1e-9);
-            let d = (back.yaw - yaw).sin().abs() + (1.0 - (back.yaw - yaw).cos());
-            prop_assert!(d < 1e-9, "yaw {} vs {}", back.yaw, yaw);
+            let d = (back.theta - yaw).sin().abs() + (1.0 - (back.theta - yaw).cos());
+            prop_assert!(d < 1e-9, "yaw {} vs {}", back.theta, yaw);
         }
     }
 }

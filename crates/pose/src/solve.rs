@@ -2,7 +2,9 @@
 //! candidates) + LM (coplanar), and the result with its covariance.
 
 use crate::lm::{self, LmConfig, Normal};
-use crate::plane::{PlanarEstimate, PlanarPose, PlaneFrame, PlaneReprojection};
+use unicycle::PlanarPose;
+
+use crate::plane::{PlanarEstimate, PlaneFrame, PlaneReprojection};
 use crate::{Distortion, Intrinsics, Pose, PoseError, ippe, posit};
 use nalgebra::{Matrix3, Matrix6, Point2, Point3, SymmetricEigen, Vector3};
 

@@ -8,11 +8,12 @@ mod common;
 
 use common::*;
 use nalgebra::Rotation3;
-use pose::{Distortion, PlanarPose, PlaneFrame, PoseSolver};
+use pose::{Distortion, PlaneFrame, PoseSolver};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
+use unicycle::PlanarPose;
 
 struct Counting;
 static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
@@ -59,7 +60,7 @@ fn solves_do_not_allocate() {
     let start = PlanarPose {
         x: 0.01,
         y: -0.01,
-        yaw: 0.02,
+        theta: 0.02,
     };
 
     let before = ALLOCATIONS.load(Ordering::SeqCst);

@@ -10,7 +10,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 mod common;
 
 use synthcam::{Body, CellGrid, Face, Ground, RenderSettings, Robot, Scene, SoftChecker, render};
-use unicycle::Pose;
+use unicycle::PlanarPose;
 
 fn marker(seed: u64) -> CellGrid {
     // 8 x 9 cells: quiet zone, border, pseudo-random data cells (a fixed LCG).
@@ -33,9 +33,12 @@ fn scene() -> Scene {
         texture: Arc::new(SoftChecker::new(0.42, 0.58).expect("valid")),
         tile: 1.0,
     });
-    for (k, pose) in [Pose::new(1.6, 0.45, 0.5), Pose::new(2.2, -0.5, -0.4)]
-        .into_iter()
-        .enumerate()
+    for (k, pose) in [
+        PlanarPose::new(1.6, 0.45, 0.5),
+        PlanarPose::new(2.2, -0.5, -0.4),
+    ]
+    .into_iter()
+    .enumerate()
     {
         let mut r = Robot::new(
             pose,
@@ -64,7 +67,7 @@ fn scene() -> Scene {
 fn bench(c: &mut Criterion) {
     let s = scene();
     let mount = common::mount(0.1, 0.3, 0.0, 0.0);
-    let cam = common::camera(640, 480, 60.0, &mount, Pose::default()).expect("valid camera");
+    let cam = common::camera(640, 480, 60.0, &mount, PlanarPose::default()).expect("valid camera");
     for (name, n) in [
         ("synthcam/render_640x480_ss4", 2),
         ("synthcam/render_640x480_ss16", 4),

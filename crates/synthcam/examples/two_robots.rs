@@ -13,7 +13,7 @@ use synthcam::{
     Body, CellGrid, Face, Gradient, Ground, RenderSettings, Robot, Scene, SoftChecker, SynthError,
     render,
 };
-use unicycle::Pose;
+use unicycle::PlanarPose;
 
 /// A marker-like cell grid: one-cell white quiet zone, one-cell black border, 4 x 5 data cells
 /// taken from the bits of `code` (bit k at row k / 5, column k % 5; 1 = black). 8 rows x 9 cols,
@@ -30,7 +30,7 @@ fn marker(code: u32) -> Result<CellGrid, SynthError> {
     CellGrid::from_bits(rows, cols, &black)
 }
 
-fn robot(pose: Pose, first_code: u32) -> Result<Robot, SynthError> {
+fn robot(pose: PlanarPose, first_code: u32) -> Result<Robot, SynthError> {
     let mut r = Robot::new(
         pose,
         Body::Cylinder {
@@ -60,12 +60,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         tile: 1.0,
     });
     // Leader A ahead and to the left, turned a little left; leader B ahead and to the right.
-    scene.robots.push(robot(Pose::new(1.6, 0.45, 0.5), 1)?);
-    scene.robots.push(robot(Pose::new(2.2, -0.5, -0.4), 7)?);
+    scene
+        .robots
+        .push(robot(PlanarPose::new(1.6, 0.45, 0.5), 1)?);
+    scene
+        .robots
+        .push(robot(PlanarPose::new(2.2, -0.5, -0.4), 7)?);
 
     // The follower's camera: 10 cm ahead of its reference point, 30 cm high, level.
     let mount = common::mount(0.1, 0.3, 0.0, 0.0);
-    let camera = common::camera(640, 480, 60.0, &mount, Pose::new(0.0, 0.0, 0.0))?;
+    let camera = common::camera(640, 480, 60.0, &mount, PlanarPose::new(0.0, 0.0, 0.0))?;
 
     let settings = RenderSettings {
         supersampling: 2,

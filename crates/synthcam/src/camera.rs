@@ -7,7 +7,7 @@ use nalgebra::{
 use pose::Intrinsics;
 
 use crate::error::{MAX_INTRINSIC, MAX_MAGNITUDE, SynthError, bounded, finite, finite_vec};
-use unicycle::Pose;
+use unicycle::PlanarPose;
 
 use crate::scene::{body_to_world, validate_pose};
 
@@ -80,7 +80,7 @@ impl PosedCamera {
         width: usize,
         height: usize,
         camera_to_body: &Isometry3<f64>,
-        robot: &Pose,
+        robot: &PlanarPose,
     ) -> Result<Self, SynthError> {
         validate_pose(robot)?;
         for &c in camera_to_body
@@ -223,13 +223,13 @@ mod tests {
         )
     }
 
-    fn on_robot(m: &Isometry3<f64>, robot: Pose) -> Result<PosedCamera, SynthError> {
+    fn on_robot(m: &Isometry3<f64>, robot: PlanarPose) -> Result<PosedCamera, SynthError> {
         PosedCamera::on_robot(intr(), W, H, m, &robot)
     }
 
     #[test]
     fn level_mounted_camera_sees_a_point_ahead_at_the_principal_point() {
-        let cam = on_robot(&mount(0.1, 0.3, 0.0, 0.0), Pose::new(1.0, 2.0, 0.5)).unwrap();
+        let cam = on_robot(&mount(0.1, 0.3, 0.0, 0.0), PlanarPose::new(1.0, 2.0, 0.5)).unwrap();
         // A point 2 m ahead of the camera along the robot's heading, at camera height.
         let (s, c) = 0.5f64.sin_cos();
         let p = Point3::new(1.0 + 2.1 * c, 2.0 + 2.1 * s, 0.3);
@@ -248,7 +248,7 @@ mod tests {
     #[test]
     fn pan_left_and_tilt_down_move_the_view_as_documented() {
         let ahead = Point3::new(3.0, 0.0, 0.3);
-        let origin = Pose::default();
+        let origin = PlanarPose::default();
         let level = on_robot(&mount(0.0, 0.3, 0.0, 0.0), origin).unwrap();
         let panned = on_robot(&mount(0.0, 0.3, 0.2, 0.0), origin).unwrap();
         let tilted = on_robot(&mount(0.0, 0.3, 0.0, 0.2), origin).unwrap();
@@ -261,7 +261,7 @@ mod tests {
 
     #[test]
     fn look_at_matches_a_mounted_camera() {
-        let a = on_robot(&mount(0.0, 0.3, 0.0, 0.0), Pose::default()).unwrap();
+        let a = on_robot(&mount(0.0, 0.3, 0.0, 0.0), PlanarPose::default()).unwrap();
         let b = PosedCamera::look_at(
             intr(),
             W,
@@ -294,14 +294,14 @@ mod tests {
         assert!(matches!(
             on_robot(
                 &mount(0.0, 0.0, 0.0, 0.0),
-                Pose::new(f64::INFINITY, 0.0, 0.0)
+                PlanarPose::new(f64::INFINITY, 0.0, 0.0)
             ),
             Err(SynthError::NonFinite { .. })
         ));
         let mut bad_mount = mount(0.0, 0.3, 0.0, 0.0);
         bad_mount.translation.vector.x = f64::NAN;
         assert!(matches!(
-            on_robot(&bad_mount, Pose::default()),
+            on_robot(&bad_mount, PlanarPose::default()),
             Err(SynthError::NonFinite { .. })
         ));
         assert!(

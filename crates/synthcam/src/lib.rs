@@ -70,7 +70,7 @@
 //!
 //! # Vocabulary
 //! The pinhole model is `pose`'s ([`pose::Intrinsics`]; a [`PosedCamera`] adds the image size and
-//! its pose), robots stand at `unicycle`'s planar [`unicycle::Pose`], and a camera mounted on a
+//! its pose), robots stand at `unicycle`'s planar [`unicycle::PlanarPose`], and a camera mounted on a
 //! robot is given by the rigid transform camera frame -> body frame ([`PosedCamera::on_robot`]).
 //!
 //! # Example
@@ -78,7 +78,7 @@
 //! use std::sync::Arc;
 //! use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 //! use synthcam::*;
-//! use unicycle::Pose;
+//! use unicycle::PlanarPose;
 //!
 //! // One face 0.2 m behind the leader's reference point, looking backwards.
 //! let marker: Arc<dyn Texture> = Arc::new(CellGrid::from_bits(2, 2, &[true, false, false, true])?);
@@ -89,7 +89,7 @@
 //!     width: 0.18,
 //!     height: 0.16,
 //! };
-//! let leader = Robot::new(Pose::new(1.5, 0.2, 0.0), Body::Cylinder { radius: 0.15, height: 0.2, albedo: 0.3 })
+//! let leader = Robot::new(PlanarPose::new(1.5, 0.2, 0.0), Body::Cylinder { radius: 0.15, height: 0.2, albedo: 0.3 })
 //!     .with_face(Face::new(3, face, marker));
 //! let mut scene = Scene::new(0.8);
 //! scene.robots.push(leader);
@@ -102,7 +102,7 @@
 //!     UnitQuaternion::face_towards(&Vector3::x(), &-Vector3::z()),
 //! );
 //! let intrinsics = pose::Intrinsics::from_hfov(60f64.to_radians(), 160, 120).expect("valid");
-//! let camera = PosedCamera::on_robot(intrinsics, 160, 120, &camera_to_body, &Pose::new(0.0, 0.0, 0.0))?;
+//! let camera = PosedCamera::on_robot(intrinsics, 160, 120, &camera_to_body, &PlanarPose::new(0.0, 0.0, 0.0))?;
 //! let out = render(&scene, &camera, &RenderSettings::default())?;
 //! assert_eq!(out.frame.data.len(), 160 * 120);
 //! // The leader faces away from the camera, so its backward face (label 3) is visible.

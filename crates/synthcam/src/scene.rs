@@ -8,13 +8,13 @@ use std::sync::Arc;
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
-use unicycle::Pose;
+use unicycle::PlanarPose;
 
 use crate::error::{SynthError, finite, finite_vec, in_range, positive};
 use crate::texture::Texture;
 
 /// Checks that a robot's planar pose is finite (and within [`crate::MAX_MAGNITUDE`]).
-pub(crate) fn validate_pose(pose: &Pose) -> Result<(), SynthError> {
+pub(crate) fn validate_pose(pose: &PlanarPose) -> Result<(), SynthError> {
     finite("pose x", pose.x)?;
     finite("pose y", pose.y)?;
     finite("pose theta", pose.theta)?;
@@ -23,7 +23,7 @@ pub(crate) fn validate_pose(pose: &Pose) -> Result<(), SynthError> {
 
 /// The rigid transform body frame -> world frame of a robot at `pose` (the body frame's
 /// origin is the reference point on the ground, x forward, y left, z up).
-pub(crate) fn body_to_world(pose: &Pose) -> Isometry3<f64> {
+pub(crate) fn body_to_world(pose: &PlanarPose) -> Isometry3<f64> {
     Isometry3::from_parts(
         Translation3::new(pose.x, pose.y, 0.0),
         UnitQuaternion::from_axis_angle(&Vector3::z_axis(), pose.theta),
@@ -181,8 +181,8 @@ impl Face {
 /// A robot: a planar pose, a body and a rig of faces given in the body frame.
 #[derive(Clone, Debug)]
 pub struct Robot {
-    /// Pose on the ground (`unicycle`'s planar pose: metres, metres, radians CCW).
-    pub pose: Pose,
+    /// PlanarPose on the ground (`unicycle`'s planar pose: metres, metres, radians CCW).
+    pub pose: PlanarPose,
     /// The opaque body.
     pub body: Body,
     /// The rig's faces (body frame).
@@ -191,7 +191,7 @@ pub struct Robot {
 
 impl Robot {
     /// A robot with a body and no faces yet.
-    pub fn new(pose: Pose, body: Body) -> Self {
+    pub fn new(pose: PlanarPose, body: Body) -> Self {
         Self {
             pose,
             body,

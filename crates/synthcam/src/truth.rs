@@ -2,7 +2,7 @@
 
 use nalgebra::{Isometry3, Point2, Point3};
 
-use unicycle::Pose;
+use unicycle::PlanarPose;
 
 use crate::camera::PosedCamera;
 use crate::error::SynthError;
@@ -62,7 +62,7 @@ pub struct RobotTruth {
     /// Index of the robot in `Scene::robots`.
     pub index: usize,
     /// Its planar world pose.
-    pub pose: Pose,
+    pub pose: PlanarPose,
     /// The rigid transform body frame -> camera frame (the robot's pose in the camera frame).
     pub body_to_camera: Isometry3<f64>,
     /// One entry per face, in the order of `Robot::faces`.

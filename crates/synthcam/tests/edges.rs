@@ -8,10 +8,10 @@ use nalgebra::{Point2, Point3, Vector3};
 mod common;
 
 use synthcam::*;
-use unicycle::Pose;
+use unicycle::PlanarPose;
 
 /// A scene with one black rectangle (1.0 m x 0.8 m) on a white background.
-fn black_rectangle_scene(pose: Pose) -> Scene {
+fn black_rectangle_scene(pose: PlanarPose) -> Scene {
     let placement = FacePlacement {
         centre: Point3::new(0.0, 0.0, 0.6),
         normal: Vector3::new(-1.0, 0.0, 0.0),
@@ -129,7 +129,7 @@ fn worst_corner_error(scene: &Scene, camera: &PosedCamera, n: usize) -> f64 {
 /// The rectangle seen obliquely from above and to the side: a general quadrilateral with no
 /// axis-aligned edge.
 fn oblique_view() -> (Scene, PosedCamera) {
-    let scene = black_rectangle_scene(Pose::new(3.0, 0.2, 0.35));
+    let scene = black_rectangle_scene(PlanarPose::new(3.0, 0.2, 0.35));
     let intr = common::intrinsics(320, 240, 50.0);
     let cam = PosedCamera::look_at(
         intr,
@@ -155,7 +155,7 @@ fn rendered_corners_match_exact_projection_to_five_hundredths_of_a_pixel() {
 
 #[test]
 fn rendered_corners_match_with_skewed_off_centre_intrinsics() {
-    let scene = black_rectangle_scene(Pose::new(2.5, -0.1, -0.5));
+    let scene = black_rectangle_scene(PlanarPose::new(2.5, -0.1, -0.5));
     let k = nalgebra::Matrix3::new(300.0, 4.0, 150.3, 0.0, 290.0, 131.7, 0.0, 0.0, 1.0);
     let intr = pose::Intrinsics::from_matrix(&k).unwrap();
     let cam = PosedCamera::look_at(
@@ -201,7 +201,7 @@ fn worst_vertical_edge_error(n: usize) -> f64 {
     for k in 0..24 {
         // Metres per pixel at 3 m: about 3 / 343; step the face by 1/24 px.
         let y = 0.013 + k as f64 / 24.0 * 3.0 / 343.0;
-        let scene = black_rectangle_scene(Pose::new(3.0, y, 0.0));
+        let scene = black_rectangle_scene(PlanarPose::new(3.0, y, 0.0));
         let out = render(&scene, &cam, &crisp(n)).unwrap();
         let c = out.truth.robots[0].faces[0].corners_px.unwrap();
         assert!(

@@ -9,10 +9,10 @@ use proptest::prelude::*;
 mod common;
 
 use synthcam::*;
-use unicycle::Pose;
+use unicycle::PlanarPose;
 
 /// One robot whose face `i` (label `i + 1`) is uniformly `(i + 1) * 40 / 255`.
-fn leader(pose: Pose) -> Robot {
+fn leader(pose: PlanarPose) -> Robot {
     let mut r = Robot::new(pose, Body::None);
     for (i, p) in common::octagon_faces(0.16).unwrap().into_iter().enumerate() {
         let tex = Arc::new(Uniform::new((i as f64 + 1.0) * 40.0 / 255.0).unwrap());
@@ -22,7 +22,7 @@ fn leader(pose: Pose) -> Robot {
 }
 
 prop_compose! {
-    fn pose()(x in -3.0..3.0f64, y in -3.0..3.0f64, theta in -PI..PI) -> Pose { Pose::new(x, y, theta) }
+    fn pose()(x in -3.0..3.0f64, y in -3.0..3.0f64, theta in -PI..PI) -> PlanarPose { PlanarPose::new(x, y, theta) }
 }
 
 prop_compose! {
@@ -35,10 +35,10 @@ prop_compose! {
 prop_compose! {
     /// A follower pose and a leader somewhere ahead of it, mostly within the field of view.
     fn ahead()(follower in pose(), m in mount(), dist in 0.8..4.0f64, bearing in -0.5..0.5f64, heading in -PI..PI)
-        -> (Pose, Isometry3<f64>, Pose) {
+        -> (PlanarPose, Isometry3<f64>, PlanarPose) {
         let (m, pan) = m;
         let a = follower.theta + pan + bearing;
-        let leader = Pose::new(follower.x + dist * a.cos(), follower.y + dist * a.sin(), heading);
+        let leader = PlanarPose::new(follower.x + dist * a.cos(), follower.y + dist * a.sin(), heading);
         (follower, m, leader)
     }
 }
@@ -119,7 +119,7 @@ proptest! {
         let mut r = leader(leader_pose);
         r.body = Body::Box { length: 0.3, width: 0.25, height: 0.2, albedo: 0.3 };
         scene.robots.push(r);
-        scene.robots.push(Robot::new(Pose::new(leader_pose.y, leader_pose.x, 0.3), Body::Cylinder { radius: 0.2, height: 0.3, albedo: 0.5 }));
+        scene.robots.push(Robot::new(PlanarPose::new(leader_pose.y, leader_pose.x, 0.3), Body::Cylinder { radius: 0.2, height: 0.3, albedo: 0.5 }));
         scene.ground = Some(Ground { texture: Arc::new(SoftChecker::new(0.3, 0.7).unwrap()), tile: 0.7 });
         let cam = common::camera(w, h, 60.0, &m.0, follower).unwrap();
         let settings = RenderSettings { supersampling: n, blur_sigma: blur, noise_sigma: noise, seed, ..RenderSettings::default() };
@@ -145,9 +145,9 @@ proptest! {
         height in -MAX_MAGNITUDE..MAX_MAGNITUDE, tilt in -3.2..3.2f64,
     ) {
         let mut scene = Scene::new(0.5);
-        scene.robots.push(leader(Pose::new(lx, ly, lt)));
+        scene.robots.push(leader(PlanarPose::new(lx, ly, lt)));
         let m = common::mount(0.1, height, 0.0, tilt);
-        let cam = common::camera(32, 24, 60.0, &m, Pose::new(fx, fy, ft)).unwrap();
+        let cam = common::camera(32, 24, 60.0, &m, PlanarPose::new(fx, fy, ft)).unwrap();
         let out = render(&scene, &cam, &RenderSettings { supersampling: 1, ..RenderSettings::default() }).unwrap();
         for f in &out.truth.robots[0].faces {
             prop_assert!(f.off_axis_deg.is_finite());

@@ -7,7 +7,7 @@ use nalgebra::{Point3, Vector3};
 mod common;
 
 use synthcam::*;
-use unicycle::Pose;
+use unicycle::PlanarPose;
 
 fn scene() -> Scene {
     let grid = Arc::new(
@@ -19,7 +19,7 @@ fn scene() -> Scene {
         .unwrap(),
     );
     let mut r = Robot::new(
-        Pose::new(1.5, 0.1, 0.3),
+        PlanarPose::new(1.5, 0.1, 0.3),
         Body::Box {
             length: 0.3,
             width: 0.3,
@@ -41,7 +41,7 @@ fn scene() -> Scene {
 
 fn camera(w: usize, h: usize) -> PosedCamera {
     let mount = common::mount(0.1, 0.3, 0.05, 0.05);
-    common::camera(w, h, 60.0, &mount, Pose::default()).unwrap()
+    common::camera(w, h, 60.0, &mount, PlanarPose::default()).unwrap()
 }
 
 fn noisy(seed: u64) -> RenderSettings {
@@ -333,7 +333,7 @@ fn bad_input_is_a_typed_error() {
     let far = common::mount(-1e12, 0.3, 0.0, 0.0);
     let (w, h) = (c.width(), c.height());
     assert!(matches!(
-        PosedCamera::on_robot(*c.intrinsics(), w, h, &far, &Pose::default()),
+        PosedCamera::on_robot(*c.intrinsics(), w, h, &far, &PlanarPose::default()),
         Err(SynthError::TooLarge { .. })
     ));
     assert!(matches!(
@@ -362,7 +362,7 @@ fn bad_input_is_a_typed_error() {
     );
     let mount = common::mount(0.1, f64::NAN, 0.0, 0.0);
     assert!(matches!(
-        PosedCamera::on_robot(*c.intrinsics(), w, h, &mount, &Pose::default()),
+        PosedCamera::on_robot(*c.intrinsics(), w, h, &mount, &PlanarPose::default()),
         Err(SynthError::NonFinite { .. })
     ));
 }
@@ -371,7 +371,7 @@ fn bad_input_is_a_typed_error() {
 fn camera_inside_nothing_and_looking_at_the_sky_renders_background() {
     let s = scene();
     let mount = common::mount(0.0, 0.3, 0.0, -1.4); // looking almost straight up
-    let c = common::camera(40, 30, 30.0, &mount, Pose::new(-5.0, 0.0, 0.0)).unwrap();
+    let c = common::camera(40, 30, 30.0, &mount, PlanarPose::new(-5.0, 0.0, 0.0)).unwrap();
     let f = render(&s, &c, &RenderSettings::default()).unwrap().frame;
     assert!(f.data.iter().all(|&x| x == 204)); // 0.8 * 255
 }

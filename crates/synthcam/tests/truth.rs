@@ -8,14 +8,14 @@ use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vect
 mod common;
 
 use synthcam::*;
-use unicycle::Pose;
+use unicycle::PlanarPose;
 
 fn quadrants() -> Arc<CellGrid> {
     // NW black, NE dark grey, SW light grey, SE white, as seen from outside the face.
     Arc::new(CellGrid::new(2, 2, vec![0, 80, 160, 255]).unwrap())
 }
 
-fn rig_robot(pose: Pose, body: Body) -> Robot {
+fn rig_robot(pose: PlanarPose, body: Body) -> Robot {
     let mut r = Robot::new(pose, body);
     for (i, p) in common::octagon_faces(0.16).unwrap().into_iter().enumerate() {
         r = r.with_face(Face::new(i as u32 + 1, p, quadrants()));
@@ -23,7 +23,7 @@ fn rig_robot(pose: Pose, body: Body) -> Robot {
     r
 }
 
-fn level_camera(w: usize, h: usize, pose: Pose) -> PosedCamera {
+fn level_camera(w: usize, h: usize, pose: PlanarPose) -> PosedCamera {
     let mount = common::mount(0.1, 0.3, 0.0, 0.0);
     common::camera(w, h, 60.0, &mount, pose).unwrap()
 }
@@ -33,14 +33,14 @@ fn body_to_camera_is_the_composition_of_world_pose_and_extrinsics() {
     let mut scene = Scene::new(0.5);
     scene
         .robots
-        .push(rig_robot(Pose::new(2.0, 0.7, 2.5), Body::None));
+        .push(rig_robot(PlanarPose::new(2.0, 0.7, 2.5), Body::None));
     let mount = common::mount(0.12, 0.35, 0.3, 0.1);
-    let follower = Pose::new(-0.5, 0.2, 0.4);
+    let follower = PlanarPose::new(-0.5, 0.2, 0.4);
     let cam = common::camera(320, 240, 70.0, &mount, follower).unwrap();
     let truth = ground_truth(&scene, &cam).unwrap();
 
     // Build the expected transform by hand, from the documented mount convention.
-    let b2w = |p: Pose| {
+    let b2w = |p: PlanarPose| {
         Isometry3::from_parts(
             Translation3::new(p.x, p.y, 0.0),
             UnitQuaternion::from_axis_angle(&Vector3::z_axis(), p.theta),
@@ -85,8 +85,8 @@ fn faces_seen_from_behind_the_leader_follow_the_spec() {
         let mut scene = Scene::new(0.5);
         scene
             .robots
-            .push(rig_robot(Pose::new(1.8, y, 0.0), Body::None));
-        let cam = level_camera(640, 480, Pose::default());
+            .push(rig_robot(PlanarPose::new(1.8, y, 0.0), Body::None));
+        let cam = level_camera(640, 480, PlanarPose::default());
         let truth = ground_truth(&scene, &cam).unwrap();
         let front: Vec<bool> = truth.robots[0]
             .faces
@@ -105,10 +105,10 @@ fn face_straight_at_the_camera_has_zero_off_axis_and_the_expected_width() {
     // Leader 2 m straight ahead, facing away: face 3 points back at the camera.
     let mut scene = Scene::new(0.5);
     scene.robots.push(rig_robot(
-        Pose::new(2.1 + common::octagon_apothem(0.18), 0.0, 0.0),
+        PlanarPose::new(2.1 + common::octagon_apothem(0.18), 0.0, 0.0),
         Body::None,
     ));
-    let cam = level_camera(640, 480, Pose::default());
+    let cam = level_camera(640, 480, PlanarPose::default());
     let truth = ground_truth(&scene, &cam).unwrap();
     let f = &truth.robots[0].faces[2];
     assert!(f.visible);
@@ -136,9 +136,9 @@ fn face_straight_at_the_camera_has_zero_off_axis_and_the_expected_width() {
 fn texture_orientation_reads_like_an_image_pinned_to_the_face() {
     // Face 3 seen head-on: NW quadrant black, NE dark grey, SW light grey, SE white.
     let mut scene = Scene::new(0.5);
-    let pose = Pose::new(1.5, 0.0, 0.0);
+    let pose = PlanarPose::new(1.5, 0.0, 0.0);
     scene.robots.push(rig_robot(pose, Body::None));
-    let cam = level_camera(320, 240, Pose::default());
+    let cam = level_camera(320, 240, PlanarPose::default());
     let out = render(
         &scene,
         &cam,
@@ -177,9 +177,9 @@ fn a_body_in_the_way_occludes_faces_behind_it() {
     let mut scene = Scene::new(0.5);
     scene
         .robots
-        .push(rig_robot(Pose::new(3.0, 0.0, 0.0), Body::None));
+        .push(rig_robot(PlanarPose::new(3.0, 0.0, 0.0), Body::None));
     scene.robots.push(Robot::new(
-        Pose::new(1.5, 0.0, 0.0),
+        PlanarPose::new(1.5, 0.0, 0.0),
         Body::Box {
             length: 0.3,
             width: 0.6,
@@ -187,7 +187,7 @@ fn a_body_in_the_way_occludes_faces_behind_it() {
             albedo: 0.4,
         },
     ));
-    let cam = level_camera(640, 480, Pose::default());
+    let cam = level_camera(640, 480, PlanarPose::default());
     let truth = ground_truth(&scene, &cam).unwrap();
     let f = &truth.robots[0].faces[2];
     assert!(f.front_facing && f.inside_image && !f.visible);
@@ -215,16 +215,16 @@ fn a_cylinder_occludes_and_renders_with_its_albedo() {
     let mut scene = Scene::new(0.5);
     scene
         .robots
-        .push(rig_robot(Pose::new(3.0, 0.0, 0.0), Body::None));
+        .push(rig_robot(PlanarPose::new(3.0, 0.0, 0.0), Body::None));
     scene.robots.push(Robot::new(
-        Pose::new(1.5, 0.0, 0.0),
+        PlanarPose::new(1.5, 0.0, 0.0),
         Body::Cylinder {
             radius: 0.3,
             height: 0.6,
             albedo: 0.2,
         },
     ));
-    let cam = level_camera(640, 480, Pose::default());
+    let cam = level_camera(640, 480, PlanarPose::default());
     let out = render(
         &scene,
         &cam,
@@ -244,17 +244,17 @@ fn partly_outside_image_and_behind_camera_are_reported() {
     // Leader far to the left edge of a narrow view: some corners outside.
     scene
         .robots
-        .push(rig_robot(Pose::new(1.0, 0.55, 0.0), Body::None));
+        .push(rig_robot(PlanarPose::new(1.0, 0.55, 0.0), Body::None));
     // Leader behind the camera.
     scene
         .robots
-        .push(rig_robot(Pose::new(-2.0, 0.0, PI), Body::None));
+        .push(rig_robot(PlanarPose::new(-2.0, 0.0, PI), Body::None));
     let cam = common::camera(
         200,
         150,
         50.0,
         &common::mount(0.0, 0.3, 0.0, 0.0),
-        Pose::default(),
+        PlanarPose::default(),
     )
     .unwrap();
     let truth = ground_truth(&scene, &cam).unwrap();

@@ -4,15 +4,15 @@
 //! Run with `cargo run -p formation-unicycle --example hold_formation`.
 
 use unicycle::{
-    ControllerConfig, Formation, Inputs, Pose, SeparationBearingController, UnicycleError,
+    ControllerConfig, Formation, Inputs, PlanarPose, SeparationBearingController, UnicycleError,
     wrap_angle,
 };
 
 fn main() -> Result<(), UnicycleError> {
     let d = 0.5;
     let dt = 1.0 / 30.0;
-    let mut leader = Pose::new(1.5, 0.25, 0.0);
-    let mut follower = Pose::new(0.0, 0.0, 0.0);
+    let mut leader = PlanarPose::new(1.5, 0.25, 0.0);
+    let mut follower = PlanarPose::new(0.0, 0.0, 0.0);
     let start = Formation::from_poses(&leader, &follower, d)?;
     // Ask for 20 cm more separation than at the start, same bearing.
     let config = ControllerConfig {

@@ -4,10 +4,10 @@
 //! knows about poses, wheel inputs and formation geometry, but nothing about cameras' pixels,
 //! markers or filters. Three layers:
 //!
-//! - [`Pose`] and [`Inputs`]: one unicycle `x' = v cos(theta), y' = v sin(theta),
-//!   theta' = w`, integrated either in closed form ([`Pose::integrate_exact`], an arc written
+//! - [`PlanarPose`] and [`Inputs`]: one unicycle `x' = v cos(theta), y' = v sin(theta),
+//!   theta' = w`, integrated either in closed form ([`PlanarPose::integrate_exact`], an arc written
 //!   with a `sinc` so that a straight line is the same formula's limit and nothing divides by
-//!   a tiny `w`) or by RK4 ([`Pose::integrate_rk4`]). Truth simulations use the exact form.
+//!   a tiny `w`) or by RK4 ([`PlanarPose::integrate_rk4`]). Truth simulations use the exact form.
 //! - [`Formation`]: the formation variables `(l12, alpha12, beta12)` between a leader and a
 //!   follower whose camera is `d` metres ahead of its axle (spec 2.3), and both inverses
 //!   (leader pose from follower pose and formation, and vice versa).
@@ -37,11 +37,11 @@
 //! # Example
 //! ```
 //! use nalgebra::Vector2;
-//! use unicycle::{PolarModel, Pose};
+//! use unicycle::{PolarModel, PlanarPose};
 //!
 //! let model = PolarModel::new(0.5)?;
-//! let leader = Pose::new(1.5, 0.25, 0.0);
-//! let follower = Pose::new(0.0, 0.0, 0.0);
+//! let leader = PlanarPose::new(1.5, 0.25, 0.0);
+//! let follower = PlanarPose::new(0.0, 0.0, 0.0);
 //! let x = model.state_from_poses(&leader, &follower)?;
 //! let next = model.f(&x, &Vector2::new(0.8, 0.0), &Vector2::new(0.8, 0.0), 1.0 / 30.0)?;
 //! // Both robots drive straight at the same speed: the formation does not change.
@@ -72,4 +72,4 @@ pub use polar::{
     Formation, FormationMeasurement, MEASUREMENT_ANGLES, MIN_SEPARATION, PolarModel, PolarState,
     STATE_ANGLES,
 };
-pub use robot::{Inputs, Pose};
+pub use robot::{Inputs, PlanarPose};

@@ -4,7 +4,7 @@ use nalgebra::{SVector, Vector2, Vector3};
 
 use crate::angle::wrap_angle;
 use crate::error::{UnicycleError, check_dt, check_finite};
-use crate::robot::{Inputs, Pose};
+use crate::robot::{Inputs, PlanarPose};
 
 /// Smallest separation `l12` (metres) the model accepts. Below it the bearings are undefined
 /// and the polar equations divide by (almost) zero, so every entry point returns
@@ -23,8 +23,10 @@ pub const STATE_ANGLES: [usize; 3] = [2, 4, 5];
 /// Indices of the measurement components that are angles.
 pub const MEASUREMENT_ANGLES: [usize; 2] = [1, 2];
 
-/// Formation variables between a leader (robot 1) and a follower's camera (robot 2).
+/// Formation variables between a leader (robot 1) and a follower's camera (robot 2). With
+/// the `serde` feature it reads and writes as `{l12, alpha12, beta12}`.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Formation {
     /// Distance from the follower's camera to the leader's reference point, metres.
     pub l12: f64,
@@ -59,7 +61,11 @@ impl Formation {
     ///
     /// # Errors
     /// Non-finite poses, a bad `d`, or a leader within [`MIN_SEPARATION`] of the camera.
-    pub fn from_poses(leader: &Pose, follower: &Pose, d: f64) -> Result<Self, UnicycleError> {
+    pub fn from_poses(
+        leader: &PlanarPose,
+        follower: &PlanarPose,
+        d: f64,
+    ) -> Result<Self, UnicycleError> {
         leader.check("leader pose")?;
         follower.check("follower pose")?;
         check_offset(d)?;
@@ -80,13 +86,13 @@ impl Formation {
     ///
     /// # Errors
     /// Non-finite values, a bad `d`, or `l12 <= MIN_SEPARATION`.
-    pub fn leader_pose(&self, follower: &Pose, d: f64) -> Result<Pose, UnicycleError> {
+    pub fn leader_pose(&self, follower: &PlanarPose, d: f64) -> Result<PlanarPose, UnicycleError> {
         self.check()?;
         follower.check("follower pose")?;
         check_offset(d)?;
         let (xc, yc) = follower.point_ahead(d);
         let zeta = follower.theta + self.beta12;
-        Ok(Pose {
+        Ok(PlanarPose {
             x: xc + self.l12 * zeta.cos(),
             y: yc + self.l12 * zeta.sin(),
             theta: wrap_angle(zeta - self.alpha12),
@@ -98,7 +104,7 @@ impl Formation {
     ///
     /// # Errors
     /// As [`Formation::leader_pose`].
-    pub fn follower_pose(&self, leader: &Pose, d: f64) -> Result<Pose, UnicycleError> {
+    pub fn follower_pose(&self, leader: &PlanarPose, d: f64) -> Result<PlanarPose, UnicycleError> {
         self.check()?;
         leader.check("leader pose")?;
         check_offset(d)?;
@@ -106,7 +112,7 @@ impl Formation {
         let theta2 = zeta - self.beta12;
         let xc = leader.x - self.l12 * zeta.cos();
         let yc = leader.y - self.l12 * zeta.sin();
-        Ok(Pose {
+        Ok(PlanarPose {
             x: xc - d * theta2.cos(),
             y: yc - d * theta2.sin(),
             theta: wrap_angle(theta2),
@@ -241,8 +247,8 @@ impl PolarModel {
     /// As [`Formation::from_poses`].
     pub fn state_from_poses(
         &self,
-        leader: &Pose,
-        follower: &Pose,
+        leader: &PlanarPose,
+        follower: &PlanarPose,
     ) -> Result<PolarState, UnicycleError> {
         let f = Formation::from_poses(leader, follower, self.d)?;
         Ok(PolarState::new(
@@ -256,15 +262,15 @@ impl PolarModel {
     }
 
     /// The leader's world pose held in a polar state.
-    pub fn leader_pose(x: &PolarState) -> Pose {
-        Pose::new(x[0], x[1], x[2])
+    pub fn leader_pose(x: &PolarState) -> PlanarPose {
+        PlanarPose::new(x[0], x[1], x[2])
     }
 
     /// The follower's world pose implied by a polar state.
     ///
     /// # Errors
     /// Non-finite state or `l12 <= MIN_SEPARATION`.
-    pub fn follower_pose(&self, x: &PolarState) -> Result<Pose, UnicycleError> {
+    pub fn follower_pose(&self, x: &PolarState) -> Result<PlanarPose, UnicycleError> {
         check_finite("state", x.as_slice())?;
         let f = Formation {
             l12: x[3],

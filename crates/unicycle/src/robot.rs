@@ -13,7 +13,7 @@ use crate::error::{UnicycleError, check_dt, check_finite};
     derive(serde::Serialize, serde::Deserialize),
     serde(deny_unknown_fields)
 )]
-pub struct Pose {
+pub struct PlanarPose {
     /// World x of the robot's reference point, metres.
     pub x: f64,
     /// World y of the robot's reference point, metres.
@@ -42,7 +42,7 @@ impl Inputs {
     }
 }
 
-/// Below this `|w dt|` the sinc in [`Pose::integrate_exact`] is evaluated by its Taylor
+/// Below this `|w dt|` the sinc in [`PlanarPose::integrate_exact`] is evaluated by its Taylor
 /// series, so a straight line (w = 0) and a very gentle arc share one formula.
 const SINC_TAYLOR_BELOW: f64 = 1e-4;
 
@@ -57,10 +57,29 @@ fn sinc(x: f64) -> f64 {
     }
 }
 
-impl Pose {
+impl PlanarPose {
     /// Builds a pose; `theta` is kept as given (not wrapped).
     pub const fn new(x: f64, y: f64, theta: f64) -> Self {
         Self { x, y, theta }
+    }
+
+    /// `[x, y, theta]`.
+    pub fn to_vector(&self) -> nalgebra::Vector3<f64> {
+        nalgebra::Vector3::new(self.x, self.y, self.theta)
+    }
+
+    /// The pose of `[x, y, theta]`.
+    pub fn from_vector(v: &nalgebra::Vector3<f64>) -> Self {
+        Self {
+            x: v.x,
+            y: v.y,
+            theta: v.z,
+        }
+    }
+
+    /// True when all three are finite.
+    pub fn is_finite(&self) -> bool {
+        self.x.is_finite() && self.y.is_finite() && self.theta.is_finite()
     }
 
     /// The point `d` metres ahead of the reference point along the heading: where the
@@ -88,14 +107,14 @@ impl Pose {
     /// # Errors
     /// [`UnicycleError::NonFinite`] for a non-finite pose or input,
     /// [`UnicycleError::InvalidTimeStep`] for `dt` not finite and positive.
-    pub fn integrate_exact(&self, u: Inputs, dt: f64) -> Result<Pose, UnicycleError> {
+    pub fn integrate_exact(&self, u: Inputs, dt: f64) -> Result<PlanarPose, UnicycleError> {
         self.check("pose")?;
         u.check("inputs")?;
         check_dt(dt)?;
         let half = 0.5 * u.w * dt;
         let chord = u.v * dt * sinc(half);
         let mid = self.theta + half;
-        Ok(Pose {
+        Ok(PlanarPose {
             x: self.x + chord * mid.cos(),
             y: self.y + chord * mid.sin(),
             theta: wrap_angle(self.theta + u.w * dt),
@@ -103,16 +122,16 @@ impl Pose {
     }
 
     /// Integrates the unicycle over `dt` with one classical Runge-Kutta (RK4) step, inputs
-    /// held constant. Agrees with [`Pose::integrate_exact`] to `O(dt^5)`; it exists so the
+    /// held constant. Agrees with [`PlanarPose::integrate_exact`] to `O(dt^5)`; it exists so the
     /// Cartesian and polar models can be integrated by the same scheme when that matters.
     ///
     /// # Errors
-    /// As [`Pose::integrate_exact`].
-    pub fn integrate_rk4(&self, u: Inputs, dt: f64) -> Result<Pose, UnicycleError> {
+    /// As [`PlanarPose::integrate_exact`].
+    pub fn integrate_rk4(&self, u: Inputs, dt: f64) -> Result<PlanarPose, UnicycleError> {
         self.check("pose")?;
         u.check("inputs")?;
         check_dt(dt)?;
-        let at = |p: &Pose, k: (f64, f64, f64), s: f64| Pose {
+        let at = |p: &PlanarPose, k: (f64, f64, f64), s: f64| PlanarPose {
             x: p.x + s * k.0,
             y: p.y + s * k.1,
             theta: p.theta + s * k.2,
@@ -122,7 +141,7 @@ impl Pose {
         let k3 = at(self, k2, 0.5 * dt).derivative(u);
         let k4 = at(self, k3, dt).derivative(u);
         let s = dt / 6.0;
-        Ok(Pose {
+        Ok(PlanarPose {
             x: self.x + s * (k1.0 + 2.0 * k2.0 + 2.0 * k3.0 + k4.0),
             y: self.y + s * (k1.1 + 2.0 * k2.1 + 2.0 * k3.1 + k4.1),
             theta: wrap_angle(self.theta + u.w * dt),

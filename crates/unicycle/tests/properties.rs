@@ -5,7 +5,7 @@ use std::f64::consts::PI;
 use nalgebra::Vector2;
 use proptest::prelude::*;
 use unicycle::{
-    ControllerConfig, Formation, Inputs, MIN_SEPARATION, PolarModel, PolarState, Pose,
+    ControllerConfig, Formation, Inputs, MIN_SEPARATION, PlanarPose, PolarModel, PolarState,
     SeparationBearingController, UnicycleError, wrap_angle,
 };
 
@@ -15,8 +15,8 @@ fn angle_diff(a: f64, b: f64) -> f64 {
     wrap_angle(a - b).abs()
 }
 
-fn pose() -> impl Strategy<Value = Pose> {
-    (-5.0..5.0f64, -5.0..5.0f64, -PI..PI).prop_map(|(x, y, t)| Pose::new(x, y, t))
+fn pose() -> impl Strategy<Value = PlanarPose> {
+    (-5.0..5.0f64, -5.0..5.0f64, -PI..PI).prop_map(|(x, y, t)| PlanarPose::new(x, y, t))
 }
 
 fn inputs() -> impl Strategy<Value = Inputs> {
@@ -24,12 +24,12 @@ fn inputs() -> impl Strategy<Value = Inputs> {
 }
 
 /// A follower and a leader 1.5-4 m from its camera, in any relative configuration.
-fn configuration() -> impl Strategy<Value = (Pose, Pose, f64)> {
+fn configuration() -> impl Strategy<Value = (PlanarPose, PlanarPose, f64)> {
     (pose(), 1.5..4.0f64, -PI..PI, -PI..PI, 0.0..0.6f64).prop_map(
         |(follower, l, bearing, heading, d)| {
             let (xc, yc) = follower.point_ahead(d);
             let zeta = follower.theta + bearing;
-            let leader = Pose::new(xc + l * zeta.cos(), yc + l * zeta.sin(), heading);
+            let leader = PlanarPose::new(xc + l * zeta.cos(), yc + l * zeta.sin(), heading);
             (leader, follower, d)
         },
     )
@@ -190,7 +190,7 @@ fn bad_dt_and_offset_are_errors() {
             Err(UnicycleError::InvalidTimeStep { .. })
         ));
         assert!(matches!(
-            Pose::default().integrate_exact(Inputs::default(), dt),
+            PlanarPose::default().integrate_exact(Inputs::default(), dt),
             Err(UnicycleError::InvalidTimeStep { .. })
         ));
     }
@@ -221,8 +221,8 @@ fn bad_dt_and_offset_are_errors() {
 #[test]
 fn step_through_the_singularity_is_an_error() {
     let model = PolarModel::new(0.5).unwrap();
-    let follower = Pose::new(0.0, 0.0, 0.0);
-    let leader = Pose::new(0.55, 0.0, PI);
+    let follower = PlanarPose::new(0.0, 0.0, 0.0);
+    let leader = PlanarPose::new(0.55, 0.0, PI);
     let x = model.state_from_poses(&leader, &follower).unwrap();
     let err = model
         .f(&x, &Vector2::zeros(), &Vector2::new(3.0, 0.0), DT)
@@ -236,8 +236,8 @@ fn step_through_the_singularity_is_an_error() {
 fn controller_linearises_the_outputs() {
     let d = 0.5;
     let model = PolarModel::new(d).unwrap();
-    let follower = Pose::new(0.0, 0.0, 0.0);
-    let leader = Pose::new(1.5, 0.25, 0.0);
+    let follower = PlanarPose::new(0.0, 0.0, 0.0);
+    let leader = PlanarPose::new(1.5, 0.25, 0.0);
     let mut x = model.state_from_poses(&leader, &follower).unwrap();
     let cfg = ControllerConfig {
         l12_desired: x[3] + 0.3,

@@ -9,7 +9,7 @@ use formation_sim::scenario::{ScenarioConfig, simulate};
 use formation_sim::scene::{CameraSpec, RenderSpec, RobotSpec, SceneSpec, render_scene};
 use formation_tracker::mount::CameraMount;
 use formation_tracker::rig::RigModel;
-use unicycle::{PolarModel, Pose};
+use unicycle::{PlanarPose, PolarModel};
 
 /// A 640 x 480 pinhole calibration (60 deg horizontal field of view, no distortion), as
 /// OpenCV writes it.
@@ -80,7 +80,7 @@ pub fn reference_clip(name: &str, frames: usize) -> Clip {
         let leader = PolarModel::leader_pose(&s.truth);
         let spec = SceneSpec {
             name: String::new(),
-            camera_robot: Pose {
+            camera_robot: PlanarPose {
                 x: s.follower.x,
                 y: s.follower.y,
                 theta: s.follower.theta,

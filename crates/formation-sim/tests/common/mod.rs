@@ -4,8 +4,8 @@ use formation_tracker::mount::CameraMount;
 
 /// The leader's pose (rig frame -> camera frame) for world poses of both robots.
 pub fn camera_pose(
-    leader: &unicycle::Pose,
-    follower: &unicycle::Pose,
+    leader: &unicycle::PlanarPose,
+    follower: &unicycle::PlanarPose,
     mount: &CameraMount,
 ) -> pose::Pose {
     // The leader in the follower's body frame.

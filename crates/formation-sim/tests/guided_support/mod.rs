@@ -12,7 +12,7 @@ use formation_tracker::pipeline::Pipeline;
 use formation_tracker::rig::RigModel;
 use formation_tracker::robots::RobotConfig;
 use formation_tracker::tracker::{Tracker, TrackerConfig};
-use unicycle::{Inputs, Pose};
+use unicycle::{Inputs, PlanarPose};
 
 /// Frame interval, s.
 const DT: f64 = 1.0 / 30.0;
@@ -36,7 +36,7 @@ pub fn leader_frame(
     let dict = Dictionary::paper();
     let spec = SceneSpec {
         name: String::new(),
-        camera_robot: Pose::new(0.0, 0.0, 0.0),
+        camera_robot: PlanarPose::new(0.0, 0.0, 0.0),
         mount,
         camera,
         render: RenderSpec {

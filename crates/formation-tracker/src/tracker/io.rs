@@ -2,7 +2,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
-use unicycle::Inputs;
+use unicycle::{Formation, Inputs};
 
 use crate::mount::CameraMount;
 
@@ -133,12 +133,10 @@ pub struct LeaderReport {
     pub candidate: Option<u8>,
     /// Mahalanobis distance squared of the used (or gated) measurement, if any.
     pub nis: Option<f64>,
-    /// Estimated separation, m.
-    pub l12: f64,
-    /// Estimated bearing in the leader's frame, rad.
-    pub alpha12: f64,
-    /// Estimated bearing in the follower's frame, rad.
-    pub beta12: f64,
+    /// Estimated formation: separation `l12` (m), bearings `alpha12` in the leader's frame
+    /// and `beta12` in the follower's (rad); flat in JSON (`l12`, `alpha12`, `beta12`).
+    #[serde(flatten)]
+    pub formation: Formation,
     /// Estimated leader speed, m/s.
     pub v1: f64,
     /// Estimated leader turn rate, rad/s.

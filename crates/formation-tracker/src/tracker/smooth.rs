@@ -15,7 +15,7 @@
 //! measurements passed the gate): it re-weighs what was accepted, it does not re-decide.
 
 use serde::Serialize;
-use unicycle::Inputs;
+use unicycle::{Formation, Inputs};
 
 use crate::filter::{FilterStep, FormationFilter};
 
@@ -48,12 +48,10 @@ pub struct SmoothedLeader {
     /// Whether a measurement of this leader was applied in this frame (`false`: coasting,
     /// the estimate is interpolated by the smoother from the frames around it).
     pub measured: bool,
-    /// Smoothed separation, m.
-    pub l12: f64,
-    /// Smoothed bearing in the leader's frame, rad.
-    pub alpha12: f64,
-    /// Smoothed bearing in the follower's frame, rad.
-    pub beta12: f64,
+    /// Smoothed formation: separation `l12` (m), bearings `alpha12` in the leader's frame
+    /// and `beta12` in the follower's (rad); flat in JSON.
+    #[serde(flatten)]
+    pub formation: Formation,
     /// Smoothed leader speed over the frame step that ended at `t`, m/s.
     pub v1: f64,
     /// Smoothed leader turn rate over the frame step that ended at `t`, rad/s.
@@ -93,9 +91,7 @@ impl Segment {
                     robot: self.robot,
                     segment: index,
                     measured: r.step.measurement.is_some(),
-                    l12: f.l12,
-                    alpha12: f.alpha12,
-                    beta12: f.beta12,
+                    formation: f,
                     v1: s.velocity.v,
                     w1: s.velocity.w,
                     l12_std: fs[0],

@@ -5,7 +5,7 @@
 
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use synthcam::{FacePlacement, PosedCamera, SynthError};
-use unicycle::Pose;
+use unicycle::PlanarPose;
 
 /// Apothem of a regular octagon with side `width`.
 pub fn octagon_apothem(width: f64) -> f64 {
@@ -55,7 +55,7 @@ pub fn camera(
     h: usize,
     hfov_deg: f64,
     mount: &Isometry3<f64>,
-    robot: Pose,
+    robot: PlanarPose,
 ) -> Result<PosedCamera, SynthError> {
     PosedCamera::on_robot(intrinsics(w, h, hfov_deg), w, h, mount, &robot)
 }

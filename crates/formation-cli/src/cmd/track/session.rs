@@ -364,9 +364,9 @@ pub fn write_smoothed(
                 "smoothed frame {frame} t {:.3}: robot {} l12 {:.3} alpha12 {:.3} beta12 {:.3} v1 {:.2} w1 {:.2}{}",
                 l.t,
                 l.robot,
-                l.l12,
-                l.alpha12,
-                l.beta12,
+                l.formation.l12,
+                l.formation.alpha12,
+                l.formation.beta12,
                 l.v1,
                 l.w1,
                 if l.measured { "" } else { " (not measured)" }
@@ -422,7 +422,7 @@ pub fn write_frame(
         write!(
             text,
             " robot {} {:?} l12 {:.3} alpha12 {:.3} beta12 {:.3} v1 {:.2} w1 {:.2};",
-            l.robot, l.status, l.l12, l.alpha12, l.beta12, l.v1, l.w1
+            l.robot, l.status, l.formation.l12, l.formation.alpha12, l.formation.beta12, l.v1, l.w1
         )?;
     }
     writeln!(text, " ({:.1} ms)", timing.total_ms)?;
