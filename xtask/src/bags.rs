@@ -38,7 +38,7 @@ const DUCKIETOWN: &[&str] = &[
 ];
 
 /// K of the `multiple_tags_test` set (`test_info.yaml`).
-const DUCKIETOWN_K: [f64; 9] = [
+pub const DUCKIETOWN_K: [f64; 9] = [
     338.563277422543,
     0.0,
     336.45495347495824,

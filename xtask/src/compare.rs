@@ -80,7 +80,7 @@ pub fn run(args: &[String]) -> crate::Result {
         }
     }
     if cfg!(debug_assertions) && std::env::var_os("XTASK_COMPARE_RELEASE").is_none() {
-        return rerun_in_release(args);
+        return crate::release::rerun_in_release("compare", args, "XTASK_COMPARE_RELEASE");
     }
     let s = Settings {
         quick,
@@ -187,30 +187,6 @@ pub fn run(args: &[String]) -> crate::Result {
         det.headline.summary()
     );
     Ok(())
-}
-
-/// From the dev profile, run this command again in release (ours is timed in release).
-fn rerun_in_release(args: &[String]) -> crate::Result {
-    let status = Command::new(env!("CARGO"))
-        .args([
-            "run",
-            "--release",
-            "-q",
-            "-p",
-            "xtask",
-            "--bin",
-            "xtask",
-            "--",
-        ])
-        .arg("compare")
-        .args(args)
-        .env("XTASK_COMPARE_RELEASE", "1")
-        .status()?;
-    if status.success() {
-        Ok(())
-    } else {
-        Err("compare (release) failed".into())
-    }
 }
 
 // ---------------------------------------------------------------------------------------

@@ -159,7 +159,11 @@ pub fn run(args: &[String]) -> crate::Result {
         _ => return Err(USAGE.into()),
     };
     if cfg!(debug_assertions) && std::env::var_os("XTASK_DETECTOR_ACCURACY_RELEASE").is_none() {
-        return rerun_in_release(args);
+        return crate::release::rerun_in_release(
+            "detector-accuracy",
+            args,
+            "XTASK_DETECTOR_ACCURACY_RELEASE",
+        );
     }
     let quick = match mode {
         Mode::Document { quick } => quick,
@@ -207,31 +211,6 @@ pub fn run(args: &[String]) -> crate::Result {
         clutter_reads
     );
     Ok(())
-}
-
-/// Thousands of rendered frames are worth a release build: from the dev profile, run this
-/// command again through `cargo run --release`.
-fn rerun_in_release(args: &[String]) -> crate::Result {
-    let status = std::process::Command::new(env!("CARGO"))
-        .args([
-            "run",
-            "--release",
-            "-q",
-            "-p",
-            "xtask",
-            "--bin",
-            "xtask",
-            "--",
-        ])
-        .arg("detector-accuracy")
-        .args(args)
-        .env("XTASK_DETECTOR_ACCURACY_RELEASE", "1")
-        .status()?;
-    if status.success() {
-        Ok(())
-    } else {
-        Err("detector-accuracy (release) failed".into())
-    }
 }
 
 /// The document's title and preamble.

@@ -16,6 +16,7 @@ mod dukf_table;
 mod figures;
 mod pyenv;
 mod random_scenes;
+mod release;
 mod solvepnp;
 mod unused_deps;
 

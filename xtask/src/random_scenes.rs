@@ -180,26 +180,11 @@ pub fn run(args: &[String]) -> crate::Result {
     }
     // Rendering hundreds of scenes is several times faster optimised.
     if cfg!(debug_assertions) && std::env::var_os("XTASK_RANDOM_SCENES_RELEASE").is_none() {
-        let status = std::process::Command::new(env!("CARGO"))
-            .args([
-                "run",
-                "--release",
-                "-q",
-                "-p",
-                "xtask",
-                "--bin",
-                "xtask",
-                "--",
-            ])
-            .arg("random-scenes")
-            .args(args)
-            .env("XTASK_RANDOM_SCENES_RELEASE", "1")
-            .status()?;
-        return if status.success() {
-            Ok(())
-        } else {
-            Err("random-scenes (release) failed".into())
-        };
+        return crate::release::rerun_in_release(
+            "random-scenes",
+            args,
+            "XTASK_RANDOM_SCENES_RELEASE",
+        );
     }
     let command = if default_seeds && count == 100 && occluded == 50 && renoise == 5 {
         "cargo xtask random-scenes".to_string()

@@ -129,6 +129,7 @@ pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 mod dual;
 mod error;
+mod gate;
 mod imm;
 mod jitter;
 mod linearise;
@@ -140,6 +141,7 @@ mod ukf;
 
 pub use dual::{DualPredictReport, DualReport, DualUkf};
 pub use error::{Covariance, DualFilter, Function, Input, UkfError};
+pub use gate::innovation_nis;
 pub use imm::{Imm, ImmReport, mixture_mean, mixture_noise, sojourn_transition};
 pub use jitter::{Factored, JitterPolicy, factor_repaired};
 pub use linearise::{central_jacobian, propagate_linearised};

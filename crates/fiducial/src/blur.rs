@@ -49,20 +49,9 @@ const MIN_MOTION: f64 = 1.5;
 /// Shortest motion worth modelling, in cells of the grid (see [`decode_blurred`]).
 const MIN_MOTION_CELLS: f64 = 1.5;
 
-/// Bilinear grey level at `p`, `None` outside the image.
+/// Bilinear grey level at `p`, `None` outside the image ([`crate::decode`]'s sampler).
 fn bilinear(image: &GrayView<'_>, p: Point2<f64>) -> Option<f64> {
-    let (w, h) = (image.width(), image.height());
-    if !(p.x >= 0.0 && p.y >= 0.0 && p.x <= (w - 1) as f64 && p.y <= (h - 1) as f64) {
-        return None;
-    }
-    let (x0, y0) = (p.x.floor() as usize, p.y.floor() as usize);
-    let (fx, fy) = (p.x - x0 as f64, p.y - y0 as f64);
-    let x1 = (x0 + 1).min(w - 1);
-    let y1 = (y0 + 1).min(h - 1);
-    let (r0, r1) = (image.row(y0), image.row(y1));
-    let top = f64::from(r0[x0]) * (1.0 - fx) + f64::from(r0[x1]) * fx;
-    let bottom = f64::from(r1[x0]) * (1.0 - fx) + f64::from(r1[x1]) * fx;
-    Some(top * (1.0 - fy) + bottom * fy)
+    crate::decode::bilinear(image, p.x, p.y)
 }
 
 /// The step across side `i` (corners `i` to `i + 1`): its width beyond the optical blur

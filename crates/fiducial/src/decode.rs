@@ -238,7 +238,7 @@ const MAX_QUIET: usize = 4 * 12;
 
 /// Bilinear grey level at `(x, y)`, `None` outside `[0, w-1] x [0, h-1]`.
 #[inline]
-fn bilinear(image: &GrayView<'_>, x: f64, y: f64) -> Option<f64> {
+pub(crate) fn bilinear(image: &GrayView<'_>, x: f64, y: f64) -> Option<f64> {
     let (w, h) = (image.width(), image.height());
     if !(x >= 0.0 && y >= 0.0 && x <= image.max_x() && y <= image.max_y()) {
         return None;

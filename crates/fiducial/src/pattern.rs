@@ -55,7 +55,7 @@ use crate::cross_ratio::CrossRatioFrame;
 use crate::family::MarkerFamily;
 use crate::image::GrayView;
 use crate::refine::{
-    Line, PROFILE, RefineConfig, STEP, SideFrame, edge_in_profile, fit_line, intersect,
+    Line, PROFILE, RefineConfig, STEP, SideFrame, edge_in_profile, fit_line_trimmed, intersect,
     sample_profile,
 };
 use crate::sides::normal_cdf;
@@ -740,14 +740,7 @@ impl PatternRefiner {
         if self.pts.len() < 2 || self.pts.len() * 2 < g.count {
             return None;
         }
-        let line = fit_line(&self.pts)?;
-        let tol = 0.75;
-        self.pts
-            .retain(|p| (line.n[0] * p[0] + line.n[1] * p[1] - line.c).abs() <= tol);
-        if self.pts.len() < 2 {
-            return None;
-        }
-        fit_line(&self.pts)
+        fit_line_trimmed(&mut self.pts)
     }
 }
 

@@ -193,6 +193,18 @@ pub(crate) fn intersect(a: &Line, b: &Line) -> Option<[f64; 2]> {
     (x.is_finite() && y.is_finite()).then_some([x, y])
 }
 
+/// Fits a line to `pts`, drops the points more than 0.75 px off it and refits (`None` when
+/// fewer than two remain).
+pub(crate) fn fit_line_trimmed(pts: &mut Vec<[f64; 3]>) -> Option<Line> {
+    let line = fit_line(pts)?;
+    let tol = 0.75;
+    pts.retain(|p| (line.n[0] * p[0] + line.n[1] * p[1] - line.c).abs() <= tol);
+    if pts.len() < 2 {
+        return None;
+    }
+    fit_line(pts)
+}
+
 /// Weighted total-least-squares line through points `(x, y, w)`.
 pub(crate) fn fit_line(pts: &[[f64; 3]]) -> Option<Line> {
     let sw: f64 = pts.iter().map(|p| p[2]).sum();
@@ -386,14 +398,7 @@ impl Refiner {
 
     /// Fits a line to `self.pts`, drops the points more than 0.75 px off it and refits.
     fn fit_without_outliers(&mut self) -> Option<Line> {
-        let line = fit_line(&self.pts)?;
-        let tol = 0.75;
-        self.pts
-            .retain(|p| (line.n[0] * p[0] + line.n[1] * p[1] - line.c).abs() <= tol);
-        if self.pts.len() < 2 {
-            return None;
-        }
-        fit_line(&self.pts)
+        fit_line_trimmed(&mut self.pts)
     }
 }
 

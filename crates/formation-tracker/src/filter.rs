@@ -133,15 +133,12 @@ impl SmoothedStep {
 
     /// Standard deviations of `[l12, alpha12, beta12]`.
     pub fn formation_std(&self) -> Vector3<f64> {
-        let d = self.state_covariance.diagonal();
-        Vector3::new(d[3], d[4], d[5]).map(|v| v.max(0.0).sqrt())
+        PolarModel::h(&std_of(&self.state_covariance))
     }
 
     /// Standard deviations of `(v1, w1)`.
     pub fn velocity_std(&self) -> Vector2<f64> {
-        self.velocity_covariance
-            .diagonal()
-            .map(|v| v.max(0.0).sqrt())
+        std_of(&self.velocity_covariance)
     }
 }
 
@@ -520,15 +517,20 @@ impl FormationFilter {
         })
     }
 
-    /// The dual filter's state process noise for this step: `Q`, plus `F_w Pw- F_w^T` when
-    /// configured, with `F_w = df/dw` by central differences at the current estimates.
-    fn prepare_process_noise(
+    /// A copy of the dual filter to step, with this step's state process noise: `Q`, plus
+    /// `F_w Pw- F_w^T` when configured, with `F_w = df/dw` by central differences at the
+    /// current estimates.
+    fn prepared(
         model: &PolarModel,
         dt: f64,
-        q: &Matrix6,
-        dual: &mut Dual,
+        q: Option<&Matrix6>,
+        dual: &Dual,
         u: &Vector2<f64>,
-    ) -> Result<(), FilterError> {
+    ) -> Result<Dual, FilterError> {
+        let mut next = *dual;
+        let Some(q) = q else {
+            return Ok(next);
+        };
         let x = *dual.state();
         let step = |w: f64| 1e-6 * (1.0 + w.abs());
         let fw = dukf::central_jacobian(dual.parameters(), step, &state_space()?, |w| {
@@ -536,8 +538,8 @@ impl FormationFilter {
         })?;
         let pw = dual.parameter_covariance() + dual.parameter_noise();
         let q = q + fw * pw * fw.transpose();
-        dual.set_process_noise((q + q.transpose()) * 0.5)?;
-        Ok(())
+        next.set_process_noise((q + q.transpose()) * 0.5)?;
+        Ok(next)
     }
 
     /// Tells the IMM the follower's own separation-bearing controller (gains and current
@@ -587,10 +589,8 @@ impl FormationFilter {
         let failure = Cell::new(None);
         match &mut self.engine {
             Engine::Dual(dual) => {
-                let mut next = **dual;
-                if self.propagate {
-                    Self::prepare_process_noise(&self.model, self.dt, &self.q, &mut next, &u)?;
-                }
+                let q = self.propagate.then_some(&self.q);
+                let mut next = Self::prepared(&self.model, self.dt, q, dual, &u)?;
                 let result = next.step(
                     process(&self.model, &u, self.dt, &failure),
                     PolarModel::h,
@@ -632,10 +632,8 @@ impl FormationFilter {
         let failure = Cell::new(None);
         match &mut self.engine {
             Engine::Dual(dual) => {
-                let mut next = **dual;
-                if self.propagate {
-                    Self::prepare_process_noise(&self.model, self.dt, &self.q, &mut next, &u)?;
-                }
+                let q = self.propagate.then_some(&self.q);
+                let mut next = Self::prepared(&self.model, self.dt, q, dual, &u)?;
                 let result = next.predict_only(process(&self.model, &u, self.dt, &failure));
                 outcome(result, &failure)?;
                 **dual = next;
@@ -729,10 +727,7 @@ impl FormationFilter {
 
     /// Standard deviations of the state estimate.
     pub fn state_std(&self) -> PolarState {
-        self.snapshot
-            .state_covariance
-            .diagonal()
-            .map(|v| v.max(0.0).sqrt())
+        std_of(&self.snapshot.state_covariance)
     }
 
     /// The estimated formation variables.
@@ -769,11 +764,14 @@ impl FormationFilter {
 
     /// Standard deviations of `(v1, w1)`.
     pub fn leader_velocity_std(&self) -> Vector2<f64> {
-        self.snapshot
-            .velocity_covariance
-            .diagonal()
-            .map(|v| v.max(0.0).sqrt())
+        std_of(&self.snapshot.velocity_covariance)
     }
+}
+
+/// The standard deviations on the diagonal of a covariance (a negative rounding error reads
+/// as 0).
+fn std_of<const N: usize>(covariance: &SMatrix<f64, N, N>) -> SVector<f64, N> {
+    covariance.diagonal().map(|v| v.max(0.0).sqrt())
 }
 
 /// The follower inputs must be finite (the IMM's model B divides by them only through the

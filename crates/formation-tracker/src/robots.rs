@@ -29,7 +29,7 @@
 //! [`mount::formation_from_camera_pose`] (spec 2.5) and its 6x6 covariance (rotation
 //! vector, translation) through [`mount::propagate_covariance`].
 
-use nalgebra::{Matrix3, Point2, Point3, Rotation3, SMatrix, SVector, Vector3};
+use nalgebra::{Matrix3, Point2, Rotation3, SMatrix, SVector, Vector3};
 use pose::faces::{Face, FaceCheck, consistent_faces, quad_area};
 use pose::{PlaneFrame, PoseError, PoseSolver};
 use serde::{Deserialize, Serialize};
@@ -370,38 +370,10 @@ fn ground_plane_fit(
     solver: &PoseSolver,
     mount: &CameraMount,
 ) -> Result<RigFit, RobotError> {
-    let plane = ground_plane(mount);
-    let model: Vec<Point3<f64>> = faces.iter().flat_map(|f| f.model).collect();
-    let image: Vec<Point2<f64>> = faces.iter().flat_map(|f| f.image).collect();
-    let seeds = std::iter::once(&sol.best)
-        .chain(&sol.alternative)
-        .map(|e| plane.planar_from_pose(&e.pose));
-    let fits: Vec<pose::PlanarEstimate> = seeds
-        .filter_map(|q0| solver.refine_on_plane(&plane, &model, &image, &q0).ok())
-        .map(|mut fit| {
-            fit.pose.theta = unicycle::wrap_angle(fit.pose.theta);
-            fit
-        })
-        .collect();
-    let best = fits
-        .iter()
-        .min_by(|a, b| a.rms.total_cmp(&b.rms))
-        .copied()
-        .ok_or(RobotError::Pose {
-            robot,
-            source: PoseError::Degenerate {
-                reason: "the ground-plane refinement did not converge",
-            },
-        })?;
+    let (best, ambiguity_ratio) =
+        pose::faces::fit_on_plane(faces, sol, solver, &ground_plane(mount))
+            .map_err(|source| RobotError::Pose { robot, source })?;
     let q = best.pose.to_vector();
-    let ambiguity_ratio = if sol.coplanar {
-        fits.iter()
-            .filter(|f| (f.pose.to_vector() - q).norm() > 1e-4)
-            .map(|f| f.rms / best.rms.max(1e-12))
-            .reduce(f64::min)
-    } else {
-        None
-    };
     let (rotation, translation) = mount.leader_to_camera(q.x, q.y, q.z);
     let mut covariance = SMatrix::<f64, 6, 6>::zeros();
     covariance

@@ -97,7 +97,6 @@ pub use smooth::SmoothedLeader;
 
 use std::collections::BTreeMap;
 
-use dukf::Space as _;
 use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, Vector2, Vector3};
 use unicycle::{ControllerConfig, Formation, Inputs, PolarState};
 
@@ -178,48 +177,10 @@ pub struct Tracker {
     finished: Vec<Segment>,
     /// Per robot, the pooled corner noise of its recent pose solves (see
     /// [`TrackerConfig::corner_noise_memory_dof`]).
-    corner_noise: BTreeMap<u32, CornerNoise>,
+    corner_noise: BTreeMap<u32, pose::ResidualPool>,
     /// Per leader, the follower's own controller towards it, if told
     /// ([`set_follower_controller`](Self::set_follower_controller)).
     controllers: BTreeMap<u32, ControllerConfig>,
-}
-
-/// A pooled estimate of the detector's corner noise: the sums of the squared reprojection
-/// residuals and of their degrees of freedom over recent pose solves, with exponential
-/// forgetting, started from a prior.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct CornerNoise {
-    sse: f64,
-    dof: f64,
-}
-
-impl CornerNoise {
-    fn prior(config: &TrackerConfig) -> Self {
-        let dof = config.corner_noise_prior_dof;
-        Self {
-            sse: config.corner_noise_prior_px.powi(2) * dof,
-            dof,
-        }
-    }
-
-    /// Adds one solve's residual (`fit.rms_px` over `points` correspondences, `2 points -
-    /// fit.parameters` degrees of freedom); solves without a residual degree of freedom are
-    /// skipped.
-    fn add(&mut self, fit: &FitResidual, points: usize, memory_dof: f64) {
-        let dof = 2.0 * points as f64 - fit.parameters as f64;
-        let rms = fit.rms_px;
-        if dof <= 0.0 || !rms.is_finite() {
-            return;
-        }
-        let keep = (1.0 - dof / memory_dof).max(0.0);
-        self.sse = self.sse * keep + rms * rms * points as f64;
-        self.dof = self.dof * keep + dof;
-    }
-
-    /// The pooled corner variance, px^2.
-    fn variance(&self) -> f64 {
-        self.sse / self.dof
-    }
 }
 
 impl Tracker {
@@ -359,10 +320,13 @@ impl Tracker {
                         None => continue,
                     },
                 };
-                let prior = CornerNoise::prior(&self.config);
+                let c = &self.config;
+                let prior =
+                    pose::ResidualPool::new(c.corner_noise_prior_px, c.corner_noise_prior_dof);
                 self.corner_noise.entry(robot).or_insert(prior).add(
-                    &fit,
+                    fit.rms_px,
                     obs.points,
+                    fit.parameters,
                     self.config.corner_noise_memory_dof,
                 );
             }
@@ -706,17 +670,14 @@ impl Tracker {
         let mut predicted = filter.clone();
         predicted.predict_only(u).ok()?;
         let y_pred = predicted.formation().to_vector();
-        let var = predicted.formation_std().map(|s| s * s);
+        // The predicted variances only: the gate has always used the diagonal (the full
+        // predicted covariance is a change of the filter's behaviour, left to #30).
+        let var = Matrix3::from_diagonal(&predicted.formation_std().map(|s| s * s));
         // (candidate, d^2); at most two candidates.
         let mut scored: [Option<(Formed, f64)>; 2] = [None, None];
         for (slot, m) in scored.iter_mut().zip(list) {
-            let nu = MEASUREMENT_SPACE.residual(&m.y, &y_pred);
-            let s = Matrix3::from_diagonal(&var) + m.r;
-            let Some(chol) = s.cholesky() else { continue };
-            let d2 = chol.solve(&nu).dot(&nu);
-            if d2.is_finite() {
-                *slot = Some((*m, d2));
-            }
+            let d2 = dukf::innovation_nis(&MEASUREMENT_SPACE, &m.y, &y_pred, &var, &m.r);
+            *slot = d2.map(|d2| (*m, d2));
         }
         scored
             .iter()

@@ -367,3 +367,47 @@ fn face_to_leave_out(
         _ => None,
     }
 }
+
+/// The best fit of `faces` on `plane` (the plane the body stands on, in the camera frame),
+/// seeded by every candidate of their 6-DOF solve `sol`, with the heading wrapped to
+/// `(-pi, pi]`; and, when the faces are coplanar (a single face), the ambiguity: the RMS of
+/// the other distinct fit over the best's.
+///
+/// # Errors
+/// [`PoseError::Degenerate`] when no refinement converges.
+pub fn fit_on_plane(
+    faces: &[Face],
+    sol: &PoseSolution,
+    solver: &PoseSolver,
+    plane: &PlaneFrame,
+) -> Result<(PlanarEstimate, Option<f64>), PoseError> {
+    let model: Vec<Point3<f64>> = faces.iter().flat_map(|f| f.model).collect();
+    let image: Vec<Point2<f64>> = faces.iter().flat_map(|f| f.image).collect();
+    let seeds = std::iter::once(&sol.best)
+        .chain(&sol.alternative)
+        .map(|e| plane.planar_from_pose(&e.pose));
+    let fits: Vec<PlanarEstimate> = seeds
+        .filter_map(|q0| solver.refine_on_plane(plane, &model, &image, &q0).ok())
+        .map(|mut fit| {
+            fit.pose.theta = unicycle::wrap_angle(fit.pose.theta);
+            fit
+        })
+        .collect();
+    let best = fits
+        .iter()
+        .min_by(|a, b| a.rms.total_cmp(&b.rms))
+        .copied()
+        .ok_or(PoseError::Degenerate {
+            reason: "the ground-plane refinement did not converge",
+        })?;
+    let q = best.pose.to_vector();
+    let ambiguity_ratio = if sol.coplanar {
+        fits.iter()
+            .filter(|f| (f.pose.to_vector() - q).norm() > 1e-4)
+            .map(|f| f.rms / best.rms.max(1e-12))
+            .reduce(f64::min)
+    } else {
+        None
+    };
+    Ok((best, ambiguity_ratio))
+}

@@ -1,0 +1,63 @@
+//! A pooled estimate of the corner noise behind pose fits, from their residuals.
+
+/// A pooled estimate of a detector's corner noise from the reprojection residuals of recent
+/// pose fits: the sums of the squared residuals and of their degrees of freedom, with
+/// exponential forgetting, started from a prior. One fit's own estimate (`rms^2 N / (2N -
+/// p)`) is noisy with few points; pooled over frames it is not.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ResidualPool {
+    sse: f64,
+    dof: f64,
+}
+
+impl ResidualPool {
+    /// The prior: a corner noise of `sigma_px` worth `dof` degrees of freedom.
+    pub fn new(sigma_px: f64, dof: f64) -> Self {
+        Self {
+            sse: sigma_px.powi(2) * dof,
+            dof,
+        }
+    }
+
+    /// Adds one fit's residual (`rms_px` over `points` correspondences, `2 points -
+    /// parameters` degrees of freedom), forgetting so that about `memory_dof` degrees of
+    /// freedom are remembered; a fit without a residual degree of freedom, or with a
+    /// non-finite residual, is skipped.
+    pub fn add(&mut self, rms_px: f64, points: usize, parameters: usize, memory_dof: f64) {
+        let dof = 2.0 * points as f64 - parameters as f64;
+        if dof <= 0.0 || !rms_px.is_finite() {
+            return;
+        }
+        let keep = (1.0 - dof / memory_dof).max(0.0);
+        self.sse = self.sse * keep + rms_px * rms_px * points as f64;
+        self.dof = self.dof * keep + dof;
+    }
+
+    /// The pooled corner variance, px^2.
+    pub fn variance(&self) -> f64 {
+        self.sse / self.dof
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_pool_moves_from_its_prior_to_the_residuals_and_skips_what_has_no_residual() {
+        let mut pool = ResidualPool::new(0.5, 10.0);
+        assert!((pool.variance() - 0.25).abs() < 1e-12);
+        pool.add(0.1, 3, 6, 100.0); // no residual degree of freedom
+        pool.add(f64::NAN, 8, 6, 100.0);
+        assert!((pool.variance() - 0.25).abs() < 1e-12);
+        for _ in 0..200 {
+            // rms 0.1 over 8 points, 10 dof: variance 0.01 * 8 / 10.
+            pool.add(0.1, 8, 6, 100.0);
+        }
+        assert!(
+            (pool.variance() - 0.008).abs() < 1e-4,
+            "{}",
+            pool.variance()
+        );
+    }
+}
