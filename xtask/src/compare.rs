@@ -25,9 +25,9 @@ use std::process::Command;
 use std::time::Instant;
 
 use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, dictionary_by_name};
+use formation_filter::FormationFilter;
 use formation_sim::reproduce::paper_filter_config;
 use formation_sim::scenario::{ScenarioConfig, simulate};
-use formation_tracker::filter::FormationFilter;
 use marker_testkit::{Canvas, CellPattern, Effects, motion_blur};
 use nalgebra::{Point2, Vector3};
 use pose::{Intrinsics, Pose, PoseSolver, marker_corners};

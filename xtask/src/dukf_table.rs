@@ -8,13 +8,13 @@
 
 use std::fmt::Write as _;
 
+use formation_filter::FilterDesign;
 use formation_sim::reproduce::{
     Baseline, Reproduction, Summary, baseline, paper_filter_config, paper_filter_config_with,
     reproduce, run_filter, run_filter_with,
 };
 use formation_sim::scenario::{PAPER_X0, ScenarioConfig, simulate};
 use formation_sim::scenario_file::ScenarioSpec;
-use formation_tracker::filter::FilterDesign;
 
 use crate::Result;
 

@@ -109,6 +109,8 @@ fn info_lists_every_package_with_its_version() {
         [
             "formation-tracker-cli",
             "formation-tracker",
+            "formation-filter",
+            "formation-io",
             "formation-sim",
             "formation-fiducial",
             "formation-pose",

@@ -20,6 +20,9 @@
 #![deny(missing_docs)]
 #![deny(clippy::print_stderr)]
 
+/// This crate's version (`CARGO_PKG_VERSION`), for tools that report what they were built from.
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");
+
 pub mod bag;
 pub mod foxglove;
 pub mod frames;

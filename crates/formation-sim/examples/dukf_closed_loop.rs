@@ -17,11 +17,11 @@
 //! (measurement 6; its velocity columns are meaningless, it estimates no velocity).
 #![allow(clippy::unwrap_used)]
 
+use formation_filter::FilterDesign;
+use formation_filter::FormationFilter;
 use formation_sim::reproduce::{Baseline, baseline, paper_filter_config_with, run_filter};
 use formation_sim::scenario::reference_leader_inputs;
 use formation_sim::scenario::{PAPER_X0, Sample, Scenario, ScenarioConfig};
-use formation_tracker::filter::FilterDesign;
-use formation_tracker::filter::FormationFilter;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};

@@ -14,10 +14,10 @@
 //! the steps) and of NIS.
 #![allow(clippy::unwrap_used)]
 
+use formation_filter::FormationFilter;
 use formation_sim::reproduce::paper_filter_config;
 use formation_sim::scenario::ScenarioConfig;
 use formation_sim::scenario::reference_leader_inputs;
-use formation_tracker::filter::FormationFilter;
 use nalgebra::Vector2;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

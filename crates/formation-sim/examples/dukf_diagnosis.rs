@@ -30,9 +30,9 @@
     clippy::too_many_lines,
     clippy::type_complexity
 )]
+use formation_filter::FilterDesign;
 use formation_sim::reproduce::{Baseline, baseline, paper_filter_config_with, run_filter};
 use formation_sim::scenario::{PAPER_X0, ScenarioConfig, simulate};
-use formation_tracker::filter::FilterDesign;
 use nalgebra::{Matrix2, SMatrix, SVector, Vector2};
 
 #[path = "common/median.rs"]

@@ -11,10 +11,10 @@
 //! measurements 9-10; it is told by default, as in `reproduce dukf`).
 #![allow(clippy::unwrap_used)]
 
+use formation_filter::{FilterConfig, FilterDesign};
 use formation_sim::reproduce::{Baseline, Reproduction, baseline, run_filter_with};
 use formation_sim::scenario::{Scenario, ScenarioConfig, simulate};
 use formation_sim::scenario_file::ScenarioSpec;
-use formation_tracker::filter::{FilterConfig, FilterDesign};
 
 #[path = "common/median.rs"]
 mod median;

@@ -11,9 +11,9 @@
 //! The tuning overrides of `dukf_imm` apply (`JERK`, `SOJOURN`, `HELD`, `MU0`, `FQ`).
 #![allow(clippy::unwrap_used)]
 
+use formation_filter::{FilterConfig, FormationFilter};
 use formation_sim::scenario::{Scenario, ScenarioConfig, simulate};
 use formation_sim::scenario_file::ScenarioSpec;
-use formation_tracker::filter::{FilterConfig, FormationFilter};
 use nalgebra::Vector2;
 use unicycle::PolarModel;
 use unicycle::formation_holding_velocity;

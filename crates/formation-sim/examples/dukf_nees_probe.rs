@@ -16,9 +16,9 @@
 //! and `UT_ALPHA` (the unscented transform's spread).
 #![allow(clippy::unwrap_used)]
 
+use formation_filter::{FilterConfig, FormationFilter};
 use formation_sim::scenario::{Scenario, ScenarioConfig, simulate};
 use formation_sim::scenario_file::ScenarioSpec;
-use formation_tracker::filter::{FilterConfig, FormationFilter};
 use nalgebra::{SMatrix, SVector, Vector2, Vector3};
 use unicycle::{PolarModel, wrap_angle};
 

@@ -2,9 +2,7 @@
 //! the paper's dual UKF on request) run over a simulated [`Scenario`], step records, and the
 //! figures of merit.
 
-use formation_tracker::filter::{
-    FilterConfig, FilterDesign, FilterError, FilterStep, FormationFilter,
-};
+use formation_filter::{FilterConfig, FilterDesign, FilterError, FilterStep, FormationFilter};
 use nalgebra::{Matrix3, Vector2, Vector3};
 use serde::Serialize;
 use unicycle::{PolarModel, PolarState, wrap_angle};

@@ -38,8 +38,8 @@
 
 use std::path::{Path, PathBuf};
 
+use formation_filter::{FilterConfig, FilterDesign};
 use formation_io::textfile;
-use formation_tracker::filter::{FilterConfig, FilterDesign};
 use serde::Deserialize;
 use unicycle::{Inputs, PlanarPose, PolarState};
 

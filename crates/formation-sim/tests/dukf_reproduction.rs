@@ -19,12 +19,12 @@
 //!   `alpha12` and `beta12`, with the same tuning;
 //! - the paper's dual UKF stays selectable and gives its documented figures.
 
+use formation_filter::FilterDesign;
 use formation_sim::reproduce::{
     Baseline, Reproduction, Summary, baseline, paper_filter_config, reproduce, reproduce_with,
     run_filter_with,
 };
 use formation_sim::scenario::{PAPER_X0, ScenarioConfig, simulate};
-use formation_tracker::filter::FilterDesign;
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);

@@ -7,9 +7,9 @@
 
 #![allow(clippy::unwrap_used)] // Tests may unwrap (house rules).
 
+use formation_filter::FilterDesign;
 use formation_sim::reproduce::{paper_filter_config_with, run_filter};
 use formation_sim::scenario::{ScenarioConfig, simulate};
-use formation_tracker::filter::FilterDesign;
 
 fn half_hour(design: FilterDesign) {
     let mut config = ScenarioConfig::reference(5);

@@ -203,11 +203,7 @@ pub fn leader_region(
     size: (usize, usize),
     config: &GuidedConfig,
 ) -> Option<LeaderRegion> {
-    let [l12, alpha12, beta12] = [
-        leader.formation[0],
-        leader.formation[1],
-        leader.formation[2],
-    ];
+    let [l12, alpha12, beta12]: [f64; 3] = leader.formation.into();
     let x = mount.offset + l12 * beta12.cos();
     let y = l12 * beta12.sin();
     let (rotation, translation) = mount.leader_to_camera(x, y, beta12 - alpha12);
@@ -255,7 +251,7 @@ pub fn leader_region(
     if !(u0.is_finite() && u1.is_finite() && v0.is_finite() && v1.is_finite()) {
         return None;
     }
-    let [sl, _, sb] = [leader.std[0], leader.std[1], leader.std[2]];
+    let [sl, _, sb]: [f64; 3] = leader.std.into();
     let scale = config.sigmas * sl / l12.max(1e-3);
     // The box `[u0, v0, u1, v1]` widened by the margin, cut to the frame (a wildly
     // uncertain prediction gives a huge region).

@@ -17,9 +17,9 @@
 //! - [`robots`]: robot poses from the markers of a frame: grouped by robot, one joint pose
 //!   per robot (`pose`), inconsistent faces rejected, optionally refined on the ground plane,
 //!   turned into `(l12, alpha12, beta12)` with covariance.
-//! - [`filter`]: [`filter::FormationFilter`], the dual UKF (`dukf`) over the polar
-//!   leader-follower model (`unicycle`), one per tracked leader, with its
-//!   [`filter::FilterTuning`].
+//! - [`filter`]: the crate `formation-filter` re-exported: [`filter::FormationFilter`], the
+//!   IMM or the paper's dual UKF (`dukf`) over the polar leader-follower model (`unicycle`),
+//!   one per tracked leader, with its [`filter::FilterTuning`] and offline smoother.
 //! - [`tracker`]: [`tracker::Tracker`], one [`filter::FormationFilter`] per leader robot
 //!   over time: per-frame pose measurements in, formation variables and leader velocities
 //!   out, with coasting, loss and re-acquisition, planar-ambiguity resolution and gating.
@@ -35,7 +35,9 @@
 /// This crate's version (`CARGO_PKG_VERSION`), for tools that report what they were built from.
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
-pub mod filter;
+/// The formation filter, one per tracked leader: the crate `formation-filter`, re-exported
+/// under the name the tracker's API uses.
+pub use formation_filter as filter;
 pub mod guided;
 pub mod mount;
 pub mod pipeline;

@@ -15,11 +15,9 @@
 
 use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, Vector3};
 use serde::{Deserialize, Serialize};
-use unicycle::{MEASUREMENT_ANGLES, wrap_angle};
+use unicycle::wrap_angle;
 
-/// The formation variables `[l12, alpha12, beta12]` as a `dukf` space: the bearings are
-/// angles.
-pub(crate) const MEASUREMENT_SPACE: dukf::AngleMask<3> = dukf::AngleMask::at(&MEASUREMENT_ANGLES);
+use formation_filter::MEASUREMENT_SPACE;
 
 /// Where and how the camera sits on the follower.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -148,6 +146,22 @@ pub fn formation_from_camera_pose(
     let heading = leader_x.y.atan2(leader_x.x);
     let alpha12 = wrap_angle(beta12 - heading);
     Ok(SVector::<f64, 3>::new(l12, alpha12, beta12))
+}
+
+/// `[l12, alpha12, beta12]` and their covariance for a leader pose given as the parameters
+/// `[rotation vector; translation]` (rig frame into camera frame) with a 6x6 covariance:
+/// [`formation_from_camera_pose`] and [`propagate_covariance`] together.
+pub fn formation_of_pose(
+    params: &SVector<f64, 6>,
+    covariance: &SMatrix<f64, 6, 6>,
+    mount: &CameraMount,
+) -> Result<(SVector<f64, 3>, Matrix3<f64>), MeasurementError> {
+    let to_formation = |p: &SVector<f64, 6>| {
+        let rotation = Rotation3::new(Vector3::new(p[0], p[1], p[2]));
+        formation_from_camera_pose(&rotation, &Vector3::new(p[3], p[4], p[5]), mount)
+    };
+    let y = to_formation(params)?;
+    Ok((y, propagate_covariance(params, covariance, to_formation)?))
 }
 
 /// Propagates a 6x6 covariance of pose parameters `p` (whatever parameterisation the caller
@@ -313,7 +327,9 @@ mod tests {
             let rot = Rotation3::new(Vector3::new(p[0], p[1], p[2]));
             formation_from_camera_pose(&rot, &Vector3::new(p[3], p[4], p[5]), &mount)
         };
-        let s = propagate_covariance(&params, &cov, f).unwrap();
+        let (y, s) = formation_of_pose(&params, &cov, &mount).unwrap();
+        assert_eq!(y, f(&params).unwrap());
+        assert_eq!(s, propagate_covariance(&params, &cov, f).unwrap());
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
         let n01 = Normal::new(0.0, 1.0).unwrap();
         let y0 = f(&params).unwrap();

@@ -24,7 +24,7 @@
 use std::time::Instant;
 
 use fiducial::{Decoded, Detector, GrayView, Region};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Matrix3;
 use pose::PoseSolver;
 use serde::Serialize;
 use unicycle::Inputs;
@@ -378,7 +378,7 @@ fn observation(m: &RobotMeasurement) -> Observation {
             robot: m.robot,
             points: 4 * m.faces.len(),
             pose: PoseMeasurement::Formation(FormationMeasurement {
-                y: Vector3::new(m.formation.l12, m.formation.alpha12, m.formation.beta12),
+                y: m.formation.to_vector(),
                 r: Matrix3::from_fn(|i, j| m.covariance[i][j]),
                 fit: Some(FitResidual {
                     rms_px: m.reprojection_rms_px,

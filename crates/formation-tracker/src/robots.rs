@@ -401,10 +401,7 @@ fn formation_covariance(
             mount::formation_from_camera_pose(&r, &t, mount)
         })
     } else {
-        mount::propagate_covariance(&fit.params, &fit.covariance, |q| {
-            let r = Rotation3::new(Vector3::new(q[0], q[1], q[2]));
-            mount::formation_from_camera_pose(&r, &Vector3::new(q[3], q[4], q[5]), mount)
-        })
+        mount::formation_of_pose(&fit.params, &fit.covariance, mount).map(|(_, r)| r)
     }
 }
 
@@ -458,11 +455,8 @@ fn measure_robot(
         translation: fit.translation.into(),
         reprojection_rms_px: fit.rms,
         formation: Formation::from_vector(&f),
-        covariance: [
-            [cov[(0, 0)], cov[(0, 1)], cov[(0, 2)]],
-            [cov[(1, 0)], cov[(1, 1)], cov[(1, 2)]],
-            [cov[(2, 0)], cov[(2, 1)], cov[(2, 2)]],
-        ],
+        // Row-major: nalgebra's arrays are columns.
+        covariance: cov.transpose().into(),
         ambiguous: fit
             .ambiguity_ratio
             .is_some_and(|r| r < config.ambiguity_ratio),

@@ -11,9 +11,8 @@
 //!
 //! # One frame, per leader
 //! 1. **Measurement.** Each pose candidate (rig frame to camera frame) goes through the
-//!    measurement transform of spec 2.5 ([`crate::mount::formation_from_camera_pose`]); its
-//!    6x6 pose covariance is propagated to `(l12, alpha12, beta12)` by
-//!    [`crate::mount::propagate_covariance`] (a formation measurement from a joint or
+//!    measurement transform of spec 2.5 ([`crate::mount::formation_of_pose`]); its
+//!    6x6 pose covariance is propagated to `(l12, alpha12, beta12)` with it (a formation measurement from a joint or
 //!    ground-plane fit comes with that covariance already). `pose` scales a fit's covariance
 //!    by the corner noise of that one fit's residual (2 degrees of freedom for one face, at
 //!    least 0.1 px). By default a single face's candidates are rescaled to a fixed
@@ -97,14 +96,11 @@ pub use smooth::SmoothedLeader;
 
 use std::collections::BTreeMap;
 
-use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, Vector2, Vector3};
-use unicycle::{ControllerConfig, Formation, Inputs, PolarState};
+use nalgebra::{Matrix3, Vector2, Vector3};
+use unicycle::{ControllerConfig, Inputs};
 
-use crate::filter::{FilterError, FormationFilter};
-use crate::mount::{
-    CameraMount, MEASUREMENT_SPACE, MIN_L12, MeasurementError, formation_from_camera_pose,
-    propagate_covariance,
-};
+use crate::filter::{FilterError, FormationFilter, MEASUREMENT_SPACE};
+use crate::mount::{CameraMount, MIN_L12, MeasurementError, formation_of_pose};
 use smooth::{NO_INPUTS, Recorded, Segment};
 
 /// How much lower (in summed `d^2`) the rival's score must be before it replaces the main
@@ -392,20 +388,13 @@ impl Tracker {
             floor[2] * floor[2],
         ));
         let form = |e: &pose::Estimate, candidate| -> Result<Formed, MeasurementError> {
-            let params = e.pose.to_params();
             let fit = FitResidual {
                 rms_px: e.rms,
                 parameters: 6,
             };
             let covariance = e.covariance * self.noise_scale(&fit, points, obs.robot);
-            let to_formation = |p: &SVector<f64, 6>| {
-                let rot = Rotation3::new(Vector3::new(p[0], p[1], p[2]));
-                formation_from_camera_pose(&rot, &Vector3::new(p[3], p[4], p[5]), mount)
-            };
-            let y = to_formation(&params)?;
-            let r = propagate_covariance(&params, &covariance, to_formation)?
-                + floor
-                + self.distance_floor(y[0]);
+            let (y, r) = formation_of_pose(&e.pose.to_params(), &covariance, mount)?;
+            let r = r + floor + self.distance_floor(y[0]);
 
             if !r.iter().all(|v| v.is_finite()) {
                 return Err(MeasurementError::NonFinite {
@@ -467,7 +456,6 @@ impl Tracker {
     /// of `robot`'s recent solves; 1 when `points` leaves no residual degree of freedom (the
     /// solver's scaling cannot be undone) or nothing is known.
     fn noise_scale(&self, fit: &FitResidual, points: usize, robot: u32) -> f64 {
-        let rms = fit.rms_px;
         let variance = match self.config.corner_sigma_px {
             Some(sigma) => sigma * sigma,
             None => match self.corner_noise.get(&robot) {
@@ -475,17 +463,8 @@ impl Tracker {
                 None => return 1.0,
             },
         };
-        let dof = 2 * points as i64 - fit.parameters as i64;
-        if dof <= 0 || !rms.is_finite() {
-            return 1.0;
-        }
         let floor = self.config.solver_min_pixel_sigma;
-        let used = (rms * rms * points as f64 / dof as f64).max(floor * floor);
-        if used > 0.0 && variance.is_finite() && variance > 0.0 {
-            variance / used
-        } else {
-            1.0
-        }
+        pose::rescale_factor(variance, fit.rms_px, points, fit.parameters, floor)
     }
 
     /// A new track from the measurement: the first candidate (`best`) as the main
@@ -520,20 +499,9 @@ impl Tracker {
 
     /// A filter initialised from one measurement.
     fn filter_from(&self, m: &Formed) -> Option<FormationFilter> {
-        let d = self.config.filter.d;
-        let formation = Formation::from_vector(&m.y);
-        let world = formation
-            .leader_pose(&unicycle::PlanarPose::new(0.0, 0.0, 0.0), d)
-            .ok()?;
-        let mut cfg = self.config.filter.clone();
-        cfg.x0 = PolarState::new(world.x, world.y, world.theta, m.y[0], m.y[1], m.y[2]);
         let s = self.config.world_pose_prior_std;
-        let mut p0 = SMatrix::<f64, 6, 6>::zeros();
-        p0.fixed_view_mut::<3, 3>(0, 0)
-            .copy_from(&Matrix3::from_diagonal_element(s * s));
-        p0.fixed_view_mut::<3, 3>(3, 3).copy_from(&m.r);
-        cfg.tuning.p0 = p0;
-        FormationFilter::new(&cfg).ok()
+        let config = self.config.filter.started_at(&m.y, &m.r, s).ok()?;
+        FormationFilter::new(&config).ok()
     }
 
     /// Advances an existing track over `steps` filter steps to time `t`.

@@ -90,7 +90,7 @@ pub use distortion::{Distortion, DistortionModel, UNDISTORT_MAX_ITERATIONS, UNDI
 pub use error::PoseError;
 pub use lm::LmConfig;
 pub use marker::{MarkerPose, marker_corners};
-pub use noise::ResidualPool;
+pub use noise::{ResidualPool, rescale_factor};
 pub use plane::{PlanarEstimate, PlaneFrame};
 pub use posit::{POSIT_MAX_ITERATIONS, POSIT_TOLERANCE, posit};
 pub use so3::Pose;

@@ -39,9 +39,47 @@ impl ResidualPool {
     }
 }
 
+/// The factor that takes a covariance the solvers scaled by one fit's own corner noise
+/// (`max(rms^2 N / (2N - p), min_pixel_sigma^2)` over `N = points` correspondences and
+/// `p = parameters`) to a corner noise of `variance` px^2. It is 1 when that scaling cannot
+/// be undone or nothing better is known: no residual degree of freedom, a non-finite
+/// residual, a zero scaling, or `variance` not finite and positive.
+pub fn rescale_factor(
+    variance: f64,
+    rms_px: f64,
+    points: usize,
+    parameters: usize,
+    min_pixel_sigma: f64,
+) -> f64 {
+    let dof = 2 * points as i64 - parameters as i64;
+    if dof <= 0 || !rms_px.is_finite() {
+        return 1.0;
+    }
+    let floor = min_pixel_sigma * min_pixel_sigma;
+    let used = (rms_px * rms_px * points as f64 / dof as f64).max(floor);
+    if used > 0.0 && variance.is_finite() && variance > 0.0 {
+        variance / used
+    } else {
+        1.0
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_rescale_factor_undoes_the_solvers_own_scaling_and_is_one_when_it_cannot() {
+        // rms 0.2 over 8 points, 6 parameters: own variance 0.04 * 8 / 10 = 0.032.
+        let f = rescale_factor(0.25, 0.2, 8, 6, 0.1);
+        assert!((f - 0.25 / 0.032).abs() < 1e-12, "{f}");
+        // Below the floor the floor was used: 0.1^2.
+        assert!((rescale_factor(0.25, 0.01, 8, 6, 0.1) - 25.0).abs() < 1e-9);
+        assert_eq!(rescale_factor(0.25, 0.2, 3, 6, 0.1), 1.0);
+        assert_eq!(rescale_factor(0.25, f64::NAN, 8, 6, 0.1), 1.0);
+        assert_eq!(rescale_factor(f64::INFINITY, 0.2, 8, 6, 0.1), 1.0);
+        assert_eq!(rescale_factor(0.25, 0.0, 8, 6, 0.0), 1.0);
+    }
 
     #[test]
     fn the_pool_moves_from_its_prior_to_the_residuals_and_skips_what_has_no_residual() {

@@ -5,9 +5,9 @@
 
 use std::fmt::Write as _;
 
+use formation_filter::FilterDesign;
 use formation_sim::reproduce::{Reproduction, Summary, reproduce, run_filter};
 use formation_sim::scenario_file::ScenarioSpec;
-use formation_tracker::filter::FilterDesign;
 
 use super::common::{CHECK_SEEDS, SEEDS, median, verdict, workspace_root};
 use crate::Result;

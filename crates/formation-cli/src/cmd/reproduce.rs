@@ -7,6 +7,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use clap::{Args as ClapArgs, Subcommand};
+use formation_filter::{FilterConfig, FilterDesign};
 use formation_sim::plot::{fig12_panels, fig13_panels, write_png, write_svg};
 use formation_sim::reproduce::{
     FilterRun, ReproduceError, StepRecord, Summary, SummaryTally, paper_filter_config_with,
@@ -16,7 +17,6 @@ use formation_sim::scenario::{
     Sample, ScenarioConfig, ScenarioError, Simulation, reference_leader_inputs,
 };
 use formation_sim::scenario_file::ScenarioSpec;
-use formation_tracker::filter::{FilterConfig, FilterDesign};
 
 use super::CliError;
 use super::output::Staged;

@@ -3,7 +3,7 @@
 //! `FQ`, `CFQ`, `UT_ALPHA` (see `FilterTuning`'s fields). Unset or unparsable variables
 //! leave the reference tuning.
 
-use formation_tracker::filter::{FilterConfig, FilterDesign};
+use formation_filter::{FilterConfig, FilterDesign};
 use nalgebra::{Vector2, Vector3};
 
 /// The variable `name` as a number, if set and parsable.

@@ -46,7 +46,7 @@
 //! # The IMM design
 //!
 //! The IMM already estimates `z = [x, v1, w1, a_v, a_w]` jointly (a mixture of three models,
-//! `filter.rs`). A mixture has no single transition for the RTS recursion, so the smoother's
+//! `lib.rs`). A mixture has no single transition for the RTS recursion, so the smoother's
 //! forward pass is one unscented Kalman filter over `z` from the first recorded mixed estimate
 //! ([`FilterStep::joint`]) through the recorded inputs and measurements, whose transition
 //! from step `k` to `k + 1` is the models' mixture with the probabilities after step `k + 1`
@@ -77,11 +77,9 @@ use dukf::{AngleMask, Gaussian, UkfError};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3};
 use unicycle::{Inputs, MEASUREMENT_ANGLES, PolarState, STATE_ANGLES, UnicycleError};
 
-use crate::mount::MEASUREMENT_SPACE;
-
-use super::{
-    Engine, FilterDesign, FilterError, FilterStep, FormationFilter, ImmEngine, Joint, Matrix6,
-    SmoothedStep, imm_process, outcome, remember,
+use crate::{
+    Engine, FilterDesign, FilterError, FilterStep, FormationFilter, ImmEngine, Joint,
+    MEASUREMENT_SPACE, Matrix6, SmoothedStep, imm_process, outcome, remember,
 };
 
 type Augmented = SVector<f64, 8>;
@@ -315,7 +313,7 @@ fn augment(s: &FilterStep) -> Gaussian<8> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::filter::FilterConfig;
+    use crate::FilterConfig;
 
     fn filter() -> FormationFilter {
         let x0 = PolarState::from_row_slice(&[1.5, 0.25, 0.0, 1.047, 0.233, 0.232]);

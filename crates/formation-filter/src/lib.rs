@@ -59,15 +59,19 @@
 //! (leader velocity a random walk with `Q` and `Rr`), for the IMM over its joint state with
 //! its models mixed with each step's probabilities.
 
+#![deny(missing_docs)]
+
 mod smooth;
+
+/// This crate's version (`CARGO_PKG_VERSION`), for tools that report what they were built from.
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 use std::cell::Cell;
 
-use crate::mount::MEASUREMENT_SPACE;
 use dukf::{AngleMask, DualUkf, Euclidean, Imm, Ukf, UkfError, UtParams, sojourn_transition};
 use nalgebra::{Matrix2, Matrix3, Matrix5, SMatrix, SVector, Vector2, Vector3};
 use unicycle::{
-    ControllerConfig, Formation, Inputs, LeaderMotion, LeaderMotionTuning,
+    ControllerConfig, Formation, Inputs, LeaderMotion, LeaderMotionTuning, MEASUREMENT_ANGLES,
     MIN_PREDICTED_SEPARATION, PolarModel, PolarState, STATE_ANGLES, UnicycleError, predict_leader,
 };
 
@@ -78,6 +82,11 @@ type Dual = DualUkf<6, 2, 3, AngleMask<6>, Euclidean, AngleMask<3>>;
 type Joint = SVector<f64, 10>;
 type Matrix10 = SMatrix<f64, 10, 10>;
 type ImmFilter = Imm<10, 3, AngleMask<10>>;
+
+/// The formation variables `[l12, alpha12, beta12]` as a `dukf` space: the bearings
+/// ([`unicycle::MEASUREMENT_ANGLES`]) are angles. The one place their wrapping is defined:
+/// the filters, the tracker's gate and the measurement transform all use it.
+pub const MEASUREMENT_SPACE: AngleMask<3> = AngleMask::at(&MEASUREMENT_ANGLES);
 
 /// One step of a [`FormationFilter`]'s forward pass, as the smoother needs it: the filtered
 /// estimates after the step and the follower inputs applied over it. Recorded with
@@ -259,6 +268,34 @@ impl FilterConfig {
             x0,
             tuning: FilterTuning::reference(),
         }
+    }
+
+    /// This configuration started at one measurement `y = [l12, alpha12, beta12]` of
+    /// covariance `r`: the formation variables are `y` with covariance `r`, and the leader's
+    /// world pose `[x1, y1, theta1]`, which no measurement sees and the model does not need,
+    /// is placed as if the follower stood at the origin, with standard deviation
+    /// `world_pose_std` on each component and no correlation.
+    ///
+    /// # Errors
+    /// A measurement the model refuses (non-finite, `l12` within
+    /// [`unicycle::MIN_SEPARATION`]) or a bad offset.
+    pub fn started_at(
+        &self,
+        y: &Vector3<f64>,
+        r: &Matrix3<f64>,
+        world_pose_std: f64,
+    ) -> Result<Self, FilterError> {
+        let origin = unicycle::PlanarPose::new(0.0, 0.0, 0.0);
+        let world = Formation::from_vector(y).leader_pose(&origin, self.d)?;
+        let mut p0 = Matrix6::zeros();
+        let s2 = world_pose_std * world_pose_std;
+        p0.fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&Matrix3::from_diagonal_element(s2));
+        p0.fixed_view_mut::<3, 3>(3, 3).copy_from(r);
+        let mut config = self.clone();
+        config.x0 = PolarState::new(world.x, world.y, world.theta, y[0], y[1], y[2]);
+        config.tuning.p0 = p0;
+        Ok(config)
     }
 }
 
@@ -807,6 +844,30 @@ mod tests {
             0.03f64.powi(2),
             0.03f64.powi(2),
         ))
+    }
+
+    #[test]
+    fn a_filter_started_at_a_measurement_holds_it_and_places_the_leader_from_the_origin() {
+        let y = Vector3::new(1.2, -0.3, 0.4);
+        let started = config().started_at(&y, &r(), 0.1).unwrap();
+        assert_eq!(PolarModel::h(&started.x0), y);
+        assert_eq!(started.tuning.p0.fixed_view::<3, 3>(3, 3), r());
+        assert_eq!(started.tuning.p0.fixed_view::<3, 3>(0, 3), Matrix3::zeros());
+        assert!((started.tuning.p0[(1, 1)] - 0.01).abs() < 1e-15);
+        // The leader's world pose is where `y` puts it seen from a follower at the origin.
+        let origin = unicycle::PlanarPose::new(0.0, 0.0, 0.0);
+        let leader = PolarModel::leader_pose(&started.x0);
+        let back = Formation::from_poses(&leader, &origin, 0.5).unwrap();
+        assert!((back.to_vector() - y).norm() < 1e-12, "{back:?}");
+        // Everything else is the template's.
+        assert_eq!(started.tuning.q, config().tuning.q);
+        for bad in [0.0, f64::NAN] {
+            let y = Vector3::new(bad, 0.0, 0.0);
+            assert!(matches!(
+                config().started_at(&y, &r(), 0.1),
+                Err(FilterError::Model(_))
+            ));
+        }
     }
 
     #[test]
