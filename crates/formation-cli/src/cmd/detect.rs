@@ -21,6 +21,7 @@ use fiducial::{Decoded, Detector, DetectorConfig, GrayView};
 use formation_tracker::rig::RigModel;
 use formation_tracker::robots::{FaceRejection, RobotMeasurement};
 use serde::Serialize;
+use unicycle::Formation;
 
 use super::CliError;
 
@@ -120,9 +121,9 @@ struct RobotOut {
     /// Rig origin in the camera frame (metres).
     translation: [f64; 3],
     reprojection_rms_px: f64,
-    l12: f64,
-    alpha12: f64,
-    beta12: f64,
+    /// `l12`, `alpha12`, `beta12`, flat in the record.
+    #[serde(flatten)]
+    formation: Formation,
     /// Covariance of `(l12, alpha12, beta12)`.
     covariance: [[f64; 3]; 3],
     ambiguous: bool,
@@ -141,9 +142,7 @@ impl From<&RobotMeasurement> for RobotOut {
             rotation: m.rotation,
             translation: m.translation,
             reprojection_rms_px: m.reprojection_rms_px,
-            l12: m.formation.l12,
-            alpha12: m.formation.alpha12,
-            beta12: m.formation.beta12,
+            formation: m.formation,
             covariance: m.covariance,
             ambiguous: m.ambiguous,
             ambiguity_ratio: m.ambiguity_ratio,
@@ -426,9 +425,9 @@ fn write_image(json: bool, out: &ImageOut) -> Result<(), CliError> {
                 "  robot {} pose from faces {:?}: l12 {:.3} m, alpha12 {:.2} deg, beta12 {:.2} deg, reprojection {:.2} px{}",
                 r.robot,
                 r.faces,
-                r.l12,
-                r.alpha12.to_degrees(),
-                r.beta12.to_degrees(),
+                r.formation.l12,
+                r.formation.alpha12.to_degrees(),
+                r.formation.beta12.to_degrees(),
                 r.reprojection_rms_px,
                 if r.ambiguous { " (ambiguous)" } else { "" }
             )?;
