@@ -402,12 +402,7 @@ fn draw_clutter(
     warps: &[Warp],
     rng: &mut ChaCha8Rng,
 ) -> crate::Result {
-    let g = 16usize;
-    let (gw, gh) = (w / g + 2, h / g + 2);
-    let grid: Vec<u8> = (0..gw * gh)
-        .map(|_| rng.random_range(90.0f64..230.0).round() as u8)
-        .collect();
-    canvas.draw_bilinear(gw, gh, grid, g as f64)?;
+    canvas.draw_texture(90.0..230.0, rng)?;
     let shapes = (w * h) / 8_000;
     for _ in 0..shapes {
         let kind = rng.random_range(0..3u8);

@@ -57,8 +57,7 @@ fn run(seed: u64, told: bool) -> ([f64; 5], Vec<[f64; 3]>) {
         for i in 0..3 {
             y[i] += noise[i].sample(&mut rng);
         }
-        y[1] = wrap_angle(y[1]);
-        y[2] = wrap_angle(y[2]);
+        let y = formation_filter::MEASUREMENT_SPACE.normalize(&y);
         if let Some((u1_prev, u2_prev)) = prev {
             if told {
                 filter.set_follower_controller(Some(goal)).unwrap();

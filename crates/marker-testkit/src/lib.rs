@@ -326,6 +326,22 @@ impl Canvas {
         self.place(Arc::new(texture), corners, mu, mv)
     }
 
+    /// Draws smooth textured noise over the whole frame: a grid of random grey levels from
+    /// `grey` (one every 16 pixels, drawn row by row from `rng`), bilinearly upsampled. The
+    /// clutter of [`clutter_frame`] and of `cargo xtask compare`'s scenes starts with it.
+    pub fn draw_texture<R: Rng + ?Sized>(
+        &mut self,
+        grey: std::ops::Range<f64>,
+        rng: &mut R,
+    ) -> Result<bool, TestkitError> {
+        let g = 16usize;
+        let (gw, gh) = (self.width / g + 2, self.height / g + 2);
+        let grid: Vec<u8> = (0..gw * gh)
+            .map(|_| rng.random_range(grey.clone()).round() as u8)
+            .collect();
+        self.draw_bilinear(gw, gh, grid, g as f64)
+    }
+
     /// Draws a grey image (row-major, `width x height`) bilinearly interpolated between its
     /// texel centres, which land `spacing` pixels apart with texel `(0, 0)` on pixel `(0, 0)`.
     pub fn draw_bilinear(
@@ -707,13 +723,7 @@ pub fn clutter_frame<R: Rng + ?Sized>(
     rng: &mut R,
 ) -> Result<Vec<u8>, TestkitError> {
     let mut canvas = Canvas::new(width, height, 128.0)?;
-    // Textured background: a coarse random grid, bilinearly upsampled.
-    let g = 16usize;
-    let (gw, gh) = (width / g + 2, height / g + 2);
-    let grid: Vec<u8> = (0..gw * gh)
-        .map(|_| rng.random_range(60.0f64..230.0).round() as u8)
-        .collect();
-    canvas.draw_bilinear(gw, gh, grid, g as f64)?;
+    canvas.draw_texture(60.0..230.0, rng)?;
     let (w, h) = (width as f64, height as f64);
     let shapes = rng.random_range(10..40usize);
     for _ in 0..shapes {
