@@ -60,8 +60,7 @@ fn closed_loop(seed: u64) -> Scenario {
         for i in 0..3 {
             y[i] += noise[i].sample(&mut rng);
         }
-        y[1] = wrap_angle(y[1]);
-        y[2] = wrap_angle(y[2]);
+        let y = formation_filter::MEASUREMENT_SPACE.normalize(&y);
         if let Some(prev) = samples.last() {
             filter.step(&y, &r, prev.follower_inputs).unwrap();
         }
@@ -76,6 +75,9 @@ fn closed_loop(seed: u64) -> Scenario {
             follower,
             leader_inputs: u1,
             follower_inputs: u2,
+            // Exact actuation and odometry: the paper's setting.
+            executed_inputs: u2,
+            odometry: u2,
             measurement: y,
             controller: ControllerConfig::hold(&start),
         });

@@ -38,12 +38,13 @@ use fiducial::{Detector, DetectorConfig, Dictionary};
 use nalgebra::Vector3;
 use serde::Serialize;
 use unicycle::{
-    ControllerConfig, Formation, Inputs, PlanarPose, SeparationBearingController, UnicycleError,
+    Actuation, ControllerConfig, Formation, Inputs, PlanarPose, SeparationBearingController,
+    UnicycleError,
 };
 
 use crate::annotate::{AnnotateError, MarkerLabel, RigOverlay, annotate};
 use crate::reproduce::{MeanSquareErrors, MseSummary, StepRecord};
-use crate::scenario::reference_leader_inputs;
+use crate::scenario::{actuation_rng, follower_motion, reference_leader_inputs};
 use crate::scenario_file::{GradientSpec, MotionBlurSpec, ScenarioSpec};
 use crate::scene::{self, CameraSpec, RenderSpec, RobotSpec, SceneError, SceneSpec};
 use formation_tracker::guided::GuidedConfig;
@@ -481,8 +482,11 @@ struct StepContext<'a> {
     poses: &'a [PlanarPose],
     /// The poses one step earlier (at step 0, the start).
     previous: &'a [PlanarPose],
-    /// Inputs over `(t_{k-1}, t_k]` of every robot (index 0 the leader's).
+    /// Inputs over `(t_{k-1}, t_k]` of every robot (index 0 the leader's), as executed:
+    /// what moved it.
     applied: &'a [Inputs],
+    /// The same inputs as each robot's odometry reported them: what its tracker is given.
+    odometry: &'a [Inputs],
 }
 
 /// Runs the demo.
@@ -558,6 +562,16 @@ fn run_demo_inner(
     let mut followers = start_followers(&world, &poses)?;
     let steps = (config.duration / config.dt).round() as usize;
     let mut leader_inputs_prev = Inputs::new(0.0, 0.0);
+    // The followers' actuation and odometry (exact unless the scenario says otherwise).
+    let (actuation, odometry_noise_std) = config
+        .scenario
+        .as_ref()
+        .map_or((Actuation::PERFECT, [0.0; 2]), |s| {
+            (s.actuation, s.odometry_noise_std)
+        });
+    let mut motion_rng = actuation_rng(config.render.seed);
+    let mut executed: Vec<Inputs> = followers.iter().map(|f| f.inputs).collect();
+    let mut odometry = executed.clone();
     let mut strip = Vec::new();
     let mut render_s = 0.0;
     for step in 0..=steps {
@@ -566,7 +580,9 @@ fn run_demo_inner(
         }
         let t = step as f64 * config.dt;
         let mut applied = vec![leader_inputs_prev];
-        applied.extend(followers.iter().map(|f| f.inputs));
+        applied.extend(&executed);
+        let mut measured = vec![leader_inputs_prev];
+        measured.extend(&odometry);
         let ctx = StepContext {
             step,
             t,
@@ -576,6 +592,7 @@ fn run_demo_inner(
             poses: &poses,
             previous: &previous,
             applied: &applied,
+            odometry: &measured,
         };
         let leader_now = match &config.scenario {
             Some(spec) => spec.leader_inputs(t),
@@ -588,7 +605,7 @@ fn run_demo_inner(
             on_frame(&DemoFrame {
                 step,
                 robot: me + 1,
-                inputs: ctx.applied[me],
+                inputs: ctx.odometry[me],
                 image: &image,
             });
             render_s += render;
@@ -601,9 +618,15 @@ fn run_demo_inner(
         }
         progress(step, steps);
         leader_inputs_prev = new_inputs[0];
+        for (k, commanded) in new_inputs[1..].iter().enumerate() {
+            let (e, o) =
+                follower_motion(&actuation, odometry_noise_std, *commanded, &mut motion_rng);
+            (executed[k], odometry[k]) = (e, o);
+        }
         if step < steps {
             previous.clone_from(&poses);
-            for (p, u) in poses.iter_mut().zip(&new_inputs) {
+            let moved = std::iter::once(&leader_inputs_prev).chain(&executed);
+            for (p, u) in poses.iter_mut().zip(moved) {
                 *p = p.integrate_exact(*u, config.dt)?;
             }
         }
@@ -692,6 +715,7 @@ pub fn estimate_render_seconds(config: &DemoConfig) -> Result<f64, DemoError> {
         poses: &poses,
         previous: &poses,
         applied: &applied,
+        odometry: &applied,
     };
     let specs = exposure_poses(&probe, &ctx)?
         .iter()
@@ -887,7 +911,7 @@ impl Follower {
             width,
             height,
             ctx.t,
-            ctx.applied[me],
+            ctx.odometry[me],
             world.mount,
         )?;
         let truth = Formation::from_poses(&ctx.poses[ahead], &ctx.poses[me], d)?;
@@ -896,9 +920,7 @@ impl Follower {
             .robots
             .iter()
             .find(|m| m.robot == leader_id)
-            .map_or_else(nan3, |m| {
-                Vector3::new(m.formation.l12, m.formation.alpha12, m.formation.beta12)
-            });
+            .map_or_else(nan3, |m| m.formation.to_vector());
         let track = done.report.leaders.iter().find(|l| l.robot == leader_id);
         let strip_step =
             world.config.strip_every > 0 && ctx.step.is_multiple_of(world.config.strip_every);
@@ -913,12 +935,8 @@ impl Follower {
         self.inputs = if world.config.closed_loop {
             track
                 .and_then(|l| {
-                    let form = Formation {
-                        l12: l.formation.l12,
-                        alpha12: l.formation.alpha12,
-                        beta12: l.formation.beta12,
-                    };
-                    self.controller.inputs(&form, Inputs::new(l.v1, l.w1)).ok()
+                    let leader = Inputs::new(l.v1, l.w1);
+                    self.controller.inputs(&l.formation, leader).ok()
                 })
                 .unwrap_or(self.inputs)
         } else {
@@ -931,9 +949,7 @@ impl Follower {
                     t: ctx.t,
                     truth: truth.to_vector(),
                     measured,
-                    estimated: track.map_or_else(nan3, |l| {
-                        Vector3::new(l.formation.l12, l.formation.alpha12, l.formation.beta12)
-                    }),
+                    estimated: track.map_or_else(nan3, |l| l.formation.to_vector()),
                     estimated_std: track.map_or_else(nan3, |l| {
                         Vector3::new(l.l12_std, l.alpha12_std, l.beta12_std)
                     }),

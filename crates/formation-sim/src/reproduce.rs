@@ -430,9 +430,10 @@ impl FilterRun {
             // The follower knows its own controller: the IMM's models B and C use it.
             filter.set_follower_controller(Some(prev.controller))?;
         }
-        filter.step(&now.measurement, &self.r, prev.follower_inputs)?;
+        // The follower's odometry, as a robot has it (not what its wheels executed).
+        filter.step(&now.measurement, &self.r, prev.odometry)?;
         if let Some(history) = &mut self.history {
-            history.push(filter.record(prev.follower_inputs, Some((now.measurement, self.r))));
+            history.push(filter.record(prev.odometry, Some((now.measurement, self.r))));
         }
         let w = filter.leader_velocity();
         let w_std = filter.leader_velocity_std();

@@ -6,13 +6,14 @@
 //! then spec 2.3), not with the polar model the filter uses, so the filter is not tested
 //! against its own equations. Inputs are held constant over each step (zero-order hold).
 
+use formation_filter::MEASUREMENT_SPACE;
 use nalgebra::Vector3;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Normal};
+use rand_distr::{Distribution, Normal, StandardNormal};
 use unicycle::{
-    ControllerConfig, Formation, FormationMeasurement, Inputs, PlanarPose, PolarModel, PolarState,
-    SeparationBearingController, UnicycleError, wrap_angle,
+    Actuation, ControllerConfig, Formation, FormationMeasurement, Inputs, PlanarPose, PolarModel,
+    PolarState, SeparationBearingController, UnicycleError,
 };
 
 /// The paper's measurement bias `[l12, alpha12, beta12]` (Figs. 12-13).
@@ -31,6 +32,14 @@ pub enum ScenarioError {
     #[error("measurement noise standard deviation {index} = {value} must be finite and >= 0")]
     InvalidNoise {
         /// Component (0: l12, 1: alpha12, 2: beta12).
+        index: usize,
+        /// The value that was given.
+        value: f64,
+    },
+    /// An odometry noise standard deviation is negative or not finite.
+    #[error("odometry noise standard deviation {index} = {value} must be finite and >= 0")]
+    InvalidOdometryNoise {
+        /// Component (0: v, 1: w).
         index: usize,
         /// The value that was given.
         value: f64,
@@ -62,8 +71,16 @@ pub struct ScenarioConfig {
     pub noise_std: [f64; 3],
     /// Constant bias added to every measurement, if any.
     pub bias: Option<[f64; 3]>,
-    /// Seed of the measurement noise (`ChaCha8Rng::seed_from_u64`).
+    /// Seed of the measurement noise (`ChaCha8Rng::seed_from_u64`); the actuation and
+    /// odometry noises draw from stream 1 of the same seed, so that they never change the
+    /// measurement noise.
     pub seed: u64,
+    /// How the follower executes its commands ([`Actuation::PERFECT`] in the paper's
+    /// setting): its pose moves with the executed inputs.
+    pub actuation: Actuation,
+    /// Standard deviations of the follower's odometry noise `[v, w]` (m/s, rad/s): what its
+    /// wheel encoders report is the executed inputs plus this white noise (0: exact).
+    pub odometry_noise_std: [f64; 2],
 }
 
 impl ScenarioConfig {
@@ -80,6 +97,8 @@ impl ScenarioConfig {
             noise_std: [0.07, 0.03, 0.03],
             bias: None,
             seed,
+            actuation: Actuation::PERFECT,
+            odometry_noise_std: [0.0; 2],
         }
     }
 
@@ -123,8 +142,14 @@ pub struct Sample {
     pub follower: PlanarPose,
     /// Leader inputs applied from `t_k` to `t_{k+1}`.
     pub leader_inputs: Inputs,
-    /// Follower inputs (from the formation controller) applied from `t_k` to `t_{k+1}`.
+    /// Follower inputs commanded (by the formation controller) from `t_k` to `t_{k+1}`.
     pub follower_inputs: Inputs,
+    /// Follower inputs its wheels executed over the same interval
+    /// ([`ScenarioConfig::actuation`]): what moved it. Truth, never given to an estimator.
+    pub executed_inputs: Inputs,
+    /// The follower's odometry over the same interval: the executed inputs as its encoders
+    /// measured them ([`ScenarioConfig::odometry_noise_std`]). What an estimator is given.
+    pub odometry: Inputs,
     /// Measurement `h(x_k) + n_k` (+ bias), angles wrapped.
     pub measurement: FormationMeasurement,
     /// The follower's controller (gains and set-points) that computed
@@ -213,6 +238,8 @@ pub struct Simulation<F> {
     schedule: Vec<SetpointChange>,
     next_change: usize,
     rng: ChaCha8Rng,
+    /// Stream 1 of the seed: actuation and odometry noise.
+    actuation_rng: ChaCha8Rng,
     leader: PlanarPose,
     follower: PlanarPose,
     /// The next sample's index `k`; `None` once finished or failed.
@@ -248,6 +275,13 @@ impl<F: Fn(f64) -> Inputs> Simulation<F> {
             Normal::new(0.0, s).map_err(|_| invalid)
         };
         let noise = [normal(0)?, normal(1)?, normal(2)?];
+        config.actuation.validate()?;
+        for (index, &s) in config.odometry_noise_std.iter().enumerate() {
+            if !(s.is_finite() && s >= 0.0) {
+                return Err(ScenarioError::InvalidOdometryNoise { index, value: s });
+            }
+        }
+
         let model = PolarModel::new(config.d)?;
         let start = Formation::from_poses(&config.leader0, &config.follower0, config.d)?;
         let goal = ControllerConfig::hold(&start);
@@ -265,6 +299,7 @@ impl<F: Fn(f64) -> Inputs> Simulation<F> {
             schedule,
             next_change: 0,
             rng: ChaCha8Rng::seed_from_u64(config.seed),
+            actuation_rng: actuation_rng(config.seed),
             leader: config.leader0,
             follower: config.follower0,
             k: Some(0),
@@ -299,23 +334,61 @@ impl<F: Fn(f64) -> Inputs> Simulation<F> {
         for i in 0..3 {
             y[i] += self.bias[i] + self.noise[i].sample(&mut self.rng);
         }
-        y[1] = wrap_angle(y[1]);
-        y[2] = wrap_angle(y[2]);
+        let y = MEASUREMENT_SPACE.normalize(&y);
+        let (executed, odometry) = follower_motion(
+            &self.config.actuation,
+            self.config.odometry_noise_std,
+            u2,
+            &mut self.actuation_rng,
+        );
         let sample = Sample {
             t,
             truth,
             follower: self.follower,
             leader_inputs: u1,
             follower_inputs: u2,
+            executed_inputs: executed,
+            odometry,
             measurement: y,
             controller: self.goal,
         };
         if k < self.n {
             self.leader = self.leader.integrate_exact(u1, dt)?;
-            self.follower = self.follower.integrate_exact(u2, dt)?;
+            self.follower = self.follower.integrate_exact(executed, dt)?;
         }
         Ok(sample)
     }
+}
+
+/// What a follower commanded with `commanded` does: the inputs its wheels execute
+/// ([`Actuation::execute`]) and what its odometry reports of them (plus white noise of
+/// `odometry_noise_std`). Four standard normal draws from `rng` every call, used or not, so
+/// that one setting never shifts the noise of another; exact when the actuation is perfect
+/// and the odometry noiseless.
+pub(crate) fn follower_motion(
+    actuation: &Actuation,
+    odometry_noise_std: [f64; 2],
+    commanded: Inputs,
+    rng: &mut ChaCha8Rng,
+) -> (Inputs, Inputs) {
+    let mut n01 = || StandardNormal.sample(&mut *rng);
+    let draws: [f64; 4] = [n01(), n01(), n01(), n01()];
+    let executed = actuation.execute(commanded, [draws[0], draws[1]]);
+    let noisy = |v: f64, std: f64, n: f64| if std == 0.0 { v } else { v + std * n };
+    let [sv, sw] = odometry_noise_std;
+    let odometry = Inputs::new(
+        noisy(executed.v, sv, draws[2]),
+        noisy(executed.w, sw, draws[3]),
+    );
+    (executed, odometry)
+}
+
+/// The generator of the actuation and odometry noise for `seed`: stream 1, apart from the
+/// measurement noise (stream 0).
+pub(crate) fn actuation_rng(seed: u64) -> ChaCha8Rng {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(1);
+    rng
 }
 
 impl<F: Fn(f64) -> Inputs> Iterator for Simulation<F> {
@@ -337,6 +410,66 @@ impl<F: Fn(f64) -> Inputs> Iterator for Simulation<F> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// #30: the follower moves by what its wheels executed and reports its odometry; the
+    /// measurement noise is the same stream whatever the actuation.
+    #[test]
+    fn the_follower_moves_by_the_executed_inputs_and_reports_its_odometry() {
+        let perfect = simulate(&ScenarioConfig::reference(5)).unwrap();
+        for s in &perfect.samples {
+            assert_eq!(s.executed_inputs, s.follower_inputs);
+            assert_eq!(s.odometry, s.follower_inputs);
+        }
+        let mut config = ScenarioConfig::reference(5);
+        config.actuation = Actuation {
+            scale: [0.95, 1.0],
+            noise_std: [0.0, 0.0],
+        };
+        let scaled = simulate(&config).unwrap();
+        for s in &scaled.samples {
+            assert_eq!(s.executed_inputs.v, 0.95 * s.follower_inputs.v);
+            assert_eq!(s.executed_inputs.w, s.follower_inputs.w);
+            assert_eq!(s.odometry, s.executed_inputs);
+        }
+        config.actuation.noise_std = [0.03, 0.03];
+        config.odometry_noise_std = [0.01, 0.02];
+        let noisy = simulate(&config).unwrap();
+        let (mut act, mut odo) = (Vector3::zeros(), Vector3::zeros());
+        for pair in noisy.samples.windows(2) {
+            let (s, next) = (&pair[0], &pair[1]);
+            // The pose moves by the executed inputs.
+            let moved = s
+                .follower
+                .integrate_exact(s.executed_inputs, config.dt)
+                .unwrap();
+            assert_eq!(moved, next.follower);
+            let e = s.executed_inputs.v - 0.95 * s.follower_inputs.v;
+            let o = s.odometry.w - s.executed_inputs.w;
+            act += Vector3::new(1.0, e, e * e);
+            odo += Vector3::new(1.0, o, o * o);
+        }
+        // Sample standard deviations near the settings (240 draws: within 20 %).
+        for (sum, std) in [(act, 0.03), (odo, 0.02)] {
+            let n = sum[0];
+            let sd = (sum[2] / n - (sum[1] / n).powi(2)).sqrt();
+            assert!((sd / std - 1.0).abs() < 0.2, "{sd} vs {std}");
+        }
+        // The measurement noise draws are those of the perfect run.
+        for (a, b) in perfect.samples.iter().zip(&noisy.samples) {
+            let na = MEASUREMENT_SPACE.normalize(&(a.measurement - PolarModel::h(&a.truth)));
+            let nb = MEASUREMENT_SPACE.normalize(&(b.measurement - PolarModel::h(&b.truth)));
+            assert!((na - nb).norm() < 1e-12, "{na} vs {nb}");
+        }
+        // Bad settings are errors.
+        config.odometry_noise_std = [f64::NAN, 0.0];
+        assert!(matches!(
+            simulate(&config),
+            Err(ScenarioError::InvalidOdometryNoise { index: 0, .. })
+        ));
+        config.odometry_noise_std = [0.0; 2];
+        config.actuation.scale = [0.0, 1.0];
+        assert!(matches!(simulate(&config), Err(ScenarioError::Model(_))));
+    }
 
     #[test]
     fn same_seed_same_run_other_seed_other_noise() {
@@ -388,9 +521,7 @@ mod tests {
             let mut mean = Vector3::zeros();
             let mut sq = Vector3::zeros();
             for x in &s.samples {
-                let mut e = x.measurement - PolarModel::h(&x.truth);
-                e[1] = wrap_angle(e[1]);
-                e[2] = wrap_angle(e[2]);
+                let e = MEASUREMENT_SPACE.normalize(&(x.measurement - PolarModel::h(&x.truth)));
                 mean += e / n;
                 sq += e.component_mul(&e) / n;
             }

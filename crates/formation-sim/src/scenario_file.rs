@@ -18,6 +18,10 @@
 //! noise_std: [0.07, 0.03, 0.03]
 //! bias: [-0.0702, 0.0248, 0.0236]           # optional
 //! filter_x0: [1.5, 0.25, 0, 1.047, 0.233, 0.232]   # optional; the paper's by default
+//! actuation:                                # optional; exact by default
+//!   scale: [0.95, 1.0]                      # executed = scale * commanded, per [v, w]
+//!   noise_std: [0.03, 0.03]                 # + white noise, m/s and rad/s
+//! odometry_noise_std: [0.01, 0.01]          # optional; what the filter is given, m/s, rad/s
 //! vision:                                   # optional; only `demo --scenario` reads it
 //!   camera: {width: 640, height: 480, hfov_deg: 60}
 //!   mount: {height: 0.30, pan: 0.0, tilt: 0.0}      # metres, radians; offset = camera_offset
@@ -35,13 +39,15 @@
 //! built-in demo's value, so a file without it gives exactly `demo`'s camera, rendering and
 //! occlusion. `reproduce dukf` ignores it; `noise_std`, `bias` and `filter_x0` are the
 //! dual-UKF experiment's and the demo ignores them (its measurements come from the images).
+//! `actuation` and `odometry_noise_std` are the follower's: in `reproduce dukf` it moves by
+//! the executed inputs and the filter is given its odometry, never the executed inputs.
 
 use std::path::{Path, PathBuf};
 
 use formation_filter::{FilterConfig, FilterDesign};
 use formation_io::textfile;
 use serde::Deserialize;
-use unicycle::{Inputs, PlanarPose, PolarState};
+use unicycle::{Actuation, Inputs, PlanarPose, PolarState, UnicycleError};
 
 use crate::reproduce::{ReproduceError, Reproduction, run_filter};
 use crate::scenario::{
@@ -473,6 +479,14 @@ pub struct ScenarioSpec {
     /// default).
     #[serde(default)]
     pub filter_x0: Option<[f64; 6]>,
+    /// How the follower executes its commands: a scale per input and white noise on the
+    /// executed inputs (exact by default, the paper's setting).
+    #[serde(default)]
+    pub actuation: Actuation,
+    /// Standard deviations of the follower's odometry noise `[v, w]`, m/s and rad/s (none by
+    /// default): the filter is given the executed inputs plus this noise.
+    #[serde(default)]
+    pub odometry_noise_std: [f64; 2],
     /// The vision demo's camera, rendering and occlusions (`demo --scenario`); the built-in
     /// demo's by default.
     #[serde(default)]
@@ -706,6 +720,20 @@ impl ScenarioSpec {
             angle("filter_x0[4]", x0[4])?;
             angle("filter_x0[5]", x0[5])?;
         }
+        self.actuation.validate().map_err(|e| match e {
+            UnicycleError::InvalidActuation { name, .. } => {
+                field(&format!("actuation.{name}"), e.to_string())
+            }
+            e => field("actuation", e.to_string()),
+        })?;
+        for (i, v) in self.odometry_noise_std.iter().enumerate() {
+            if !(v.is_finite() && (0.0..=MAX_INPUT).contains(v)) {
+                return Err(field(
+                    &format!("odometry_noise_std[{i}]"),
+                    format!("{v:?}: a standard deviation from 0 to {MAX_INPUT} (m/s or rad/s)"),
+                ));
+            }
+        }
         self.vision.check(1.0 / self.frame_rate)?;
         Ok(())
     }
@@ -724,6 +752,8 @@ impl ScenarioSpec {
             noise_std: self.noise_std,
             bias: self.bias.or(paper_bias.then_some(PAPER_BIAS)),
             seed,
+            actuation: self.actuation,
+            odometry_noise_std: self.odometry_noise_std,
         }
     }
 
@@ -919,6 +949,72 @@ mod tests {
         ] {
             let bad = with_x0.replace(from, to);
             assert_ne!(bad, with_x0, "{from}");
+            let err = ScenarioSpec::parse(&bad, false, Path::new("x.yaml"))
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains(what), "{to}: {err}");
+        }
+    }
+
+    /// The follower's actuation and odometry (#30): read, checked with the field named, and
+    /// handed to the simulation.
+    #[test]
+    fn actuation_and_odometry_are_read_and_bad_values_named() {
+        let spec = ScenarioSpec::parse(MINIMAL, false, Path::new("x.yaml")).unwrap();
+        assert!(spec.actuation.is_perfect());
+        assert_eq!(spec.odometry_noise_std, [0.0; 2]);
+        let with = format!(
+            "{MINIMAL}actuation: {{scale: [0.95, 1.0], noise_std: [0.03, 0.02]}}
+odometry_noise_std: [0.01, 0.005]
+"
+        );
+        let spec = ScenarioSpec::parse(&with, false, Path::new("x.yaml")).unwrap();
+        let config = spec.config(1, false);
+        assert_eq!(config.actuation.scale, [0.95, 1.0]);
+        assert_eq!(config.actuation.noise_std, [0.03, 0.02]);
+        assert_eq!(config.odometry_noise_std, [0.01, 0.005]);
+        // One part given: the other keeps its default.
+        let partial = format!(
+            "{MINIMAL}actuation: {{scale: [0.9, 1.0]}}
+"
+        );
+        let spec = ScenarioSpec::parse(&partial, false, Path::new("x.yaml")).unwrap();
+        assert_eq!(spec.actuation.noise_std, [0.0; 2]);
+        for (from, to, what) in [
+            (
+                "scale: [0.95, 1.0]",
+                "scale: [0.0, 1.0]",
+                "`actuation.scale[0]`",
+            ),
+            (
+                "scale: [0.95, 1.0]",
+                "scale: [0.95, 3.0]",
+                "`actuation.scale[1]`",
+            ),
+            (
+                "noise_std: [0.03, 0.02]",
+                "noise_std: [-0.1, 0.02]",
+                "`actuation.noise_std[0]`",
+            ),
+            (
+                "noise_std: [0.03, 0.02]",
+                "noise_std: [0.03, .nan]",
+                "`actuation`",
+            ),
+            (
+                "odometry_noise_std: [0.01, 0.005]",
+                "odometry_noise_std: [0.01, -1]",
+                "`odometry_noise_std[1]`",
+            ),
+            (
+                "odometry_noise_std: [0.01, 0.005]",
+                "odometry_noise_std: [.inf, 0]",
+                "`odometry_noise_std[0]`",
+            ),
+            ("{scale:", "{slip: 0.1, scale:", "slip"),
+        ] {
+            let bad = with.replace(from, to);
+            assert_ne!(bad, with, "{from}");
             let err = ScenarioSpec::parse(&bad, false, Path::new("x.yaml"))
                 .unwrap_err()
                 .to_string();

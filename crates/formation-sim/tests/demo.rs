@@ -142,3 +142,43 @@ fn observed_run_hands_out_every_raw_frame() {
     assert!(markers.iter().all(|&m| m > 0), "{markers:?}");
     assert_eq!(run.traces[0].records.len(), steps);
 }
+
+/// #30: a scenario's actuation and odometry reach the demo. With the follower's wheels at
+/// 0.8 of the commanded speed it falls behind the leader, and the inputs handed out (what
+/// its tracker is given) are its noisy odometry, not its commands.
+#[test]
+fn the_demo_follower_moves_by_its_actuation_and_reports_its_odometry() {
+    let reference = include_str!("../../../fixtures/scenarios/reference.yaml");
+    let run = |extra: &str| {
+        let text = format!("{reference}{extra}");
+        let spec = formation_sim::scenario_file::ScenarioSpec::parse(
+            &text,
+            false,
+            std::path::Path::new("x.yaml"),
+        )
+        .unwrap();
+        let mut c = DemoConfig::from_scenario(&spec);
+        c.duration = 0.5;
+        c.occlusion = None;
+        c.render.supersampling = 1;
+        let mut inputs = Vec::new();
+        let run = formation_sim::demo::run_demo_observed(&c, |_, _| {}, |f| inputs.push(f.inputs))
+            .unwrap();
+        let last = run.traces[0].records.last().unwrap().step.truth;
+        (last, inputs)
+    };
+    let (exact, exact_inputs) = run("");
+    let (slow, slow_inputs) =
+        run("actuation: {scale: [0.8, 1.0]}\nodometry_noise_std: [0.01, 0.01]\n");
+    // 0.5 s at about 0.2 x 0.8 m/s less: the leader gets about 8 cm farther away.
+    assert!(slow[0] - exact[0] > 0.03, "{slow} vs {exact}");
+    assert_eq!(exact_inputs.len(), slow_inputs.len());
+    // The odometry of the slow follower reports about 0.8 of what it was told, plus noise.
+    let changed = exact_inputs
+        .iter()
+        .zip(&slow_inputs)
+        .skip(1)
+        .filter(|(a, b)| a != b)
+        .count();
+    assert_eq!(changed, exact_inputs.len() - 1);
+}

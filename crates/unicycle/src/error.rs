@@ -51,6 +51,18 @@ pub enum UnicycleError {
         /// The offset that was given.
         d: f64,
     },
+    /// An actuation setting is out of range: a scale outside `(0, 2]` or a negative noise
+    /// deviation.
+    #[error(
+        "actuation setting {name} = {value} is out of range: a scale is in (0, 2], a noise \
+         standard deviation is at least 0"
+    )]
+    InvalidActuation {
+        /// Which setting (`scale[0]`, `noise_std[1]`, ...).
+        name: &'static str,
+        /// The value that was given.
+        value: f64,
+    },
     /// A controller gain or saturation limit is not finite and positive.
     #[error("controller setting {name} = {value} must be finite and positive")]
     InvalidControllerSetting {

@@ -53,6 +53,7 @@
 /// This crate's version (`CARGO_PKG_VERSION`), for tools that report what they were built from.
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
+mod actuation;
 mod angle;
 mod controller;
 mod error;
@@ -60,6 +61,7 @@ mod leader;
 mod polar;
 mod robot;
 
+pub use actuation::Actuation;
 pub use angle::wrap_angle;
 pub use controller::{ControllerConfig, SeparationBearingController};
 pub use error::UnicycleError;
