@@ -1,4 +1,4 @@
-//! `cargo xtask compare [--quick] [--scenes N]`: our detector, pose solver and dual UKF side
+//! `cargo xtask compare [--quick] [--scenes N]`: our detector, pose solver and formation filter side
 //! by side with the peers (OpenCV ArUco, AprilTag 3 through `pupil-apriltags`, OpenCV
 //! `solvePnP`, a `filterpy` UKF) on identical inputs, in one run on one machine; writes
 //! `docs/comparison.md` and its figures `docs/img/comparison-*.svg`.
@@ -1583,7 +1583,7 @@ fn filter_runs(seeds: u64) -> crate::Result<(Value, OursFilter)> {
             let mut e = Vec::with_capacity(truth.len());
             let t = Instant::now();
             for pair in scenario.samples.windows(2) {
-                filter.step(&pair[1].measurement, &r, pair[0].follower_inputs)?;
+                filter.step(&pair[1].measurement, &r, pair[0].odometry)?;
                 let h = PolarModel::h(filter.state());
                 let w = filter.leader_velocity();
                 e.push([h[0], h[1], h[2], w.v, w.w]);
@@ -1613,7 +1613,7 @@ fn filter_runs(seeds: u64) -> crate::Result<(Value, OursFilter)> {
             "r": r.diagonal().as_slice(),
             "ut": [1.0, 2.0, 0.0],
             "measurements": scenario.samples[1..].iter().map(|s| s.measurement.as_slice().to_vec()).collect::<Vec<_>>(),
-            "inputs": scenario.samples[..scenario.samples.len() - 1].iter().map(|s| [s.follower_inputs.v, s.follower_inputs.w]).collect::<Vec<_>>(),
+            "inputs": scenario.samples[..scenario.samples.len() - 1].iter().map(|s| [s.odometry.v, s.odometry.w]).collect::<Vec<_>>(),
         }));
     }
     Ok((Value::Array(exported), ours))
@@ -1648,9 +1648,11 @@ fn filter_section(ours: &[(FilterFigures, Vec<[f64; 5]>)], peers: &Value) -> cra
     writeln!(
         text,
         "The reference scenario (`ScenarioConfig::reference`, spec sec. 2.4 and 5; 8 s at 30 \
-         Hz, 240 steps), seeds 1..{}, no bias. Ours: `FormationFilter` (the dual UKF of \
-         `reproduce dukf`: a 6-state filter and a 2-parameter filter for the leader's \
-         velocities, with the reference tuning). filterpy: one `UnscentedKalmanFilter` over \
+         Hz, 240 steps), seeds 1..{}, no bias. Ours: `FormationFilter` with the design `reproduce dukf` \
+         runs, the IMM (`paper_filter_config`: three unscented filters over `[x1, y1, theta1, \
+         l12, alpha12, beta12, v1, w1, a_v, a_w]`, the reference tuning), but not told the \
+         follower's controller, which `reproduce dukf` tells it (`docs/dukf-reproduction.md`). \
+         filterpy: one `UnscentedKalmanFilter` over \
          the same state augmented with the leader's velocities `[x1, y1, theta1, l12, \
          alpha12, beta12, v1, w1]`, the same model (`PolarModel::f`, RK4 over dt, angles \
          wrapped, mirrored in Python; the velocities a random walk), the same `h`, the same \
@@ -1683,7 +1685,7 @@ fn filter_section(ours: &[(FilterFigures, Vec<[f64; 5]>)], peers: &Value) -> cra
         Ok(())
     };
     row(
-        "ours, dual UKF",
+        "ours, IMM not told the controller",
         &ours.iter().map(|o| &o.0).collect::<Vec<_>>(),
         &mut text,
     )?;
