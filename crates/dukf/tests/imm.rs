@@ -3,7 +3,10 @@
 //! without changing anything.
 #![allow(clippy::unwrap_used)]
 
-use dukf::{Euclidean, Imm, Ukf, UkfError, UtParams, sojourn_transition};
+use dukf::{
+    AngleMask, Euclidean, Imm, Ukf, UkfError, UtParams, mixture_mean, mixture_noise,
+    sojourn_transition,
+};
 use nalgebra::{Matrix1, Matrix2, Vector1, Vector2};
 use proptest::prelude::*;
 
@@ -215,4 +218,41 @@ proptest! {
             prop_assert!(mu.iter().all(|m| (0.0..=1.0).contains(m)));
         }
     }
+}
+
+/// The mixture of a model set as one transition: its mean is the probability-weighted mean
+/// (on the circle for angles, across the seam), its noise the weighted noises plus the
+/// weighted spread of the predictions.
+#[test]
+fn a_mixture_is_the_weighted_mean_and_the_noises_plus_the_spread() {
+    let outs = [Vector2::new(1.0, 3.0), Vector2::new(2.0, -3.0)];
+    let p = [0.25, 0.75];
+    let plain = mixture_mean(&Euclidean, &outs, &p);
+    assert!((plain - Vector2::new(1.75, -1.5)).amax() < 1e-15, "{plain}");
+    // With the second component an angle, 3 and -3 rad are 0.283 rad apart across pi: the
+    // mean lies between them on that short arc, not near 0.
+    let angles = AngleMask::new([false, true]);
+    let m = mixture_mean(&angles, &outs, &p);
+    let gap = 2.0 * std::f64::consts::PI - 6.0;
+    assert!((m[0] - 1.75).abs() < 1e-15);
+    assert!(
+        (dukf::wrap_angle(m[1] - 3.0) - 0.75 * gap).abs() < 1e-12,
+        "{m}"
+    );
+    let q = [Matrix2::identity() * 0.1, Matrix2::identity() * 0.3];
+    let got = mixture_noise(&Euclidean, &outs, &plain, |j| q[j], &p);
+    let mut want = Matrix2::zeros();
+    for j in 0..2 {
+        let d = outs[j] - plain;
+        want += (q[j] + d * d.transpose()) * p[j];
+    }
+    assert!((got - want).amax() < 1e-15, "{got} vs {want}");
+    assert_eq!(got, got.transpose());
+    // One certain model: its own prediction and noise, no spread.
+    let one = mixture_mean(&Euclidean, &outs, &[0.0, 1.0]);
+    assert_eq!(one, outs[1]);
+    assert_eq!(
+        mixture_noise(&Euclidean, &outs, &one, |j| q[j], &[0.0, 1.0]),
+        q[1]
+    );
 }

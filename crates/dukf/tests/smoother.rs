@@ -3,7 +3,10 @@
 //! bad histories are typed errors.
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
-use dukf::{AngleMask, Euclidean, Gaussian, RtsSmoother, Ukf, UkfError, UtParams, wrap_angle};
+use dukf::{
+    AngleMask, Euclidean, Gaussian, RtsSmoother, Ukf, UkfError, UtParams, filter_and_smooth,
+    wrap_angle,
+};
 use nalgebra::{Matrix1, Matrix2, SMatrix, SVector, Vector1, Vector2};
 use proptest::prelude::*;
 
@@ -268,5 +271,74 @@ fn an_indefinite_filtered_covariance_is_a_typed_error() {
     assert!(
         matches!(err.root(), UkfError::NotPositiveDefinite { .. }),
         "{err:?}"
+    );
+}
+
+/// `filter_and_smooth` (the forward UKF and the backward pass in one call, as the formation
+/// filter's smoother uses it) equals the textbook linear Kalman filter and RTS smoother on
+/// linear-Gaussian models, predict-only steps included; it asks for each step's noise once,
+/// at the filtered mean of the step before. Run with an explicit runner so that the test
+/// shows it exercised both kinds of step.
+#[test]
+fn filter_and_smooth_equals_the_linear_filter_and_smoother() {
+    use proptest::test_runner::{Config, TestRunner};
+    let mut runner = TestRunner::new(Config::with_cases(200));
+    let counts = std::cell::Cell::new((0usize, 0usize, 0usize)); // cases, coasting, updates
+    runner
+        .run(&case(), |c| {
+            let (filtered, predicted) = kalman(&c);
+            let want = rts(&c, &filtered, &predicted);
+            let start = Gaussian::new(c.x0, c.p0);
+            let asked = std::cell::RefCell::new(Vec::new());
+            let got = filter_and_smooth(
+                Euclidean,
+                c.params,
+                &start,
+                c.ys.len() + 1,
+                |_, x| c.a * x,
+                |k, m| {
+                    asked.borrow_mut().push((k, *m));
+                    c.q
+                },
+                |k| c.ys[k - 1].map(|y| (y, c.r)),
+                |x| c.h * x,
+                &Euclidean,
+            )
+            .unwrap();
+            prop_assert_eq!(got.estimates.len(), want.len());
+            for (k, (g, (m, p))) in got.estimates.iter().zip(&want).enumerate() {
+                let scale = 1.0 + m.amax().max(p.amax());
+                prop_assert!(
+                    (g.mean - m).amax() / scale <= 1e-7,
+                    "step {}: {} vs {}",
+                    k,
+                    g.mean,
+                    m
+                );
+                prop_assert!((g.covariance - p).amax() / scale <= 1e-7, "step {}", k);
+            }
+            // One noise per transition, asked at the filtered mean of the step it leaves.
+            let asked = asked.into_inner();
+            prop_assert_eq!(asked.len(), c.ys.len());
+            for (i, (k, m)) in asked.iter().enumerate() {
+                prop_assert_eq!(*k, i);
+                prop_assert!((m - filtered[i].0).amax() <= 1e-7 * (1.0 + m.amax()));
+            }
+            let (n, coast, upd) = counts.get();
+            let coasting = c.ys.iter().any(Option::is_none);
+            let updating = c.ys.iter().any(Option::is_some);
+            counts.set((
+                n + 1,
+                coast + usize::from(coasting),
+                upd + usize::from(updating),
+            ));
+            Ok(())
+        })
+        .unwrap();
+    let (n, coast, upd) = counts.get();
+    assert!(n >= 200, "{n} cases");
+    assert!(
+        coast > 20 && upd > 100,
+        "{coast} cases with a predict-only step, {upd} with an update"
     );
 }
