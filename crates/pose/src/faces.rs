@@ -411,3 +411,102 @@ pub fn fit_on_plane(
     };
     Ok((best, ambiguity_ratio))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Intrinsics, Pose};
+    use nalgebra::{Rotation3, Vector3};
+
+    /// Face `face` of a body: a 0.14 m square on a vertical plane `0.2` m from the body's
+    /// axis, facing the horizontal direction `yaw_deg`, centred 0.3 m up.
+    fn model(yaw_deg: f64) -> [Point3<f64>; 4] {
+        let yaw = yaw_deg.to_radians();
+        let (n, t) = (
+            Vector3::new(yaw.cos(), yaw.sin(), 0.0),
+            Vector3::new(-yaw.sin(), yaw.cos(), 0.0),
+        );
+        let c = n * 0.2 + Vector3::z() * 0.3;
+        let (h, up) = (0.07, Vector3::z() * 0.07);
+        [
+            c - t * h + up,
+            c + t * h + up,
+            c + t * h - up,
+            c - t * h - up,
+        ]
+        .map(Point3::from)
+    }
+
+    /// The body 1.5 m ahead of a level camera, facing away from it, turned by `turn`.
+    fn pose(turn: f64) -> Pose {
+        // Body x (forward) -> camera z, body y (left) -> camera -x, body z (up) -> camera -y.
+        let to_camera = Rotation3::from_matrix_unchecked(nalgebra::Matrix3::new(
+            0.0, -1.0, 0.0, //
+            0.0, 0.0, -1.0, //
+            1.0, 0.0, 0.0,
+        )) * Rotation3::from_axis_angle(&Vector3::z_axis(), turn);
+        Pose::new(to_camera.scaled_axis(), Vector3::new(0.05, 0.25, 1.5))
+    }
+
+    fn faces(k: &Intrinsics, p: &Pose) -> Vec<Face> {
+        [(2u8, 135.0), (3, 180.0), (4, -135.0)]
+            .iter()
+            .map(|&(face, yaw)| {
+                let model = model(yaw);
+                let image = model.map(|m| k.project(&p.transform_point(&m)).unwrap());
+                Face { face, model, image }
+            })
+            .collect()
+    }
+
+    fn check() -> FaceCheck {
+        FaceCheck {
+            outlier_px: 1.5,
+            outlier_factor: 3.0,
+            corner_outlier_px: 0.6,
+            plane_face_check: false,
+        }
+    }
+
+    #[test]
+    fn the_area_of_a_quadrilateral_is_its_shoelace_area_either_way_round() {
+        let square = [[0.0, 0.0], [2.0, 0.0], [2.0, 3.0], [0.0, 3.0]].map(Point2::from);
+        assert!((quad_area(&square) - 6.0).abs() < 1e-15);
+        let mut reversed = square;
+        reversed.reverse();
+        assert!((quad_area(&reversed) - 6.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn agreeing_faces_are_kept_and_give_the_pose() {
+        let k = Intrinsics::from_hfov(60f64.to_radians(), 640, 480).unwrap();
+        let solver = PoseSolver::new(k);
+        let truth = pose(0.3);
+        let got = consistent_faces(faces(&k, &truth), &solver, None, &check()).unwrap();
+        assert_eq!(got.faces.len(), 3);
+        assert!(got.rejected.is_empty());
+        let p = got.solution.pose();
+        assert!((p.translation - truth.translation).norm() < 1e-6, "{p:?}");
+        assert!((p.rotation - truth.rotation).norm() < 1e-6, "{p:?}");
+    }
+
+    #[test]
+    fn a_face_that_disagrees_is_dropped_with_its_reason() {
+        let k = Intrinsics::from_hfov(60f64.to_radians(), 640, 480).unwrap();
+        let solver = PoseSolver::new(k);
+        let truth = pose(0.3);
+        let mut read = faces(&k, &truth);
+        // Face 4 read 12 px to the right, as a misread marker or a wrong corner would be.
+        for c in &mut read[2].image {
+            c.x += 12.0;
+        }
+        let got = consistent_faces(read, &solver, None, &check()).unwrap();
+        let kept: Vec<u8> = got.faces.iter().map(|f| f.face).collect();
+        assert_eq!(kept, [2, 3]);
+        assert_eq!(got.rejected.len(), 1);
+        assert_eq!(got.rejected[0].face, 4);
+        assert!(!got.rejected[0].reason.is_empty());
+        let p = got.solution.pose();
+        assert!((p.translation - truth.translation).norm() < 1e-6, "{p:?}");
+    }
+}
