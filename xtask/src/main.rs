@@ -14,6 +14,7 @@ mod dictionaries;
 mod dictionary;
 mod dukf_table;
 mod figures;
+mod fingerprint;
 mod pyenv;
 mod random_scenes;
 mod release;
@@ -32,6 +33,8 @@ commands:
                    docs/detector-accuracy.md (--quick: fewer scenes; --motion-blur,
                    --sizes: print only those tables)
   dictionary       regenerate crates/fiducial/data/dict-4x5-d6.txt (--check: only compare)
+  fingerprint      regenerate fixtures/fingerprints/fiducial.txt, the detector's output on
+                   fixed frames through every entry point (--check: only compare)
   dictionaries     regenerate the standard families' tables (crates/fiducial/data/families/)
                    and fixtures/markers/ from OpenCV in target/py-venv (--check: only compare)
   random-scenes    score 100 seeded random scenes, write docs/random-scenes.md
@@ -60,6 +63,7 @@ fn main() -> ExitCode {
         Some("no-c") => no_c(),
         Some("bench-report") => bench_report::run(&args[1..]),
         Some("dictionary") => dictionary::run(&args[1..]),
+        Some("fingerprint") => fingerprint::run(&args[1..]),
         Some("dictionaries") => dictionaries::run(&args[1..]),
         Some("random-scenes") => random_scenes::run(&args[1..]),
         Some("detector-accuracy") => detector_accuracy::run(&args[1..]),
