@@ -281,7 +281,6 @@ impl<F: Fn(f64) -> Inputs> Simulation<F> {
                 return Err(ScenarioError::InvalidOdometryNoise { index, value: s });
             }
         }
-
         let model = PolarModel::new(config.d)?;
         let start = Formation::from_poses(&config.leader0, &config.follower0, config.d)?;
         let goal = ControllerConfig::hold(&start);
@@ -374,13 +373,12 @@ pub(crate) fn follower_motion(
     let mut n01 = || StandardNormal.sample(&mut *rng);
     let draws: [f64; 4] = [n01(), n01(), n01(), n01()];
     let executed = actuation.execute(commanded, [draws[0], draws[1]]);
-    let noisy = |v: f64, std: f64, n: f64| if std == 0.0 { v } else { v + std * n };
-    let [sv, sw] = odometry_noise_std;
-    let odometry = Inputs::new(
-        noisy(executed.v, sv, draws[2]),
-        noisy(executed.w, sw, draws[3]),
-    );
-    (executed, odometry)
+    // The encoders add white noise and no scale error: an actuation of scale one.
+    let encoders = Actuation {
+        scale: [1.0; 2],
+        noise_std: odometry_noise_std,
+    };
+    (executed, encoders.execute(executed, [draws[2], draws[3]]))
 }
 
 /// The generator of the actuation and odometry noise for `seed`: stream 1, apart from the

@@ -24,12 +24,11 @@ impl ResidualPool {
     /// freedom are remembered; a fit without a residual degree of freedom, or with a
     /// non-finite residual, is skipped.
     pub fn add(&mut self, rms_px: f64, points: usize, parameters: usize, memory_dof: f64) {
-        let dof = 2.0 * points as f64 - parameters as f64;
-        if dof <= 0.0 || !rms_px.is_finite() {
+        let Some((sse, dof)) = fit_sums(rms_px, points, parameters) else {
             return;
-        }
+        };
         let keep = (1.0 - dof / memory_dof).max(0.0);
-        self.sse = self.sse * keep + rms_px * rms_px * points as f64;
+        self.sse = self.sse * keep + sse;
         self.dof = self.dof * keep + dof;
     }
 
@@ -37,6 +36,14 @@ impl ResidualPool {
     pub fn variance(&self) -> f64 {
         self.sse / self.dof
     }
+}
+
+/// One fit's residual as the pool's sums: its squared residuals `rms^2 N` and its degrees of
+/// freedom `2N - p`; `None` when it has no residual degree of freedom or a non-finite
+/// residual (such a fit says nothing about the noise).
+fn fit_sums(rms_px: f64, points: usize, parameters: usize) -> Option<(f64, f64)> {
+    let dof = 2.0 * points as f64 - parameters as f64;
+    (dof > 0.0 && rms_px.is_finite()).then_some((rms_px * rms_px * points as f64, dof))
 }
 
 /// The factor that takes a covariance the solvers scaled by one fit's own corner noise
@@ -51,12 +58,11 @@ pub fn rescale_factor(
     parameters: usize,
     min_pixel_sigma: f64,
 ) -> f64 {
-    let dof = 2 * points as i64 - parameters as i64;
-    if dof <= 0 || !rms_px.is_finite() {
+    let Some((sse, dof)) = fit_sums(rms_px, points, parameters) else {
         return 1.0;
-    }
+    };
     let floor = min_pixel_sigma * min_pixel_sigma;
-    let used = (rms_px * rms_px * points as f64 / dof as f64).max(floor);
+    let used = (sse / dof).max(floor);
     if used > 0.0 && variance.is_finite() && variance > 0.0 {
         variance / used
     } else {
