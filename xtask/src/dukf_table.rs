@@ -615,11 +615,13 @@ fn scenario_table(path: &std::path::Path) -> Result<String> {
         let mut rw = Vec::new();
         let mut cv = Vec::new();
         for seed in seeds {
-            let scenario = spec.simulate(seed, false)?;
+            // Each filter in its own loop (under `control: estimate` the follower drives on
+            // it); the baselines filter the IMM run's measurements.
+            let (scenario, run) = spec.run(seed, false, &spec.filter_config(), true)?;
             rw.push(baseline(&scenario, &x0, Baseline::RANDOM_WALK));
             cv.push(baseline(&scenario, &x0, Baseline::CONSTANT_VELOCITY));
-            duals.push(run_filter(&scenario, &dual_config)?.summary);
-            runs.push(spec.reproduce(seed, false)?);
+            duals.push(spec.run(seed, false, &dual_config, false)?.1.summary);
+            runs.push(run);
         }
         let summaries: Vec<Summary> = runs.iter().map(|r| r.summary.clone()).collect();
         let c = medians(&summaries);

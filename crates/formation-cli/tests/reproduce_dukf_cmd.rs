@@ -111,3 +111,47 @@ fn cli_reproduce_dukf_reads_a_scenario_file_and_names_a_bad_field() {
     assert!(err.contains("framerate"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// #30: the follower steers on the filter's estimate unless `--paper` (or `--control`) says
+/// otherwise; `summary.json` says which, and a bad or conflicting choice is a usage error.
+#[test]
+fn cli_reproduce_dukf_control_modes() {
+    let exe = env!("CARGO_BIN_EXE_formation-tracker");
+    let dir = std::env::temp_dir().join(format!("ft-reproduce-control-{}", std::process::id()));
+    let run = |args: &[&str], out: &str| {
+        std::process::Command::new(exe)
+            .args(["--quiet", "reproduce", "dukf"])
+            .args(args)
+            .arg("--out")
+            .arg(dir.join(out))
+            .output()
+            .unwrap()
+    };
+    let control = |out: &str| {
+        let text = std::fs::read_to_string(dir.join(out).join("summary.json")).unwrap();
+        let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+        json["control"].as_str().unwrap().to_string()
+    };
+    for (args, out, want) in [
+        (&[][..], "default", "estimate"),
+        (&["--paper"][..], "paper", "truth"),
+        (&["--control", "open"][..], "open", "open"),
+    ] {
+        let o = run(args, out);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(control(out), want);
+    }
+    // The paper's setting gives other figures than the follower on its estimate.
+    let series = |out: &str| std::fs::read_to_string(dir.join(out).join("series.csv")).unwrap();
+    assert_ne!(series("default"), series("paper"));
+    for bad in [
+        &["--control", "oracle"][..],
+        &["--paper", "--control", "truth"][..],
+    ] {
+        let o = run(bad, "bad");
+        assert_eq!(o.status.code(), Some(2), "{bad:?}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains("control"), "{err}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

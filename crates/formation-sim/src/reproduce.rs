@@ -5,9 +5,12 @@
 use formation_filter::{FilterConfig, FilterDesign, FilterError, FilterStep, FormationFilter};
 use nalgebra::{Matrix3, Vector2, Vector3};
 use serde::Serialize;
-use unicycle::{PolarModel, PolarState, wrap_angle};
+use unicycle::{Formation, Inputs, PolarModel, PolarState, wrap_angle};
 
-use crate::scenario::{PAPER_X0, Sample, Scenario, ScenarioConfig, ScenarioError, simulate};
+use crate::scenario::{
+    Control, Observation, PAPER_X0, Sample, Scenario, ScenarioConfig, ScenarioError, Simulation,
+    simulate,
+};
 
 /// Errors of a reproduction run.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -156,6 +159,9 @@ pub struct Summary {
     pub seed: u64,
     /// Whether the paper's measurement bias was added.
     pub bias: bool,
+    /// What the follower's controller acted on: `estimate` (the filter's, as on a robot),
+    /// `truth` (the paper's setting) or `open`.
+    pub control: Control,
 }
 
 /// Mean square errors of a run's records, the estimate and the raw measurement each over
@@ -247,13 +253,13 @@ impl ErrorTally {
     }
 }
 
-/// The figures of a run ([`Summary`]) from its step records.
-pub fn summarize(records: &[StepRecord], seed: u64, bias: bool) -> Summary {
+/// The figures of a run ([`Summary`]) of the scenario `scenario` from its step records.
+pub fn summarize(records: &[StepRecord], scenario: &ScenarioConfig) -> Summary {
     let mut tally = SummaryTally::default();
     for r in records {
         tally.push(r);
     }
-    tally.finish(seed, bias)
+    tally.finish(scenario)
 }
 
 /// [`summarize`] one record at a time, in constant memory (the same figures to the bit).
@@ -272,8 +278,8 @@ impl SummaryTally {
         self.first_t.get_or_insert(r.t);
     }
 
-    /// The summary of what was pushed.
-    pub fn finish(&self, seed: u64, bias: bool) -> Summary {
+    /// The summary of what was pushed, from a run of `scenario`.
+    pub fn finish(&self, scenario: &ScenarioConfig) -> Summary {
         let m = self.errors.finish();
         Summary {
             mse: MseSummary::new(m.estimate, m.measurement),
@@ -281,8 +287,9 @@ impl SummaryTally {
             rms_w1_after_2s: m.rms_velocity_after_2s[1],
             steps: self.steps,
             mse_from_t: self.first_t.unwrap_or(0.0),
-            seed,
-            bias,
+            seed: scenario.seed,
+            bias: scenario.bias.is_some(),
+            control: scenario.control,
         }
     }
 }
@@ -359,10 +366,9 @@ pub fn run_filter_with(
             consistency.push(stats);
         }
     }
-    let (seed, bias) = (scenario.config.seed, scenario.config.bias.is_some());
-    let summary = summarize(&records, seed, bias);
+    let summary = summarize(&records, &scenario.config);
     let smoothed_records = run.smoothed_records(&records)?;
-    let smoothed_summary = summarize(&smoothed_records, seed, bias);
+    let smoothed_summary = summarize(&smoothed_records, &scenario.config);
     Ok(Reproduction {
         scenario: scenario.config.clone(),
         records,
@@ -422,7 +428,33 @@ impl FilterRun {
         &mut self,
         now: &Sample,
     ) -> Result<Option<(StepRecord, StepConsistency)>, ReproduceError> {
-        let Some(prev) = self.previous.replace(now.clone()) else {
+        let out = self.observe(&now.observation())?;
+        self.acted(now.clone());
+        Ok(out)
+    }
+
+    /// The follower's estimate of the formation and of the leader's inputs now: what its
+    /// controller acts on under [`Control::Estimate`](crate::scenario::Control::Estimate).
+    pub fn control_estimate(&self) -> (Formation, Inputs) {
+        (self.filter.formation(), self.filter.leader_velocity())
+    }
+
+    /// Records the sample the follower acted on, whose odometry and controller the next
+    /// [`Self::observe`] filters over.
+    pub fn acted(&mut self, sample: Sample) {
+        self.previous = Some(sample);
+    }
+
+    /// Filters the measurement of `now` over the step from the last sample
+    /// [`acted`](Self::acted) on (its odometry and controller); `None` before any.
+    ///
+    /// # Errors
+    /// A [`ReproduceError::Filter`] from the filter's step.
+    pub fn observe(
+        &mut self,
+        now: &Observation,
+    ) -> Result<Option<(StepRecord, StepConsistency)>, ReproduceError> {
+        let Some(prev) = &self.previous else {
             return Ok(None);
         };
         let filter = &mut self.filter;
@@ -498,6 +530,116 @@ impl FilterRun {
             })
             .collect())
     }
+}
+
+/// A scenario run with its formation filter in the loop, one sample at a time: at each
+/// `t_k` the simulation draws the measurement, the filter takes it (over the step from
+/// `t_{k-1}`, with the follower's odometry and controller of that step), and the follower
+/// commands the next step from the filter's estimate ([`Control::Estimate`], as on a robot)
+/// or, as its scenario says, from the truth or its plan. Yields each sample with the
+/// filter's record of it (`None` at `t = 0`), the same records as [`FilterRun::push`] over
+/// the same samples; constant memory without the smoother's history.
+pub struct ClosedLoop<F> {
+    simulation: Simulation<F>,
+    run: FilterRun,
+}
+
+impl<F: Fn(f64) -> Inputs> ClosedLoop<F> {
+    /// The scenario of `simulation` filtered by `config`. The filter is told the follower's
+    /// controller when `follower_controller` is set and the follower runs it (not under
+    /// [`Control::Open`], where it replays a plan); with `keep_history` the run keeps what
+    /// [`Self::smoothed_records`] needs.
+    ///
+    /// # Errors
+    /// A filter configuration [`FormationFilter::new`] refuses.
+    pub fn new(
+        simulation: Simulation<F>,
+        config: &FilterConfig,
+        follower_controller: bool,
+        keep_history: bool,
+    ) -> Result<Self, ReproduceError> {
+        let scenario = simulation.config();
+        let told = follower_controller && scenario.control != Control::Open;
+        let run = FilterRun::new(config, scenario, told, keep_history)?;
+        Ok(Self { simulation, run })
+    }
+
+    /// The scenario's configuration.
+    pub fn config(&self) -> &ScenarioConfig {
+        self.simulation.config()
+    }
+
+    /// As [`FilterRun::smoothed_records`].
+    ///
+    /// # Errors
+    /// As [`FilterRun::smoothed_records`].
+    pub fn smoothed_records(
+        &self,
+        records: &[StepRecord],
+    ) -> Result<Vec<StepRecord>, ReproduceError> {
+        self.run.smoothed_records(records)
+    }
+}
+
+/// One sample of a [`ClosedLoop`] run and the filter's record of it.
+pub type LoopStep = (Sample, Option<(StepRecord, StepConsistency)>);
+
+impl<F: Fn(f64) -> Inputs> Iterator for ClosedLoop<F> {
+    type Item = Result<LoopStep, ReproduceError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let Self { simulation, run } = self;
+        let mut out = None;
+        let sample = simulation.step(|seen| -> Result<_, ReproduceError> {
+            out = run.observe(seen)?;
+            Ok(Some(run.control_estimate()))
+        })?;
+        Some(sample.map(|sample| {
+            run.acted(sample.clone());
+            (sample, out)
+        }))
+    }
+}
+
+/// Runs a [`ClosedLoop`] to its end and collects it: the scenario's samples (what the
+/// follower did under its estimates) and their filtered [`Reproduction`], smoother included.
+///
+/// # Errors
+/// Any [`ReproduceError`].
+pub fn run_closed_loop<F: Fn(f64) -> Inputs>(
+    simulation: Simulation<F>,
+    config: &FilterConfig,
+    follower_controller: bool,
+) -> Result<(Scenario, Reproduction), ReproduceError> {
+    let scenario_config = simulation.config().clone();
+    let mut run = ClosedLoop::new(simulation, config, follower_controller, true)?;
+    let mut samples = Vec::with_capacity(scenario_config.steps() + 1);
+    let mut records = Vec::with_capacity(scenario_config.steps());
+    let mut consistency = Vec::with_capacity(scenario_config.steps());
+    for step in run.by_ref() {
+        let (sample, filtered) = step?;
+        samples.push(sample);
+        if let Some((record, stats)) = filtered {
+            records.push(record);
+            consistency.push(stats);
+        }
+    }
+    let summary = summarize(&records, &scenario_config);
+    let smoothed_records = run.smoothed_records(&records)?;
+    let smoothed_summary = summarize(&smoothed_records, &scenario_config);
+    let reproduction = Reproduction {
+        scenario: scenario_config.clone(),
+        records,
+        consistency,
+        summary,
+        smoothed_records,
+        smoothed_summary,
+    };
+    let scenario = Scenario {
+        config: scenario_config,
+        samples,
+    };
+    Ok((scenario, reproduction))
 }
 
 /// The reproduction of the paper's Figs. 12-13: the reference scenario with `seed` (and the
@@ -614,6 +756,45 @@ pub fn baseline(scenario: &Scenario, x0: &[f64; 3], which: Baseline) -> [f64; 3]
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// #30: with the filter in the loop, control on the truth gives the records of the
+    /// filter run after the fact; on the estimate, the follower moves by what the filter says.
+    #[test]
+    fn the_closed_loop_runs_the_filter_between_measurement_and_command() {
+        let config = ScenarioConfig::reference(6);
+        let filter = paper_filter_config(config.d, config.dt);
+        let after = run_filter(&simulate(&config).unwrap(), &filter).unwrap();
+        let sim = Simulation::new(&config, crate::scenario::reference_leader_inputs, &[]).unwrap();
+        let (scenario, looped) = run_closed_loop(sim, &filter, true).unwrap();
+        assert_eq!(scenario, simulate(&config).unwrap());
+        assert_eq!(looped.records, after.records);
+        assert_eq!(looped.smoothed_records, after.smoothed_records);
+        assert_eq!(looped.summary.control, Control::Truth);
+
+        let config = config.with_control(Control::Estimate);
+        let sim = Simulation::new(&config, crate::scenario::reference_leader_inputs, &[]).unwrap();
+        let (scenario, looped) = run_closed_loop(sim, &filter, true).unwrap();
+        assert_eq!(looped.summary.control, Control::Estimate);
+        assert_eq!(scenario.samples.len(), 241);
+        // The follower's first command is its controller on the filter's prior.
+        let prior = FormationFilter::new(&filter).unwrap();
+        let controller =
+            unicycle::SeparationBearingController::new(config.d, scenario.samples[0].controller)
+                .unwrap();
+        let first = controller
+            .inputs(&prior.formation(), prior.leader_velocity())
+            .unwrap();
+        assert_eq!(scenario.samples[0].follower_inputs, first);
+        // The trajectory differs from the truth-driven one, and the filter still tracks it.
+        assert_ne!(
+            PolarModel::h(&scenario.samples[100].truth),
+            after.records[99].truth
+        );
+        assert!(looped.summary.mse.l12 < 0.5 * looped.summary.mse.meas_l12);
+        // Filtering the same samples after the fact gives the same records.
+        let replay = run_filter(&scenario, &filter).unwrap();
+        assert_eq!(replay.records, looped.records);
+    }
 
     #[test]
     fn summary_counts_every_step_and_the_late_window() {

@@ -44,6 +44,16 @@ pub enum ScenarioError {
         /// The value that was given.
         value: f64,
     },
+    /// The follower's controller acts on its estimate ([`Control::Estimate`]) but no
+    /// estimate was given: such a run needs its estimator in the loop
+    /// ([`Simulation::step`], `formation_sim::reproduce::ClosedLoop`), not the plain iterator.
+    #[error(
+        "control: estimate needs the follower's estimate at t = {t} s: run the scenario with its filter in the loop (formation_sim::reproduce::ClosedLoop), or set control: truth or open"
+    )]
+    NoEstimate {
+        /// Time of the step that had none, seconds.
+        t: f64,
+    },
     /// The duration or step gives no step at all, or is not finite.
     #[error("duration {duration} s with dt = {dt} s gives no simulation step")]
     NoSteps {
@@ -52,6 +62,56 @@ pub enum ScenarioError {
         /// Step, seconds.
         dt: f64,
     },
+}
+
+/// What the follower's separation-bearing controller acts on (`control` in scenario files).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Control {
+    /// On the follower's own estimate of the formation and of the leader's velocity, as on a
+    /// robot: the estimate after the filter took the measurement at `t_k` commands the step
+    /// from `t_k` to `t_{k+1}` (the default of scenario files).
+    #[default]
+    Estimate,
+    /// On the true formation and the true leader inputs: the paper's setting (Figs. 12-13),
+    /// which hands the follower's motion a quantity no robot has.
+    Truth,
+    /// Without feedback: the follower replays the commands its controller gives along the
+    /// planned run (true leader, follower moved exactly by its commands), so its actuation
+    /// errors accumulate.
+    Open,
+}
+
+impl Control {
+    /// Every mode, in the order of the documentation.
+    pub const ALL: [Self; 3] = [Self::Estimate, Self::Truth, Self::Open];
+
+    /// The name used in scenario files and tables (`estimate`, `truth`, `open`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Estimate => "estimate",
+            Self::Truth => "truth",
+            Self::Open => "open",
+        }
+    }
+
+    /// The mode called `name` ([`Self::name`]).
+    ///
+    /// # Errors
+    /// Any other name, with the names accepted.
+    pub fn from_name(name: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|c| c.name() == name)
+            .ok_or_else(|| format!("control `{name}`: one of estimate, truth, open"))
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Control {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let name = String::deserialize(d)?;
+        Self::from_name(&name).map_err(serde::de::Error::custom)
+    }
 }
 
 /// Everything that defines one run of the reference scenario.
@@ -81,12 +141,16 @@ pub struct ScenarioConfig {
     /// Standard deviations of the follower's odometry noise `[v, w]` (m/s, rad/s): what its
     /// wheel encoders report is the executed inputs plus this white noise (0: exact).
     pub odometry_noise_std: [f64; 2],
+    /// What the follower's controller acts on ([`Control::Truth`] in the paper's setting).
+    pub control: Control,
 }
 
 impl ScenarioConfig {
     /// The reference scenario (see `docs/reference-scenario.md`) with the given seed, without
     /// bias: follower at (0, 0, 0), leader at (1.5, 0.25, 0), d = 0.5 m, dt = 1/30 s, 8 s,
-    /// noise standard deviations (0.07 m, 0.03 rad, 0.03 rad).
+    /// noise standard deviations (0.07 m, 0.03 rad, 0.03 rad), in the paper's setting: the
+    /// follower's controller on the truth, exact actuation and odometry
+    /// ([`Self::with_control`] puts it on the follower's estimate).
     pub fn reference(seed: u64) -> Self {
         Self {
             d: 0.5,
@@ -99,7 +163,14 @@ impl ScenarioConfig {
             seed,
             actuation: Actuation::PERFECT,
             odometry_noise_std: [0.0; 2],
+            control: Control::Truth,
         }
+    }
+
+    /// The same scenario with the follower's controller acting on `control`.
+    pub fn with_control(mut self, control: Control) -> Self {
+        self.control = control;
+        self
     }
 
     /// The same scenario with the paper's measurement bias [`PAPER_BIAS`] added.
@@ -167,11 +238,13 @@ pub struct Scenario {
 }
 
 /// Simulates the scenario: both unicycles integrated exactly, the follower driven by the
-/// separation-bearing controller on the true formation variables and the true leader inputs
-/// (holding the initial `l12` and `alpha12`), measurements drawn from the seeded noise.
+/// separation-bearing controller (holding the initial `l12` and `alpha12`) on what
+/// [`ScenarioConfig::control`] says, measurements drawn from the seeded noise.
 ///
 /// # Errors
-/// A bad configuration ([`ScenarioError`]) or a model error (e.g. a collision).
+/// A bad configuration ([`ScenarioError`]), a model error (e.g. a collision), or
+/// [`ScenarioError::NoEstimate`] for [`Control::Estimate`], which needs the follower's
+/// estimator in the loop (`formation_sim::reproduce::ClosedLoop`).
 pub fn simulate(config: &ScenarioConfig) -> Result<Scenario, ScenarioError> {
     simulate_with(config, reference_leader_inputs)
 }
@@ -226,7 +299,9 @@ pub fn simulate_scheduled(
 /// memory whatever the duration. `reproduce dukf` filters a scenario of hours through it.
 ///
 /// Yields `config.steps() + 1` samples (`t = 0, dt, ..., duration`); after an error it
-/// yields nothing more.
+/// yields nothing more. As an iterator it has no estimator, so a run with
+/// [`Control::Estimate`] fails at its first sample ([`ScenarioError::NoEstimate`]): drive it
+/// with [`Simulation::step`] (as `formation_sim::reproduce::ClosedLoop` does).
 pub struct Simulation<F> {
     config: ScenarioConfig,
     leader_inputs: F,
@@ -242,6 +317,8 @@ pub struct Simulation<F> {
     actuation_rng: ChaCha8Rng,
     leader: PlanarPose,
     follower: PlanarPose,
+    /// Where the follower would be had it executed its commands exactly ([`Control::Open`]).
+    planned_follower: PlanarPose,
     /// The next sample's index `k`; `None` once finished or failed.
     k: Option<usize>,
     n: usize,
@@ -301,6 +378,7 @@ impl<F: Fn(f64) -> Inputs> Simulation<F> {
             actuation_rng: actuation_rng(config.seed),
             leader: config.leader0,
             follower: config.follower0,
+            planned_follower: config.follower0,
             k: Some(0),
             n,
         })
@@ -311,12 +389,11 @@ impl<F: Fn(f64) -> Inputs> Simulation<F> {
         &self.config
     }
 
-    /// Sample `k`, and the poses moved on to step `k + 1`.
-    fn sample(&mut self, k: usize) -> Result<Sample, ScenarioError> {
-        let dt = self.config.dt;
-        let t = k as f64 * dt;
+    /// The instant `t_k` as the follower sees it before it acts: the truth, the measurement
+    /// and the controller in force (set-point changes due at `t_k` applied).
+    fn observe(&mut self, k: usize) -> Result<Observation, ScenarioError> {
+        let t = k as f64 * self.config.dt;
         let truth = self.model.state_from_poses(&self.leader, &self.follower)?;
-        let formation = Formation::from_vector(&PolarModel::h(&truth));
         let mut changed = false;
         while let Some(change) = self.schedule.get(self.next_change).filter(|c| t >= c.at) {
             self.goal.l12_desired = change.l12.unwrap_or(self.goal.l12_desired);
@@ -327,35 +404,124 @@ impl<F: Fn(f64) -> Inputs> Simulation<F> {
         if changed {
             self.controller = SeparationBearingController::new(self.config.d, self.goal)?;
         }
-        let u1 = (self.leader_inputs)(t);
-        let u2 = self.controller.inputs(&formation, u1)?;
         let mut y = PolarModel::h(&truth);
         for i in 0..3 {
             y[i] += self.bias[i] + self.noise[i].sample(&mut self.rng);
         }
-        let y = MEASUREMENT_SPACE.normalize(&y);
+        Ok(Observation {
+            t,
+            truth,
+            follower: self.follower,
+            leader_inputs: (self.leader_inputs)(t),
+            measurement: MEASUREMENT_SPACE.normalize(&y),
+            controller: self.goal,
+        })
+    }
+
+    /// The follower's command at the observed instant ([`ScenarioConfig::control`]), what its
+    /// wheels execute and its odometry, and both robots moved on to step `k + 1`.
+    fn act(
+        &mut self,
+        k: usize,
+        seen: Observation,
+        estimate: Option<(Formation, Inputs)>,
+    ) -> Result<Sample, ScenarioError> {
+        let dt = self.config.dt;
+        let u1 = seen.leader_inputs;
+        let u2 = match self.config.control {
+            Control::Truth => {
+                let formation = Formation::from_vector(&PolarModel::h(&seen.truth));
+                self.controller.inputs(&formation, u1)?
+            }
+            Control::Estimate => {
+                let (formation, leader) =
+                    estimate.ok_or(ScenarioError::NoEstimate { t: seen.t })?;
+                self.controller.inputs(&formation, leader)?
+            }
+            Control::Open => {
+                let planned =
+                    Formation::from_poses(&self.leader, &self.planned_follower, self.config.d)?;
+                self.controller.inputs(&planned, u1)?
+            }
+        };
         let (executed, odometry) = follower_motion(
             &self.config.actuation,
             self.config.odometry_noise_std,
             u2,
             &mut self.actuation_rng,
         );
-        let sample = Sample {
-            t,
-            truth,
-            follower: self.follower,
+        if k < self.n {
+            self.leader = self.leader.integrate_exact(u1, dt)?;
+            self.follower = self.follower.integrate_exact(executed, dt)?;
+            if self.config.control == Control::Open {
+                self.planned_follower = self.planned_follower.integrate_exact(u2, dt)?;
+            }
+        }
+        Ok(Sample {
+            t: seen.t,
+            truth: seen.truth,
+            follower: seen.follower,
             leader_inputs: u1,
             follower_inputs: u2,
             executed_inputs: executed,
             odometry,
-            measurement: y,
-            controller: self.goal,
+            measurement: seen.measurement,
+            controller: seen.controller,
+        })
+    }
+
+    /// The next sample, with the follower's estimate taken between the measurement and its
+    /// command: `estimator` is given what the follower observes at `t_k` (it must use only
+    /// [`Observation::measurement`] and what it kept of earlier samples' odometry and
+    /// controller) and returns the follower's estimate of the formation and of the leader's
+    /// inputs, or `None` when it has none. [`Control::Estimate`] commands from that estimate
+    /// (and fails with [`ScenarioError::NoEstimate`] without one); the other modes call the
+    /// estimator too, and ignore its answer. `None` once the run is over or failed.
+    pub fn step<E: From<ScenarioError>>(
+        &mut self,
+        estimator: impl FnOnce(&Observation) -> Result<Option<(Formation, Inputs)>, E>,
+    ) -> Option<Result<Sample, E>> {
+        let k = self.k?;
+        let run = || -> Result<Sample, E> {
+            let seen = self.observe(k)?;
+            let estimate = estimator(&seen)?;
+            Ok(self.act(k, seen, estimate)?)
         };
-        if k < self.n {
-            self.leader = self.leader.integrate_exact(u1, dt)?;
-            self.follower = self.follower.integrate_exact(executed, dt)?;
+        let sample = run();
+        self.k = (sample.is_ok() && k < self.n).then_some(k + 1);
+        Some(sample)
+    }
+}
+
+/// What the follower has at `t_k` before it commands the next step, with the truth beside it
+/// for scoring (an estimator takes only the measurement).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Observation {
+    /// Time, seconds.
+    pub t: f64,
+    /// True polar state, for scoring only.
+    pub truth: PolarState,
+    /// True follower pose, for scoring only.
+    pub follower: PlanarPose,
+    /// True leader inputs from `t_k` to `t_{k+1}`, for scoring only.
+    pub leader_inputs: Inputs,
+    /// Measurement `h(x_k) + n_k` (+ bias), angles wrapped.
+    pub measurement: FormationMeasurement,
+    /// The follower's controller in force from `t_k`.
+    pub controller: ControllerConfig,
+}
+
+impl Sample {
+    /// What the follower had at this sample's instant before it acted.
+    pub fn observation(&self) -> Observation {
+        Observation {
+            t: self.t,
+            truth: self.truth,
+            follower: self.follower,
+            leader_inputs: self.leader_inputs,
+            measurement: self.measurement,
+            controller: self.controller,
         }
-        Ok(sample)
     }
 }
 
@@ -393,10 +559,7 @@ impl<F: Fn(f64) -> Inputs> Iterator for Simulation<F> {
     type Item = Result<Sample, ScenarioError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        let k = self.k?;
-        let sample = self.sample(k);
-        self.k = (sample.is_ok() && k < self.n).then_some(k + 1);
-        Some(sample)
+        self.step(|_| Ok::<_, ScenarioError>(None))
     }
 
     fn size_hint(&self) -> (usize, Option<usize>) {
@@ -467,6 +630,81 @@ mod tests {
         config.odometry_noise_std = [0.0; 2];
         config.actuation.scale = [0.0, 1.0];
         assert!(matches!(simulate(&config), Err(ScenarioError::Model(_))));
+    }
+
+    /// #30: `control` decides what the follower's command is computed from.
+    #[test]
+    fn the_follower_commands_from_its_estimate_the_truth_or_its_plan() {
+        let truth = simulate(&ScenarioConfig::reference(4)).unwrap();
+        // As an iterator, control on the estimate has none: a typed error at t = 0.
+        let estimate = ScenarioConfig::reference(4).with_control(Control::Estimate);
+        assert!(matches!(
+            simulate(&estimate),
+            Err(ScenarioError::NoEstimate { t }) if t == 0.0
+        ));
+        // Given the truth as its "estimate", the estimate-driven run is the paper's run.
+        let mut sim = Simulation::new(&estimate, reference_leader_inputs, &[]).unwrap();
+        let mut calls = 0;
+        let mut fed = Vec::new();
+        while let Some(s) = sim.step(|seen| {
+            calls += 1;
+            Ok::<_, ScenarioError>(Some((
+                Formation::from_vector(&PolarModel::h(&seen.truth)),
+                seen.leader_inputs,
+            )))
+        }) {
+            fed.push(s.unwrap());
+        }
+        assert_eq!(calls, 241);
+        assert_eq!(fed, truth.samples);
+        // A biased estimate moves the follower: the command is the controller's on it.
+        let goal = truth.samples[0].controller;
+        let controller = SeparationBearingController::new(0.5, goal).unwrap();
+        let mut sim = Simulation::new(&estimate, reference_leader_inputs, &[]).unwrap();
+        let mut biased = Vec::new();
+        while let Some(s) = sim.step(|seen| {
+            let mut f = Formation::from_vector(&PolarModel::h(&seen.truth));
+            f.l12 += 0.1;
+            Ok::<_, ScenarioError>(Some((f, Inputs::new(0.8, 0.0))))
+        }) {
+            biased.push(s.unwrap());
+        }
+        for s in &biased {
+            let mut f = Formation::from_vector(&PolarModel::h(&s.truth));
+            f.l12 += 0.1;
+            let u = controller.inputs(&f, Inputs::new(0.8, 0.0)).unwrap();
+            assert_eq!(s.follower_inputs, u);
+        }
+        // The follower closes in on a leader it believes 10 cm further away.
+        let last = biased.last().unwrap();
+        assert!(last.truth[3] < truth.samples.last().unwrap().truth[3] - 0.05);
+        // Open loop with exact actuation is the paper's run; with a scale error it drifts
+        // where the truth-driven follower corrects it.
+        let open = simulate(&ScenarioConfig::reference(4).with_control(Control::Open)).unwrap();
+        for (a, b) in open.samples.iter().zip(&truth.samples) {
+            assert!(
+                (a.truth - b.truth).norm() < 1e-9,
+                "{} vs {}",
+                a.truth,
+                b.truth
+            );
+        }
+        let slow = Actuation {
+            scale: [0.9, 1.0],
+            noise_std: [0.0; 2],
+        };
+        let mut config = ScenarioConfig::reference(4).with_control(Control::Open);
+        config.actuation = slow;
+        let drift = simulate(&config).unwrap();
+        config.control = Control::Truth;
+        let held = simulate(&config).unwrap();
+        let l0 = truth.samples[0].truth[3];
+        let error = |s: &Scenario| (s.samples.last().unwrap().truth[3] - l0).abs();
+        assert!(error(&drift) > 0.3, "open loop drifts: {}", error(&drift));
+        // (Feedback leaves the controller's steady-state error of a 10 % slow wheel, about
+        // 0.1 v1 / k_l = 8 cm.)
+        assert!(error(&held) < 0.1, "feedback holds: {}", error(&held));
+        assert!(error(&drift) > 3.0 * error(&held));
     }
 
     #[test]

@@ -22,6 +22,7 @@
 //!   scale: [0.95, 1.0]                      # executed = scale * commanded, per [v, w]
 //!   noise_std: [0.03, 0.03]                 # + white noise, m/s and rad/s
 //! odometry_noise_std: [0.01, 0.01]          # optional; what the filter is given, m/s, rad/s
+//! control: estimate                         # optional: estimate (default), truth or open
 //! vision:                                   # optional; only `demo --scenario` reads it
 //!   camera: {width: 640, height: 480, hfov_deg: 60}
 //!   mount: {height: 0.30, pan: 0.0, tilt: 0.0}      # metres, radians; offset = camera_offset
@@ -41,6 +42,12 @@
 //! dual-UKF experiment's and the demo ignores them (its measurements come from the images).
 //! `actuation` and `odometry_noise_std` are the follower's: in `reproduce dukf` it moves by
 //! the executed inputs and the filter is given its odometry, never the executed inputs.
+//! `control` says what the follower's controller acts on in `reproduce dukf` and
+//! `cargo xtask dukf-table` ([`Control`]): `estimate` (the default, as on a robot: the
+//! filter's estimate after each measurement), `truth` (the paper's setting, Figs. 12-13) or
+//! `open` (no feedback: the commands of the planned run replayed). The demo ignores it: its
+//! followers steer on the truth unless `demo --closed-loop` puts them on their trackers'
+//! estimates.
 
 use std::path::{Path, PathBuf};
 
@@ -49,10 +56,10 @@ use formation_io::textfile;
 use serde::Deserialize;
 use unicycle::{Actuation, Inputs, PlanarPose, PolarState, UnicycleError};
 
-use crate::reproduce::{ReproduceError, Reproduction, run_filter};
+use crate::reproduce::{ReproduceError, Reproduction, run_closed_loop};
 use crate::scenario::{
-    PAPER_BIAS, PAPER_X0, Scenario, ScenarioConfig, ScenarioError, SetpointChange, Simulation,
-    simulate_scheduled,
+    Control, PAPER_BIAS, PAPER_X0, Scenario, ScenarioConfig, ScenarioError, SetpointChange,
+    Simulation, simulate_scheduled,
 };
 use crate::scene::CameraSpec;
 
@@ -487,6 +494,10 @@ pub struct ScenarioSpec {
     /// default): the filter is given the executed inputs plus this noise.
     #[serde(default)]
     pub odometry_noise_std: [f64; 2],
+    /// What the follower's controller acts on: `estimate` (default), `truth` (the paper's
+    /// setting) or `open`.
+    #[serde(default)]
+    pub control: Control,
     /// The vision demo's camera, rendering and occlusions (`demo --scenario`); the built-in
     /// demo's by default.
     #[serde(default)]
@@ -754,6 +765,7 @@ impl ScenarioSpec {
             seed,
             actuation: self.actuation,
             odometry_noise_std: self.odometry_noise_std,
+            control: self.control,
         }
     }
 
@@ -820,13 +832,34 @@ impl ScenarioSpec {
         config
     }
 
-    /// Simulates and filters the scenario with `seed`.
+    /// Simulates and filters the scenario with `seed` ([`Self::run`] with
+    /// [`Self::filter_config`], told the follower's controller).
     ///
     /// # Errors
     /// Any [`ReproduceError`].
     pub fn reproduce(&self, seed: u64, paper_bias: bool) -> Result<Reproduction, ReproduceError> {
-        let scenario = self.simulate(seed, paper_bias)?;
-        run_filter(&scenario, &self.filter_config())
+        Ok(self.run(seed, paper_bias, &self.filter_config(), true)?.1)
+    }
+
+    /// Simulates the scenario with `seed` with the filter `filter` in the loop
+    /// ([`run_closed_loop`]): the samples (what the follower did under its `control`) and
+    /// their filtered reproduction. With `control: truth` or `open` the samples are those of
+    /// [`Self::simulate`].
+    ///
+    /// # Errors
+    /// Any [`ReproduceError`].
+    pub fn run(
+        &self,
+        seed: u64,
+        paper_bias: bool,
+        filter: &FilterConfig,
+        follower_controller: bool,
+    ) -> Result<(Scenario, Reproduction), ReproduceError> {
+        run_closed_loop(
+            self.simulation(seed, paper_bias)?,
+            filter,
+            follower_controller,
+        )
     }
 }
 
@@ -1053,9 +1086,42 @@ odometry_noise_std: [0.01, 0.005]
         let text = MINIMAL.replace("duration: 1.0", "duration: 6.0")
             + "setpoints: [{at: 1.0, l12: 1.5}]\n";
         let spec = ScenarioSpec::parse(&text, false, Path::new("x.yaml")).unwrap();
-        let run = spec.simulate(1, false).unwrap();
+        // On the filter's estimate (the default control).
+        let (run, _) = spec.run(1, false, &spec.filter_config(), true).unwrap();
         let l_end = run.samples.last().unwrap().truth[3];
+        assert!((l_end - 1.5).abs() < 0.05, "l12 at the end {l_end}");
+        // On the truth.
+        let truth = ScenarioSpec::parse(&(text + "control: truth\n"), false, Path::new("x.yaml"))
+            .unwrap()
+            .simulate(1, false)
+            .unwrap();
+        let l_end = truth.samples.last().unwrap().truth[3];
         assert!((l_end - 1.5).abs() < 0.01, "l12 at the end {l_end}");
+    }
+
+    /// #30: `control` is read (estimate by default), and a bad value names the field.
+    #[test]
+    fn control_is_read_and_a_bad_value_named() {
+        let spec = ScenarioSpec::parse(MINIMAL, false, Path::new("x.yaml")).unwrap();
+        assert_eq!(spec.config(1, false).control, Control::Estimate);
+        for (text, control) in [("truth", Control::Truth), ("open", Control::Open)] {
+            let spec = ScenarioSpec::parse(
+                &format!("{MINIMAL}control: {text}\n"),
+                false,
+                Path::new("x.yaml"),
+            )
+            .unwrap();
+            assert_eq!(spec.config(1, false).control, control);
+            assert_eq!(control.name(), text);
+        }
+        let err = ScenarioSpec::parse(
+            &format!("{MINIMAL}control: oracle\n"),
+            false,
+            Path::new("x.yaml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("control") && err.contains("oracle"), "{err}");
     }
 
     #[test]
