@@ -389,13 +389,25 @@ pub struct FilterRun {
     follower_controller: bool,
     previous: Option<Sample>,
     history: Option<Vec<FilterStep>>,
+    /// Restart from the first measurement with this configuration (see [`Self::new`]).
+    restart: Option<FilterConfig>,
 }
+
+/// Standard deviation of the leader's world pose `[x1, y1, theta1]` when a filter starts at
+/// its first measurement (m, m, rad): no measurement sees it and the formation does not
+/// depend on it ([`FilterConfig::started_at`]).
+pub const START_WORLD_POSE_STD: f64 = 1.0;
 
 impl FilterRun {
     /// A run of the filter `config` over samples of a scenario with configuration
     /// `scenario` (its measurement noise is the filter's `R`); with `follower_controller` the
     /// filter is told the follower's controller at each step (see [`run_filter_with`]); with
     /// `keep_history` every step is recorded for [`Self::smoothed_records`].
+    ///
+    /// In the paper's setting ([`Control::Truth`]) the filter starts at `config`'s prior (the
+    /// paper's `x0`). Otherwise it starts, as a robot's does, at the first measurement it is
+    /// given (`t = 0`; [`FilterConfig::started_at`] with the measurement covariance and
+    /// [`START_WORLD_POSE_STD`]); the leader velocities keep their configured prior.
     ///
     /// # Errors
     /// A filter configuration [`FormationFilter::new`] refuses.
@@ -414,6 +426,8 @@ impl FilterRun {
             follower_controller,
             previous: None,
             history,
+            // Off the paper's setting the filter starts as a robot's does.
+            restart: (scenario.control != Control::Truth).then(|| config.clone()),
         })
     }
 
@@ -455,6 +469,13 @@ impl FilterRun {
         now: &Observation,
     ) -> Result<Option<(StepRecord, StepConsistency)>, ReproduceError> {
         let Some(prev) = &self.previous else {
+            if let Some(config) = self.restart.take() {
+                let started = config.started_at(&now.measurement, &self.r, START_WORLD_POSE_STD)?;
+                self.filter = FormationFilter::new(&started)?;
+                if let Some(history) = &mut self.history {
+                    *history = vec![self.filter.record(Inputs::new(0.0, 0.0), None)];
+                }
+            }
             return Ok(None);
         };
         let filter = &mut self.filter;
@@ -776,8 +797,20 @@ mod tests {
         let (scenario, looped) = run_closed_loop(sim, &filter, true).unwrap();
         assert_eq!(looped.summary.control, Control::Estimate);
         assert_eq!(scenario.samples.len(), 241);
-        // The follower's first command is its controller on the filter's prior.
-        let prior = FormationFilter::new(&filter).unwrap();
+        // The filter starts at the first measurement, and the follower's first command is its
+        // controller on that start.
+        let started = filter
+            .started_at(
+                &scenario.samples[0].measurement,
+                &config.noise_covariance(),
+                START_WORLD_POSE_STD,
+            )
+            .unwrap();
+        let prior = FormationFilter::new(&started).unwrap();
+        assert_eq!(
+            prior.formation().to_vector(),
+            scenario.samples[0].measurement
+        );
         let controller =
             unicycle::SeparationBearingController::new(config.d, scenario.samples[0].controller)
                 .unwrap();
