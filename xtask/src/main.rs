@@ -41,7 +41,10 @@ commands:
                    (--count N, --seed S; --check: only compare)
   dukf-table       run the dual-UKF reproduction over seeds 1..20 (with and without
                    the paper's bias) and write docs/dukf-reproduction.md
-                   (--scenario FILE: that scenario file against the baselines, printed)
+                   (--scenario FILE: that scenario file against the baselines, printed;
+                   --held-out: the follower on its estimate against baselines tuned on
+                   seeds 1..20, held-out seeds 101..120, docs/dukf-held-out.md; runs a
+                   filterpy UKF in target/py-venv)
   compare          ours side by side with OpenCV ArUco, AprilTag 3 (pupil-apriltags), OpenCV
                    solvePnP and a filterpy UKF on identical inputs, in a Python venv under
                    target/py-venv; writes docs/comparison.md and docs/img/comparison-*.svg
