@@ -30,6 +30,14 @@
 //! The switching matrix has one constant, the mean time a model stays in force
 //! ([`LeaderMotionTuning::sojourn`], `Pi_jj = exp(-dt / sojourn)`).
 //!
+//! **A manoeuvre hypothesis J** ([`LeaderMotionTuning::jump`], off in the reference tuning)
+//! takes C's place: A's motion with velocity jumps of [`unicycle::LeaderJump::velocity_std`]
+//! per step, for a leader whose `v1` steps or `w1` flips, which A with a jerk sized for smooth
+//! motion follows only slowly and overconfidently. A hands over to J once per
+//! [`unicycle::LeaderJump::onset`] seconds on average and J back to A after
+//! [`unicycle::LeaderJump::sojourn`]; B switches as before. `docs/dukf-held-out.md` reports
+//! it beside the default (issue #30).
+//!
 //! **With the follower's controller known** ([`FormationFilter::set_follower_controller`], as
 //! `reproduce dukf` runs it) the model set changes: B takes the leader velocity under which the
 //! formation moves as the controller commands ([`unicycle::controlled_formation_velocity`]), with no held
@@ -312,6 +320,8 @@ enum Engine {
 #[derive(Debug, Clone)]
 struct ImmEngine {
     imm: ImmFilter,
+    /// The hypotheses in the filter's order ([`LeaderMotionTuning::motions`]).
+    motions: [LeaderMotion; 3],
     q: [Matrix10; 3],
     q_controlled: [Matrix10; 3],
     transition: Matrix3<f64>,
@@ -382,12 +392,13 @@ fn remember(failure: &Cell<Option<UnicycleError>>, e: UnicycleError) -> f64 {
 /// reports; the mean is checked at construction: a non-positive initial `l12` is an error.
 fn imm_process<'a>(
     model: &'a PolarModel,
+    motions: [LeaderMotion; 3],
     u: &'a Vector2<f64>,
     dt: f64,
     controller: Option<ControllerConfig>,
     failure: &'a Cell<Option<UnicycleError>>,
 ) -> impl FnMut(usize, &Joint) -> Joint + 'a {
-    move |j, z| match predict_leader(model, LeaderMotion::ALL[j], z, u, dt, controller) {
+    move |j, z| match predict_leader(model, motions[j], z, u, dt, controller) {
         Ok(next) => next,
         Err(e) => Joint::repeat(remember(failure, e)),
     }
@@ -431,8 +442,23 @@ impl ImmEngine {
         let ukf = Ukf::new(z0, p0, space, t.ut)?;
         let pose_q = Vector3::new(t.q[(0, 0)], t.q[(1, 1)], t.q[(2, 2)]);
         let [q, q_controlled] = i.process_noises(&pose_q, dt);
-        let transition = sojourn_transition::<3>(dt, i.sojourn)?;
-        let stay = transition[(0, 0)];
+        let transition = match &i.jump {
+            None => sojourn_transition::<3>(dt, i.sojourn)?,
+            // A hands over to B at the sojourn rate and to J at the manoeuvre rate; B back to
+            // A at the sojourn rate; J back to A at its own.
+            Some(j) => {
+                let (pa, pj) = ((-dt / i.sojourn).exp(), (-dt / j.sojourn).exp());
+                let aj = (dt / j.onset).min(0.5 * pa);
+                #[rustfmt::skip]
+                let m = Matrix3::new(
+                    pa - aj, 1.0 - pa, aj,
+                    1.0 - pa, pa, 0.0,
+                    1.0 - pj, 0.0, pj,
+                );
+                m
+            }
+        };
+        let stay = transition[(0, 0)] + transition[(0, 2)];
         #[rustfmt::skip]
         let transition_controlled = Matrix3::new(
             stay, 1.0 - stay, 0.0,
@@ -443,6 +469,7 @@ impl ImmEngine {
         let imm = Imm::new([ukf, ukf, ukf], [i.mu0_a, rest, rest], transition)?;
         Ok(Self {
             imm,
+            motions: i.motions(),
             q,
             q_controlled,
             transition,
@@ -641,9 +668,10 @@ impl FormationFilter {
             }
             Engine::Imm(engine) => {
                 check_inputs(&u)?;
+                let motions = engine.motions;
                 let (imm, q) = engine.filter_and_noise(self.follower.is_some());
                 let result = imm.step(
-                    imm_process(&self.model, &u, self.dt, self.follower, &failure),
+                    imm_process(&self.model, motions, &u, self.dt, self.follower, &failure),
                     q,
                     y,
                     |z| Vector3::new(z[3], z[4], z[5]),
@@ -678,9 +706,10 @@ impl FormationFilter {
             }
             Engine::Imm(engine) => {
                 check_inputs(&u)?;
+                let motions = engine.motions;
                 let (imm, q) = engine.filter_and_noise(self.follower.is_some());
                 let result = imm.predict_only(
-                    imm_process(&self.model, &u, self.dt, self.follower, &failure),
+                    imm_process(&self.model, motions, &u, self.dt, self.follower, &failure),
                     q,
                 );
                 let report = outcome(result, &failure)?;

@@ -215,7 +215,7 @@ impl FormationFilter {
         let (model, dt) = (&self.model, self.dt);
         let predictions = |k: usize, o: &Observable| -> [Observable; 3] {
             let u = inputs_after(history, k);
-            let mut f = imm_process(model, &u, dt, controller(k), &failure);
+            let mut f = imm_process(model, engine.motions, &u, dt, controller(k), &failure);
             // The hidden pose is zero: the observable block's prediction does not read it.
             let z = embed(o);
             [0, 1, 2].map(|j| observable(&f(j, &z)))

@@ -68,6 +68,9 @@ pub enum LeaderMotion {
     /// C: the follower holds the bearing while its separation changes: model A's speed and
     /// the turn rate of [`bearing_holding_turn_rate`] (less the controller's bearing term).
     HoldsBearing,
+    /// J, in C's place when [`LeaderMotionTuning::jump`] is set: the leader manoeuvres, its
+    /// velocity jumping ([`LeaderJump::velocity_std`] per step); predicted as A.
+    Jumps,
 }
 
 impl LeaderMotion {
@@ -105,7 +108,7 @@ pub fn predict_leader(
         x[3] = MIN_PREDICTED_SEPARATION;
     }
     let w = match motion {
-        LeaderMotion::Accelerates => Vector2::new(z[6], z[7]),
+        LeaderMotion::Accelerates | LeaderMotion::Jumps => Vector2::new(z[6], z[7]),
         LeaderMotion::HoldsFormation => controlled_formation_velocity(&x, u, model.d(), controller),
         LeaderMotion::HoldsBearing => Vector2::new(
             z[6],
@@ -128,7 +131,7 @@ pub fn predict_leader(
     let mut out = *z;
     out.fixed_rows_mut::<6>(0).copy_from(&next);
     match motion {
-        LeaderMotion::Accelerates => {
+        LeaderMotion::Accelerates | LeaderMotion::Jumps => {
             out[6] += z[8] * dt;
             out[7] += z[9] * dt;
         }
@@ -175,6 +178,21 @@ pub struct LeaderMotionTuning {
     /// Initial probability of model A (constant-acceleration leader); models B and C share
     /// the rest equally.
     pub mu0_a: f64,
+    /// A manoeuvre hypothesis J in place of C, with the follower's controller unknown (`None`
+    /// in the reference settings; issue #30, `docs/dukf-held-out.md`).
+    pub jump: Option<LeaderJump>,
+}
+
+/// Hypothesis J: the leader's velocity jumps (a step of `v1`, a flip of `w1`), which a
+/// constant-acceleration model with a jerk sized for smooth motion follows only slowly.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LeaderJump {
+    /// Per-step standard deviation of the velocity jump `[m/s, rad/s]`, added to A's noise.
+    pub velocity_std: Vector2<f64>,
+    /// Mean time J stays in force once entered, seconds (it hands back to A).
+    pub sojourn: f64,
+    /// Mean time between manoeuvres, seconds (A hands over to J at `dt / onset` per step).
+    pub onset: f64,
 }
 
 impl LeaderMotionTuning {
@@ -192,6 +210,7 @@ impl LeaderMotionTuning {
             controlled_formation_q: Vector3::new(1e-18, 1e-18, 1e-18),
             sojourn: 20.0,
             mu0_a: 0.5,
+            jump: None,
         }
     }
 }
@@ -222,6 +241,22 @@ impl LeaderMotionTuning {
                 value,
             });
         }
+        if let Some(j) = &self.jump {
+            let bad = j
+                .velocity_std
+                .iter()
+                .copied()
+                .chain([j.sojourn, j.onset])
+                .enumerate()
+                .find(|(i, v)| !v.is_finite() || *v < 0.0 || (*i >= 2 && *v <= 0.0));
+            if let Some((index, value)) = bad {
+                return Err(UnicycleError::NonFinite {
+                    what: "leader jump (velocity_std >= 0, sojourn and onset > 0)",
+                    index,
+                    value,
+                });
+            }
+        }
         if !(0.0..=1.0).contains(&self.mu0_a) {
             return Err(UnicycleError::NonFinite {
                 what: "leader-motion prior mu0_a (a probability)",
@@ -232,8 +267,22 @@ impl LeaderMotionTuning {
         Ok(())
     }
 
+    /// The three hypotheses in the filter's order: A, B, and C or, with [`Self::jump`], J.
+    pub fn motions(&self) -> [LeaderMotion; 3] {
+        let third = if self.jump.is_some() {
+            LeaderMotion::Jumps
+        } else {
+            LeaderMotion::HoldsBearing
+        };
+        [
+            LeaderMotion::Accelerates,
+            LeaderMotion::HoldsFormation,
+            third,
+        ]
+    }
+
     /// The per-step process noises over [`LeaderState`] of the hypotheses A, B, C
-    /// ([`LeaderMotion::ALL`]) for a step of `dt`, with `pose_q` the noise of the leader's
+    /// ([`LeaderMotion::ALL`]; J in C's place with [`Self::jump`]) for a step of `dt`, with `pose_q` the noise of the leader's
     /// pose `[x1, y1, theta1]`: with the follower's controller unknown (B and C hold the
     /// formation or the bearing up to a random walk of `held_rate_std`) and known (B follows
     /// the controller, predicted exactly but for the integrator's error
@@ -250,7 +299,13 @@ impl LeaderMotionTuning {
         qb[(3, 3)] += (self.held_rate_std[0] * dt).powi(2);
         qb[(4, 4)] += (self.held_rate_std[1] * dt).powi(2);
         let mut qc = qa;
-        qc[(4, 4)] += (self.held_rate_std[1] * dt).powi(2);
+        match &self.jump {
+            Some(j) => {
+                qc[(6, 6)] += j.velocity_std[0].powi(2);
+                qc[(7, 7)] += j.velocity_std[1].powi(2);
+            }
+            None => qc[(4, 4)] += (self.held_rate_std[1] * dt).powi(2),
+        }
         let mut qb_controlled = qa;
         for k in 0..3 {
             qb_controlled[(3 + k, 3 + k)] = self.controlled_formation_q[k];
@@ -357,5 +412,48 @@ mod tests {
         bad = t;
         bad.mu0_a = -0.1;
         assert!(bad.validate().is_err());
+    }
+
+    /// #30: the manoeuvre hypothesis J takes C's place, predicts as A and adds its velocity
+    /// jumps to A's noise; bad settings are refused.
+    #[test]
+    fn a_jump_hypothesis_replaces_c_with_a_velocity_noise() {
+        let mut t = LeaderMotionTuning::reference();
+        assert_eq!(t.motions(), LeaderMotion::ALL);
+        t.jump = Some(LeaderJump {
+            velocity_std: Vector2::new(0.05, 0.1),
+            sojourn: 0.2,
+            onset: 10.0,
+        });
+        assert!(t.validate().is_ok());
+        assert_eq!(t.motions()[2], LeaderMotion::Jumps);
+        let [[qa, _, qj], [_, _, cc]] = t.process_noises(&Vector3::new(1.0, 2.0, 3.0), 0.1);
+        assert_eq!(qj[(6, 6)], qa[(6, 6)] + 0.05f64.powi(2));
+        assert_eq!(qj[(7, 7)], qa[(7, 7)] + 0.1f64.powi(2));
+        assert_eq!(qj[(4, 4)], qa[(4, 4)], "no held random walk in J");
+        assert_eq!(cc, qa, "C's slot is unused with the controller known");
+        let model = PolarModel::new(0.5).unwrap();
+        let mut z = LeaderState::zeros();
+        z.fixed_rows_mut::<6>(0)
+            .copy_from(&PolarState::from_row_slice(&[
+                1.5, 0.25, 0.3, 1.2, 0.3, -0.2,
+            ]));
+        z[6] = 0.8;
+        z[7] = 0.2;
+        z[8] = 0.1;
+        let u = Vector2::new(0.7, 0.15);
+        let a = predict_leader(&model, LeaderMotion::Accelerates, &z, &u, 0.1, None).unwrap();
+        let j = predict_leader(&model, LeaderMotion::Jumps, &z, &u, 0.1, None).unwrap();
+        assert_eq!(a, j);
+        for (field, value) in [(0, -0.1), (2, 0.0), (3, f64::NAN)] {
+            let mut bad = t.clone();
+            let jump = bad.jump.as_mut().unwrap();
+            match field {
+                0 => jump.velocity_std[0] = value,
+                2 => jump.sojourn = value,
+                _ => jump.onset = value,
+            }
+            assert!(bad.validate().is_err(), "{field} = {value}");
+        }
     }
 }

@@ -66,9 +66,9 @@ pub use angle::wrap_angle;
 pub use controller::{ControllerConfig, SeparationBearingController};
 pub use error::UnicycleError;
 pub use leader::{
-    LeaderMotion, LeaderMotionTuning, LeaderNoise, LeaderState, MIN_PREDICTED_SEPARATION,
-    bearing_holding_turn_rate, controlled_formation_velocity, formation_holding_velocity,
-    predict_leader,
+    LeaderJump, LeaderMotion, LeaderMotionTuning, LeaderNoise, LeaderState,
+    MIN_PREDICTED_SEPARATION, bearing_holding_turn_rate, controlled_formation_velocity,
+    formation_holding_velocity, predict_leader,
 };
 pub use polar::{
     Formation, FormationMeasurement, MEASUREMENT_ANGLES, MIN_SEPARATION, PolarModel, PolarState,
