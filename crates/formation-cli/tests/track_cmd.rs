@@ -280,3 +280,55 @@ fn guided_mode_tracks_as_full_frame_does() {
     );
     assert_eq!(code, Some(2), "{stderr}");
 }
+
+/// #30: `--controller FILE` tells the tracker the follower's own controller (the reference
+/// scenario's, holding the start), which changes the leader's filter; a bad file is one
+/// error line naming the field.
+#[test]
+fn the_follower_controller_is_told_from_a_file() {
+    let clip = common::reference_clip("controller", FRAMES);
+    std::fs::write(
+        clip.dir.join("controller.yaml"),
+        "leader: 1\nl12_desired: 1.0307764064044151\nalpha12_desired: 0.24497866312686414\n\
+         k_l: 1.0\nk_alpha: 1.0\n",
+    )
+    .unwrap();
+    let base = [
+        "frames",
+        "--camera",
+        "camera.yaml",
+        "--inputs",
+        "inputs.csv",
+        "--fps",
+        "30",
+        "--json",
+    ];
+    let (plain, stderr, code) = track(&base, &clip.dir, None);
+    assert_eq!(code, Some(0), "{stderr}");
+    let mut args = base.to_vec();
+    args.extend(["--controller", "controller.yaml"]);
+    let (told, stderr, code) = track(&args, &clip.dir, None);
+    assert_eq!(code, Some(0), "{stderr}");
+    let (plain, told) = (lines(&plain), lines(&told));
+    assert_eq!(plain.len(), told.len());
+    let v1 = |f: &serde_json::Value| f["leaders"][0]["v1"].as_f64().unwrap();
+    let last = (plain.last().unwrap(), told.last().unwrap());
+    assert!(v1(last.1).is_finite());
+    assert_ne!(v1(last.0), v1(last.1), "the controller changed nothing");
+    std::fs::write(
+        clip.dir.join("bad.yaml"),
+        "leader: 1\nl12_desired: 1.0\nalpha12_desired: 0.2\nk_l: -1.0\nk_alpha: 1.0\n",
+    )
+    .unwrap();
+    let mut args = base.to_vec();
+    args.extend(["--controller", "bad.yaml"]);
+    let (_, stderr, code) = track(&args, &clip.dir, None);
+    assert_eq!(code, Some(1), "{stderr}");
+    let errors: Vec<&str> = stderr.lines().filter(|l| l.contains("error")).collect();
+    assert_eq!(errors.len(), 1, "{stderr}");
+    assert!(
+        errors[0].contains("controller file bad.yaml") && errors[0].contains("k_l"),
+        "{stderr}"
+    );
+    let _ = std::fs::remove_dir_all(&clip.dir);
+}

@@ -10,6 +10,7 @@
 //!   ([`bag::pixels`]).
 //! - [`mcap_out`], [`foxglove`]: an MCAP writer, and tracking results as Foxglove channels.
 //! - [`inputs`]: the follower's own inputs `(v2, w2)` and camera pan per frame, from a CSV.
+//! - [`controller`]: the follower's own controller (gains and set-points) from a YAML/JSON file.
 //! - [`rigfile`]: rig files (YAML/JSON) that override the reference rig, with errors that
 //!   name the bad field; [`textfile`] the bounded text reader behind them and the scene and
 //!   scenario files of `formation-sim`.
@@ -24,6 +25,7 @@
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 pub mod bag;
+pub mod controller;
 pub mod foxglove;
 pub mod frames;
 pub mod inputs;

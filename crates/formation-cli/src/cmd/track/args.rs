@@ -44,6 +44,13 @@ pub struct Args {
     /// Follower inputs per frame: CSV with `frame` or `t`, `v2`, `w2`, optional `pan`.
     #[arg(long, value_name = "CSV")]
     pub inputs: Option<PathBuf>,
+    /// The follower's own separation-bearing controller towards one leader (YAML/JSON:
+    /// `leader`, `l12_desired`, `alpha12_desired`, `k_l`, `k_alpha`, optional `max_v`,
+    /// `max_w`; docs/tracking.md). The tracker is told it, as a follower knows its own
+    /// controller: that leader's IMM filters with its controlled model set. Default: not
+    /// told.
+    #[arg(long, value_name = "FILE")]
+    pub controller: Option<PathBuf>,
     /// Frame rate, 0.001 to 10000 frames/s; default: the y4m header's, else 30.
     #[arg(long, value_name = "F", value_parser = crate::cmd::numbers::fps)]
     pub fps: Option<f64>,

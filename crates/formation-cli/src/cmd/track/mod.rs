@@ -31,6 +31,7 @@ fn refuse_overwriting_inputs(args: &Args) -> Result<(), CliError> {
         ("--camera", &args.camera),
         ("--rig", &args.rig),
         ("--inputs", &args.inputs),
+        ("--controller", &args.controller),
     ] {
         if let Some(path) = path {
             inputs.push((name, path));

@@ -299,6 +299,10 @@ pub fn build_pipeline(
     config.lost_after = args.lost_after;
     let mut tracker = Tracker::new(config)?;
     tracker.record_history(args.smooth);
+    if let Some(path) = &args.controller {
+        let own = formation_io::controller::load(path)?;
+        tracker.set_follower_controller(own.leader, Some(own.controller));
+    }
     let solver = PoseSolver::new(calibration.intrinsics).with_distortion(calibration.distortion);
     // The rig's dictionary: our own unless the rig file names another (e.g. tag36h11).
     let dictionary = rig.marker_dictionary()?.clone();
