@@ -458,7 +458,12 @@ impl ImmEngine {
                 m
             }
         };
-        let stay = transition[(0, 0)] + transition[(0, 2)];
+        // With the controller known, A hands over to B alone: at the sojourn rate (with J,
+        // A's rate to J goes to B too, C's slot being dropped).
+        let stay = match &i.jump {
+            None => transition[(0, 0)],
+            Some(_) => transition[(0, 0)] + transition[(0, 2)],
+        };
         #[rustfmt::skip]
         let transition_controlled = Matrix3::new(
             stay, 1.0 - stay, 0.0,
@@ -865,6 +870,36 @@ mod tests {
 
     fn filter() -> FormationFilter {
         FormationFilter::new(&config()).unwrap()
+    }
+
+    /// Regression (#30): with the controller known A hands over to B at the sojourn rate,
+    /// with or without J (adding J once changed the reference model set's switching).
+    #[test]
+    fn the_controlled_switching_keeps_a_at_its_sojourn_rate() {
+        let dt = 1.0 / 30.0;
+        let plain = ImmEngine::new(&config()).unwrap();
+        let pa = (-dt / config().tuning.imm.sojourn).exp();
+        let t = plain.transition_controlled;
+        assert_eq!(t[(0, 0)], plain.transition[(0, 0)]);
+        assert!((t[(0, 0)] - pa).abs() < 1e-12, "{} vs {pa}", t[(0, 0)]);
+        assert_eq!((t[(0, 1)], t[(0, 2)]), (1.0 - t[(0, 0)], 0.0));
+        let mut jump = config();
+        jump.tuning.imm.jump = Some(unicycle::LeaderJump {
+            velocity_std: Vector2::new(0.05, 0.1),
+            sojourn: 0.2,
+            onset: 10.0,
+        });
+        let with = ImmEngine::new(&jump).unwrap();
+        let t = with.transition_controlled;
+        assert!((t[(0, 0)] - pa).abs() < 1e-12, "{} vs {pa}", t[(0, 0)]);
+        assert_eq!(t[(0, 2)], 0.0);
+        // Uncontrolled: every row sums to one, and A reaches J at dt / onset.
+        let u = with.transition;
+        for r in 0..3 {
+            assert!((u.row(r).sum() - 1.0).abs() < 1e-12);
+        }
+        assert!((u[(0, 2)] - dt / 10.0).abs() < 1e-12);
+        assert_eq!(with.motions[2], unicycle::LeaderMotion::Jumps);
     }
 
     fn r() -> Matrix3<f64> {
