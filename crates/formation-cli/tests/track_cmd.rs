@@ -211,16 +211,7 @@ fn json_lines_name_the_source_of_each_frame() {
 #[test]
 fn guided_mode_tracks_as_full_frame_does() {
     let clip = common::reference_clip("guided", FRAMES);
-    let base = [
-        "frames",
-        "--camera",
-        "camera.yaml",
-        "--inputs",
-        "inputs.csv",
-        "--fps",
-        "30",
-        "--json",
-    ];
+    let base = common::CLIP_ARGS;
     let (full_out, stderr, code) = track(&base, &clip.dir, None);
     assert_eq!(code, Some(0), "{stderr}");
     let mut args = base.to_vec();
@@ -293,16 +284,7 @@ fn the_follower_controller_is_told_from_a_file() {
          k_l: 1.0\nk_alpha: 1.0\n",
     )
     .unwrap();
-    let base = [
-        "frames",
-        "--camera",
-        "camera.yaml",
-        "--inputs",
-        "inputs.csv",
-        "--fps",
-        "30",
-        "--json",
-    ];
+    let base = common::CLIP_ARGS;
     let (plain, stderr, code) = track(&base, &clip.dir, None);
     assert_eq!(code, Some(0), "{stderr}");
     let mut args = base.to_vec();

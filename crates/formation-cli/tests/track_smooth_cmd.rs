@@ -19,18 +19,7 @@ fn smoothed_lines_follow_the_causal_ones_and_are_closer_to_the_truth() {
     let clip = common::reference_clip("smooth-json", FRAMES);
     let out = common::run(
         &clip.dir,
-        &[
-            "track",
-            "frames",
-            "--camera",
-            "camera.yaml",
-            "--inputs",
-            "inputs.csv",
-            "--fps",
-            "30",
-            "--json",
-            "--smooth",
-        ],
+        &[&["track"][..], &common::CLIP_ARGS, &["--smooth"]].concat(),
     );
     let stdout = String::from_utf8(out.stdout).unwrap();
     assert!(

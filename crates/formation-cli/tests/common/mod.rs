@@ -29,6 +29,19 @@ distortion_coefficients: !!opencv-matrix
    data: [ 0., 0., 0., 0., 0. ]
 ";
 
+/// `track`'s arguments for a [`reference_clip`] folder (the command's current directory): its
+/// frames, calibration and inputs at 30 fps, JSON lines.
+pub const CLIP_ARGS: [&str; 8] = [
+    "frames",
+    "--camera",
+    "camera.yaml",
+    "--inputs",
+    "inputs.csv",
+    "--fps",
+    "30",
+    "--json",
+];
+
 /// A folder with a calibration and three blank 640x480 frames (nothing to find, but every
 /// frame still prints a line).
 pub fn blank_frames(name: &str) -> PathBuf {
