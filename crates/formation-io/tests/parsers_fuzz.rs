@@ -1,5 +1,5 @@
 //! The parser fuzz targets of `fuzz/fuzz_targets/` for this crate's readers as stable
-//! proptests that CI runs: rig files, the inputs CSV, y4m streams, image files and ROS 2 bags
+//! proptests that CI runs: rig files, controller files, the inputs CSV, y4m streams, image files and ROS 2 bags
 //! get arbitrary bytes and valid files with random edits, through the same bodies
 //! (`tests/fuzz_body/`) as the fuzz targets: never a panic, and what a parser accepts is
 //! usable. The long campaigns (`fuzz/run-campaigns.sh`) and what they found are recorded in
@@ -18,6 +18,17 @@ const RIGS: [(u8, &str); 3] = [
     (
         0,
         include_str!("../../../fixtures/rigs/three-faces-custom-codes.yaml"),
+    ),
+];
+/// Controller file seeds `(first byte for the YAML/JSON switch, file)`.
+const CONTROLLERS: [(u8, &str); 2] = [
+    (
+        0,
+        "leader: 1\nl12_desired: 1.03\nalpha12_desired: 0.245\nk_l: 1.0\nk_alpha: 1.0\nmax_v: 1.5\n",
+    ),
+    (
+        1,
+        r#"{"leader": 2, "l12_desired": 1.5, "alpha12_desired": -0.1, "k_l": 0.8, "k_alpha": 1.2}"#,
     ),
 ];
 const INPUTS: &str =
@@ -54,6 +65,14 @@ proptest! {
         let (json, text) = RIGS[seed];
         fuzz_body::rig::run(&apply(&switched(json, text), &edits));
         fuzz_body::rig::run(&noise);
+    }
+
+    #[test]
+    fn controller_files(seed in 0usize..2, edits in prop::collection::vec(edit(), 0..6),
+                        noise in prop::collection::vec(any::<u8>(), 0..512)) {
+        let (json, text) = CONTROLLERS[seed];
+        fuzz_body::controller::run(&apply(&switched(json, text), &edits));
+        fuzz_body::controller::run(&noise);
     }
 
     #[test]
@@ -108,6 +127,9 @@ fn the_seeds_are_accepted() {
     let dict = fiducial::Dictionary::paper();
     for (json, text) in RIGS {
         formation_io::rigfile::from_text(text, json == 1, "seed", dict).unwrap();
+    }
+    for (json, text) in CONTROLLERS {
+        formation_io::controller::from_text(text, json == 1, "seed").unwrap();
     }
     for text in [INPUTS, INPUTS_T] {
         formation_io::inputs::FollowerInputs::parse(text).unwrap();

@@ -5,6 +5,7 @@
 //! file per parser, so that each fuzz target includes only its own body with `#[path]`.
 
 pub mod bag;
+pub mod controller;
 pub mod image;
 pub mod inputs;
 pub mod rig;
