@@ -448,7 +448,7 @@ impl FilterRun {
     }
 
     /// The follower's estimate of the formation and of the leader's inputs now: what its
-    /// controller acts on under [`Control::Estimate`](crate::scenario::Control::Estimate).
+    /// controller acts on under [`Control::Estimate`].
     pub fn control_estimate(&self) -> (Formation, Inputs) {
         (self.filter.formation(), self.filter.leader_velocity())
     }
