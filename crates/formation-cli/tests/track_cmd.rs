@@ -46,20 +46,7 @@ fn lines(stdout: &str) -> Vec<serde_json::Value> {
 fn folder_with_a_broken_frame() {
     let clip = common::reference_clip("folder", FRAMES);
     std::fs::write(clip.dir.join("frames").join("f005.png"), b"broken").unwrap();
-    let (stdout, stderr, code) = track(
-        &[
-            "frames",
-            "--camera",
-            "camera.yaml",
-            "--inputs",
-            "inputs.csv",
-            "--fps",
-            "30",
-            "--json",
-        ],
-        &clip.dir,
-        None,
-    );
+    let (stdout, stderr, code) = track(&common::CLIP_ARGS, &clip.dir, None);
     // Exit code 3: partial, one frame could not be used (docs/reliability.md).
     assert_eq!(code, Some(3), "{stderr}");
     assert!(

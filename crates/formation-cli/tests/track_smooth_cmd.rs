@@ -88,17 +88,8 @@ fn text_mode_prints_smoothed_lines() {
     let clip = common::reference_clip("smooth-text", FRAMES);
     let out = common::run(
         &clip.dir,
-        &[
-            "track",
-            "frames",
-            "--camera",
-            "camera.yaml",
-            "--inputs",
-            "inputs.csv",
-            "--fps",
-            "30",
-            "--smooth",
-        ],
+        // Text lines: the clip's arguments without --json.
+        &[&["track"][..], &common::CLIP_ARGS[..7], &["--smooth"]].concat(),
     );
     assert!(
         out.status.success(),
