@@ -366,11 +366,22 @@ pub fn run_filter_with(
             consistency.push(stats);
         }
     }
-    let summary = summarize(&records, &scenario.config);
+    reproduction(&run, &scenario.config, records, consistency)
+}
+
+/// A run's [`Reproduction`] from its records and consistency statistics: the summaries, and
+/// the smoother over `run`'s history.
+fn reproduction(
+    run: &FilterRun,
+    scenario: &ScenarioConfig,
+    records: Vec<StepRecord>,
+    consistency: Vec<StepConsistency>,
+) -> Result<Reproduction, ReproduceError> {
+    let summary = summarize(&records, scenario);
     let smoothed_records = run.smoothed_records(&records)?;
-    let smoothed_summary = summarize(&smoothed_records, &scenario.config);
+    let smoothed_summary = summarize(&smoothed_records, scenario);
     Ok(Reproduction {
-        scenario: scenario.config.clone(),
+        scenario: scenario.clone(),
         records,
         consistency,
         summary,
@@ -645,17 +656,7 @@ pub fn run_closed_loop<F: Fn(f64) -> Inputs>(
             consistency.push(stats);
         }
     }
-    let summary = summarize(&records, &scenario_config);
-    let smoothed_records = run.smoothed_records(&records)?;
-    let smoothed_summary = summarize(&smoothed_records, &scenario_config);
-    let reproduction = Reproduction {
-        scenario: scenario_config.clone(),
-        records,
-        consistency,
-        summary,
-        smoothed_records,
-        smoothed_summary,
-    };
+    let reproduction = reproduction(&run.run, &scenario_config, records, consistency)?;
     let scenario = Scenario {
         config: scenario_config,
         samples,

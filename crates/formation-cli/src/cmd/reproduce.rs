@@ -165,13 +165,13 @@ fn run_dukf(a: &DukfArgs) -> Result<(), CliError> {
             let filter = paper_filter_config_with(config.d, config.dt, design);
             let simulation = Simulation::new(&config, reference_leader_inputs, &[])
                 .map_err(ReproduceError::from)?;
-            filter_and_write(&a.out, simulation, &config, &filter, a.smooth)?
+            filter_and_write(&a.out, simulation, &filter, a.smooth)?
         }
         Some(file) => {
             let outputs: Vec<_> = OUTPUTS.iter().map(|n| a.out.join(n)).collect();
             let outputs: Vec<_> = outputs.iter().map(|p| ("--out", p.as_path())).collect();
             super::output::refuse_inputs_as_outputs(&outputs, &[("--scenario", file)])?;
-            let spec = ScenarioSpec::load(file)?;
+            let mut spec = ScenarioSpec::load(file)?;
             errln!(
                 "reproduce dukf: scenario {}, seed {}{with_bias}, writing to {}",
                 file.display(),
@@ -179,15 +179,13 @@ fn run_dukf(a: &DukfArgs) -> Result<(), CliError> {
                 a.out.display()
             );
             super::prepare_out_dir(&a.out)?;
-            let mut spec = spec;
             spec.control = a.control.unwrap_or(spec.control);
             let simulation = spec
                 .simulation(a.seed, a.bias)
                 .map_err(ReproduceError::from)?;
-            let config = simulation.config().clone();
             let mut filter = spec.filter_config();
             filter.tuning.design = design;
-            filter_and_write(&a.out, simulation, &config, &filter, a.smooth)?
+            filter_and_write(&a.out, simulation, &filter, a.smooth)?
         }
     };
     let label = match design {
@@ -207,15 +205,15 @@ fn run_dukf(a: &DukfArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-/// Filters `samples` and writes series.csv (streamed), the figures, summary.json and, with
+/// Runs `simulation` with `filter` in the loop and writes series.csv (streamed), the figures, summary.json and, with
 /// `smooth`, series-smoothed.csv and summary-smoothed.json into `out`; returns the summaries.
 fn filter_and_write<F: Fn(f64) -> Inputs>(
     out: &Path,
     simulation: Simulation<F>,
-    scenario: &ScenarioConfig,
     filter: &FilterConfig,
     smooth: bool,
 ) -> Result<(Summary, Option<Summary>), CliError> {
+    let scenario = &simulation.config().clone();
     if smooth {
         // The smoother needs every step: refuse up front what would not fit.
         let need = scenario.steps() as u64 * SMOOTH_BYTES_PER_STEP;
