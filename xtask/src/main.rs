@@ -93,6 +93,12 @@ fn main() -> ExitCode {
 /// Crates whose presence means C is compiled or a system library is linked.
 const C_BUILDERS: &[&str] = &["cc", "cmake", "pkg-config", "bindgen", "alloca"];
 
+/// Fails if a crate in the tree compiles C or links a native library: one of
+/// [`C_BUILDERS`], or a `-sys` crate with a build script or a `links` key (how a binding
+/// finds and links its library: `openssl-sys`, `zstd-sys`, ...). A `-sys` name alone is not
+/// the test: `netlink-sys` (RustDDS's interface listing) is Rust declarations of kernel
+/// socket constants, with no build script and nothing linked; and `links` alone is not
+/// either: `rayon-core` sets it only to forbid two copies of itself.
 fn no_c() -> Result {
     let out = std::process::Command::new(env!("CARGO"))
         .args([
@@ -112,15 +118,54 @@ fn no_c() -> Result {
         .into());
     }
     let tree = String::from_utf8(out.stdout)?;
-    let offenders: Vec<&str> = tree
+    let in_tree: std::collections::BTreeSet<(String, String)> = tree
         .lines()
-        .filter(|line| {
-            let name = line.split_whitespace().next().unwrap_or("");
-            C_BUILDERS.contains(&name) || name.ends_with("-sys") && name != "linux-raw-sys"
+        .filter_map(|line| {
+            let mut words = line.split_whitespace();
+            let name = words.next()?;
+            let version = words.next()?.trim_start_matches('v');
+            Some((name.to_owned(), version.to_owned()))
         })
         .collect();
+    let out = std::process::Command::new(env!("CARGO"))
+        .args(["metadata", "--format-version", "1", "--locked"])
+        .output()?;
+    if !out.status.success() {
+        return Err(format!(
+            "cargo metadata failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        )
+        .into());
+    }
+    let meta: serde_json::Value = serde_json::from_slice(&out.stdout)?;
+    let packages = meta["packages"]
+        .as_array()
+        .ok_or("cargo metadata: no packages")?;
+    let mut offenders = Vec::new();
+    for p in packages {
+        let (Some(name), Some(version)) = (p["name"].as_str(), p["version"].as_str()) else {
+            continue;
+        };
+        if !in_tree.contains(&(name.to_owned(), version.to_owned())) {
+            continue;
+        }
+        let build_script = p["targets"].as_array().is_some_and(|targets| {
+            targets.iter().any(|t| {
+                t["kind"]
+                    .as_array()
+                    .is_some_and(|k| k.iter().any(|k| k == "custom-build"))
+            })
+        });
+        let binding = name.ends_with("-sys") && (build_script || !p["links"].is_null());
+        if C_BUILDERS.contains(&name) || binding {
+            offenders.push(format!("{name} v{version}"));
+        }
+    }
     if offenders.is_empty() {
-        println!("no-c: no crate in the tree builds C");
+        println!(
+            "no-c: none of the {} crates in the tree builds C or links a native library",
+            in_tree.len()
+        );
         Ok(())
     } else {
         Err(format!("crates that build C: {}", offenders.join(", ")).into())

@@ -320,6 +320,15 @@ impl TwistSample {
                 ));
             }
         };
+        Self::checked(stamp_ns, v, w)
+    }
+
+    /// A sample of `v` (`twist.linear.x`, m/s) and `w` (`twist.angular.z`, rad/s), checked
+    /// as every reader of follower inputs checks them (a recorded bag or a live topic).
+    ///
+    /// # Errors
+    /// A value that is not finite, or outside a follower's speed and turn-rate range.
+    pub fn checked(stamp_ns: Option<u64>, v: f64, w: f64) -> Result<Self, CdrError> {
         if !v.is_finite() || !w.is_finite() {
             return Err(format!(
                 "twist.linear.x = {v} m/s, twist.angular.z = {w} rad/s: not finite"
