@@ -59,6 +59,13 @@ enum Command {
     Render(cmd::render::Args),
     /// Regenerate one of the paper's results (e.g. `reproduce dukf`, Figs. 12-13).
     Reproduce(cmd::reproduce::Args),
+    /// Run the tracker as a ROS 2 node: live camera frames and odometry in, leaders' poses,
+    /// velocities and formation variables out; with --control it drives the follower
+    /// (docs/ros2.md).
+    Ros2(Box<cmd::ros2::node::Args>),
+    /// Publish a recording (demo --save-frames) on ROS 2 as a camera and odometry would.
+    #[command(name = "ros2-sim")]
+    Ros2Sim(cmd::ros2::sim::Args),
     /// Run the end-to-end demo: the reference scenario rendered on the follower's camera,
     /// detected, posed and tracked, with an occlusion (out/demo).
     Demo(cmd::demo::Args),
@@ -76,6 +83,8 @@ fn main() -> ExitCode {
         Command::Render(args) => cmd::render::run(&args),
         Command::Reproduce(args) => cmd::reproduce::run(args),
         Command::Demo(args) => cmd::demo::run(args),
+        Command::Ros2(args) => cmd::ros2::node::run(*args),
+        Command::Ros2Sim(args) => cmd::ros2::sim::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

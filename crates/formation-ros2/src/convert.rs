@@ -72,6 +72,31 @@ pub fn calibration(info: &msg::CameraInfo) -> Result<pose::Camera, Ros2Error> {
     pixels::calibration(&view).map_err(|e| message("CameraInfo", e))
 }
 
+/// The `CameraInfo` of a calibration (what a camera driver publishes): `K`, `D` and the
+/// distortion model, `R` the identity and `P = [K | 0]`.
+pub fn camera_info(camera: &pose::Camera, header: msg::Header) -> msg::CameraInfo {
+    let k = camera.intrinsics.matrix();
+    let mut kk = [0.0; 9];
+    let mut p = [0.0; 12];
+    for r in 0..3 {
+        for c in 0..3 {
+            kk[r * 3 + c] = k[(r, c)];
+            p[r * 4 + c] = k[(r, c)];
+        }
+    }
+    msg::CameraInfo {
+        header,
+        height: camera.height,
+        width: camera.width,
+        distortion_model: camera.distortion.model().name().to_owned(),
+        d: camera.distortion.coefficients(),
+        k: msg::F64Array(kk),
+        r: msg::F64Array([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]),
+        p: msg::F64Array(p),
+        ..msg::CameraInfo::default()
+    }
+}
+
 /// The follower's own `(v2, w2)` from a twist, checked as `track` checks a bag's.
 ///
 /// # Errors

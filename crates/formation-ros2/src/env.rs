@@ -86,12 +86,13 @@ impl RosEnv {
     }
 
     /// A DDS participant in this domain, on the loopback interface only with
-    /// [`DiscoveryRange::Localhost`], and a ROS 2 node named `name` in it.
+    /// [`DiscoveryRange::Localhost`], and a ROS 2 node named `name` in `namespace` (`/` for
+    /// none) in it.
     ///
     /// # Errors
     /// [`Ros2Error::Dds`] when the participant or the node cannot be made (e.g. no usable
     /// network interface, or a bad node name).
-    pub fn node(&self, name: &str) -> Result<Node, Ros2Error> {
+    pub fn node(&self, namespace: &str, name: &str) -> Result<Node, Ros2Error> {
         let dds = |what: &str, e: &dyn std::fmt::Display| Ros2Error::Dds(format!("{what}: {e}"));
         let mut builder = DomainParticipantBuilder::new(self.domain_id)
             // Camera frames arrive in bursts of fragments: a bigger receive buffer loses
@@ -105,10 +106,21 @@ impl RosEnv {
             .map_err(|e| dds("cannot join the DDS domain", &e))?;
         let context = Context::from_domain_participant(participant)
             .map_err(|e| dds("cannot start the ROS 2 context", &e))?;
-        let name = NodeName::new("/", name).map_err(|e| dds("bad node name", &e))?;
-        context
+        let name = NodeName::new(namespace, name)
+            .map_err(|e| dds(&format!("node name {namespace:?} {name:?}"), &e))?;
+        let mut node = context
             .new_node(name, NodeOptions::new().enable_rosout(false))
-            .map_err(|e| dds("cannot create the node", &e))
+            .map_err(|e| dds("cannot create the node", &e))?;
+        // The node's background task keeps its view of matched readers and writers (and the
+        // ROS graph) current; it ends when the node is dropped.
+        let spinner = node
+            .spinner()
+            .map_err(|e| dds("cannot start the node's background task", &e))?;
+        std::thread::Builder::new()
+            .name("ros2-spinner".into())
+            .spawn(move || futures::executor::block_on(spinner.spin()))
+            .map_err(|e| dds("cannot start the node's background thread", &e))?;
+        Ok(node)
     }
 }
 

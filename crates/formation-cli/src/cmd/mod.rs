@@ -278,4 +278,5 @@ pub mod progress;
 pub mod render;
 pub mod reproduce;
 pub mod reproduce_scenes;
+pub mod ros2;
 pub mod track;

@@ -15,22 +15,37 @@ use formation_tracker::mount::CameraMount;
 /// stdout (JSON with --json); --mcap also writes a file that opens in Foxglove.
 #[derive(Debug, ClapArgs)]
 pub struct Args {
-    /// A folder of images, a y4m file, `-` for y4m on stdin, or a ROS 2 bag (.mcap file or
     /// rosbag2 folder).
     #[arg(value_name = "INPUT")]
     pub input: PathBuf,
-    /// Camera calibration (OpenCV YAML or ROS camera_info); for a bag, default: its
     /// CameraInfo.
     #[arg(long, value_name = "FILE")]
     pub camera: Option<PathBuf>,
-    /// Bag input: the image topic (sensor_msgs/msg/Image or CompressedImage); default: the
     /// bag's only image topic.
     #[arg(long, value_name = "TOPIC")]
     pub image_topic: Option<String>,
-    /// Bag input: the follower's inputs topic (nav_msgs/msg/Odometry, geometry_msgs/msg/Twist
     /// or TwistStamped); default: the bag's only one (Odometry first). --inputs CSV wins.
     #[arg(long, value_name = "TOPIC")]
     pub inputs_topic: Option<String>,
+    /// Follower inputs per frame: CSV with `frame` or `t`, `v2`, `w2`, optional `pan`.
+    #[arg(long, value_name = "CSV")]
+    pub inputs: Option<PathBuf>,
+    /// Frame rate, 0.001 to 10000 frames/s; default: the y4m header's, else 30.
+    #[arg(long, value_name = "F", value_parser = crate::cmd::numbers::fps)]
+    pub fps: Option<f64>,
+    /// What every live or recorded run shares: outputs, rig, mount and tracking options.
+    #[command(flatten)]
+    pub run: RunArgs,
+}
+
+/// The options `track` and the ROS 2 node share: outputs, rig, controller, mount and
+/// tracking.
+#[derive(Debug, Clone, ClapArgs)]
+pub struct RunArgs {
+    /// A folder of images, a y4m file, `-` for y4m on stdin, or a ROS 2 bag (.mcap file or
+    /// Camera calibration (OpenCV YAML or ROS camera_info); for a bag, default: its
+    /// Bag input: the image topic (sensor_msgs/msg/Image or CompressedImage); default: the
+    /// Bag input: the follower's inputs topic (nav_msgs/msg/Odometry, geometry_msgs/msg/Twist
     /// Also write the results as MCAP for Foxglove: images, marker and rig annotations,
     /// camera-to-leader transforms and the formation estimate (docs/outputs.md).
     #[arg(long, value_name = "OUT.mcap")]
@@ -41,9 +56,6 @@ pub struct Args {
     /// Rig file (YAML/JSON); default: the reference rig.
     #[arg(long, value_name = "FILE")]
     pub rig: Option<PathBuf>,
-    /// Follower inputs per frame: CSV with `frame` or `t`, `v2`, `w2`, optional `pan`.
-    #[arg(long, value_name = "CSV")]
-    pub inputs: Option<PathBuf>,
     /// The follower's own separation-bearing controller towards one leader (YAML/JSON:
     /// `leader`, `l12_desired`, `alpha12_desired`, `k_l`, `k_alpha`, optional `max_v`,
     /// `max_w`; docs/tracking.md). The tracker is told it, as a follower knows its own
@@ -51,9 +63,6 @@ pub struct Args {
     /// told.
     #[arg(long, value_name = "FILE")]
     pub controller: Option<PathBuf>,
-    /// Frame rate, 0.001 to 10000 frames/s; default: the y4m header's, else 30.
-    #[arg(long, value_name = "F", value_parser = crate::cmd::numbers::fps)]
-    pub fps: Option<f64>,
     /// One JSON object per frame instead of a text line.
     #[arg(long)]
     pub json: bool,

@@ -18,8 +18,8 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         csv,
         inputs_topic,
     } = open(args)?;
-    let mut frames = bag.frames(&image_topic, inputs_topic.as_deref(), args.max_side);
-    let mut session = Session::new(args, calibration, frames.len_hint())?;
+    let mut frames = bag.frames(&image_topic, inputs_topic.as_deref(), args.run.max_side);
+    let mut session = Session::new(&args.run, calibration, frames.len_hint())?;
     let (mut bad_inputs, mut first_stamp, mut fatal) = (0u64, None, None);
     // With --smooth: each processed frame's time and number, in time order (stamps are
     // reordered by the reader), so that the smoothed lines name the same frames.
@@ -50,10 +50,10 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         let index = frame.index;
         let (follower, pan) = match &csv {
             Some(csv) => match csv.at(index, t) {
-                Some(s) => (s.inputs, s.pan.unwrap_or(args.pan)),
-                None => (Inputs::new(0.0, 0.0), args.pan),
+                Some(s) => (s.inputs, s.pan.unwrap_or(args.run.pan)),
+                None => (Inputs::new(0.0, 0.0), args.run.pan),
             },
-            None => (frame.inputs.unwrap_or(Inputs::new(0.0, 0.0)), args.pan),
+            None => (frame.inputs.unwrap_or(Inputs::new(0.0, 0.0)), args.run.pan),
         };
         let bag_line = BagLine {
             stamp_ns: frame.stamp_ns,
@@ -71,7 +71,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             bag: Some(bag_line),
         };
         let period_s = frame.period_s;
-        if session.frame(input, || bag_fps(args, period_s))? && args.smooth {
+        if session.frame(input, || bag_fps(args, period_s))?.is_some() && args.run.smooth {
             frame_times.push((t, index));
         }
     }
@@ -125,7 +125,7 @@ fn open(args: &Args) -> Result<Sources, CliError> {
         (None, None) => errln!(
             "track: no --inputs and no odometry or twist topic in the bag: assuming the follower \
              stands still (v2 = w2 = 0, pan {})",
-            args.pan
+            args.run.pan
         ),
         (None, Some(topic)) => errln!("track: follower inputs from {topic}"),
         _ => {}

@@ -23,19 +23,19 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         )
     })?;
     let calibration = cmd::load_calibration(camera)?;
-    let mut frames = FrameSource::open_with_max_side(&args.input, args.max_side)?;
+    let mut frames = FrameSource::open_with_max_side(&args.input, args.run.max_side)?;
     let fps = frame_rate(args, &frames)?;
     let inputs = match &args.inputs {
         Some(path) => Some(FollowerInputs::from_path(path)?),
         None => {
             errln!(
                 "track: no --inputs: assuming the follower stands still (v2 = w2 = 0, pan {})",
-                args.pan
+                args.run.pan
             );
             None
         }
     };
-    let mut session = Session::new(args, calibration, frames.len_hint())?;
+    let mut session = Session::new(&args.run, calibration, frames.len_hint())?;
     while cmd::interrupt::requested().is_none() {
         let frame = match frames.next_frame() {
             Ok(Some(frame)) => frame,
@@ -50,8 +50,8 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         let index = frame.index;
         let t = index as f64 / fps;
         let (follower, pan) = match inputs.as_ref().and_then(|i| i.at(index, t)) {
-            Some(s) => (s.inputs, s.pan.unwrap_or(args.pan)),
-            None => (Inputs::new(0.0, 0.0), args.pan),
+            Some(s) => (s.inputs, s.pan.unwrap_or(args.run.pan)),
+            None => (Inputs::new(0.0, 0.0), args.run.pan),
         };
         let source = frame.file.map_or_else(
             || format!("{}#{index}", args.input.display()),

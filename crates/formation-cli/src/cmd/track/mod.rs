@@ -4,9 +4,9 @@
 mod args;
 mod bag;
 mod folder;
-mod session;
+pub(crate) mod session;
 
-pub use args::Args;
+pub use args::{Args, RunArgs};
 
 use super::CliError;
 
@@ -23,15 +23,15 @@ pub fn run(args: &Args) -> Result<(), CliError> {
 
 /// Refuses, before any work, an `--mcap` output that is one of the inputs (exit code 2).
 fn refuse_overwriting_inputs(args: &Args) -> Result<(), CliError> {
-    let Some(mcap) = &args.mcap else {
+    let Some(mcap) = &args.run.mcap else {
         return Ok(());
     };
     let mut inputs: Vec<(&str, &std::path::Path)> = vec![("INPUT", &args.input)];
     for (name, path) in [
         ("--camera", &args.camera),
-        ("--rig", &args.rig),
+        ("--rig", &args.run.rig),
         ("--inputs", &args.inputs),
-        ("--controller", &args.controller),
+        ("--controller", &args.run.controller),
     ] {
         if let Some(path) = path {
             inputs.push((name, path));

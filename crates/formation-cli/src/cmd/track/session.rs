@@ -17,7 +17,7 @@ use pose::{Camera, PoseSolver};
 use serde::Serialize;
 use unicycle::Inputs;
 
-use super::args::Args;
+use super::args::RunArgs as Args;
 use crate::cmd::{self, CliError, progress::Progress};
 
 /// One frame for [`Session::frame`], wherever it came from.
@@ -87,13 +87,13 @@ impl<'a> Session<'a> {
     }
 
     /// Tracks one frame and writes its line (and its `--mcap` messages); `fps` gives the
-    /// frame rate when the pipeline is built, at the first frame. Returns whether the
-    /// frame was tracked; a frame the pipeline cannot use is counted and reported.
+    /// frame rate when the pipeline is built, at the first frame. Returns the tracked
+    /// frame, or `None` for a frame the pipeline cannot use (counted and reported).
     pub fn frame(
         &mut self,
         f: FrameIn<'_>,
         fps: impl FnOnce() -> Result<f64, CliError>,
-    ) -> Result<bool, CliError> {
+    ) -> Result<Option<PipelineFrame>, CliError> {
         let (args, image) = (self.args, f.image);
         let pipeline = match &mut self.pipeline {
             Some(pipeline) => pipeline,
@@ -138,14 +138,24 @@ impl<'a> Session<'a> {
                 if let Some(w) = &mut self.mcap {
                     w.frame(f.index, f.stamp_ns, f.t, image, &done, pipeline.markers())?;
                 }
-                Ok(true)
+                Ok(Some(done))
             }
             Err(e) => {
                 self.broken += 1;
                 self.progress.println(&frame_error(f.index, &e));
-                Ok(false)
+                Ok(None)
             }
         }
+    }
+
+    /// The pipeline, once the first frame has built it.
+    pub fn pipeline(&self) -> Option<&Pipeline> {
+        self.pipeline.as_ref()
+    }
+
+    /// The camera's mount (its pan as given on the command line).
+    pub fn mount(&self) -> CameraMount {
+        self.mount
     }
 
     /// Ends the run: the `--smooth` lines (`frame_of` gives the frame number of a time
@@ -259,7 +269,7 @@ struct Line<'a> {
 
 /// The bag fields of a JSON line (`docs/outputs.md`).
 #[derive(Debug, Clone, Copy, Serialize)]
-pub(super) struct BagLine {
+pub struct BagLine {
     /// The message's `header.stamp`, nanoseconds since the epoch.
     pub stamp_ns: u64,
     /// The message's index on the image topic, from 0, in file order.
