@@ -44,6 +44,10 @@ pub struct Args {
     /// The images' optical frame.
     #[arg(long, value_name = "FRAME", default_value = "camera")]
     pub frame_id: String,
+    /// Publish the recording this many times in a row (stamps keep increasing); 0 repeats
+    /// until interrupted (soak tests).
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub repeat: u64,
     /// Seconds to wait for a subscriber to the image topic before giving up.
     #[arg(long, value_name = "S", default_value_t = 20.0, value_parser = crate::cmd::numbers::positive)]
     pub wait: f64,
@@ -55,7 +59,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let env = RosEnv::from_env()?;
     let camera = cmd::load_calibration(&args.replay.join("camera.yaml"))?;
     let inputs = FollowerInputs::from_path(&args.replay.join("inputs.csv"))?;
-    let mut frames = FrameSource::open(&args.replay.join("frames"))?;
+    let folder = args.replay.join("frames");
+    let mut frames = FrameSource::open(&folder)?;
     let mut node = env.node(&args.namespace, "formation_sim")?;
     // Reliable writers with a deep queue: a reliable writer still serves best-effort
     // readers (the node's sensor-data QoS), and a reliable reader gets every frame.
@@ -85,12 +90,23 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let base_ns = epoch.as_secs() * 1_000_000_000;
     let start = Instant::now();
     let mut sent = 0u64;
+    let mut pass = 0u64;
+    let mut offset = 0u64;
     while cmd::interrupt::requested().is_none() {
         let frame = match frames.next_frame()? {
             Some(f) => f,
-            None => break,
+            None => {
+                pass += 1;
+                if (args.repeat != 0 && pass >= args.repeat) || sent == 0 {
+                    break;
+                }
+                offset = sent;
+                frames = FrameSource::open(&folder)?;
+                continue;
+            }
         };
-        let k = frame.index;
+        let index = frame.index;
+        let k = offset + index;
         let t = k as f64 / args.fps;
         let stamp_ns = base_ns + (t * 1e9).round() as u64;
         let header = msg::Header {
