@@ -206,8 +206,10 @@ fn bad_input_inside_a_namespace() {
         .unwrap();
     pause();
     // A NaN in odometry.
-    let mut o = msg::Odometry::default();
-    o.header = header(1);
+    let mut o = msg::Odometry {
+        header: header(1),
+        ..msg::Odometry::default()
+    };
     o.twist.twist.linear.x = f64::NAN;
     odom.publish(o).unwrap();
     pause();
