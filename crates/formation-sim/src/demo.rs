@@ -169,6 +169,15 @@ impl DemoConfig {
     }
 }
 
+impl DemoConfig {
+    /// Whether robot 1 is hidden from robot 2's camera at `t` (the occlusion interval,
+    /// closed at its start, open at its end).
+    pub(crate) fn occluded_at(&self, t: f64) -> bool {
+        self.occlusion
+            .is_some_and(|(a, b)| t >= a - 1e-9 && t < b - 1e-9)
+    }
+}
+
 impl Default for DemoConfig {
     fn default() -> Self {
         Self {
@@ -465,28 +474,28 @@ fn nan3() -> Vector3<f64> {
 }
 
 /// Everything the followers share: the world they are rendered in.
-struct World<'a> {
-    config: &'a DemoConfig,
-    mount: CameraMount,
-    camera: CameraSpec,
+pub(crate) struct World<'a> {
+    pub(crate) config: &'a DemoConfig,
+    pub(crate) mount: CameraMount,
+    pub(crate) camera: CameraSpec,
     k: pose::Intrinsics,
-    rig: RigModel,
-    dict: &'a Dictionary,
+    pub(crate) rig: RigModel,
+    pub(crate) dict: &'a Dictionary,
 }
 
 /// One step's state of the chain as seen by a follower.
-struct StepContext<'a> {
-    step: usize,
-    t: f64,
-    occluded: bool,
-    poses: &'a [PlanarPose],
+pub(crate) struct StepContext<'a> {
+    pub(crate) step: usize,
+    pub(crate) t: f64,
+    pub(crate) occluded: bool,
+    pub(crate) poses: &'a [PlanarPose],
     /// The poses one step earlier (at step 0, the start).
-    previous: &'a [PlanarPose],
+    pub(crate) previous: &'a [PlanarPose],
     /// Inputs over `(t_{k-1}, t_k]` of every robot (index 0 the leader's), as executed:
     /// what moved it.
-    applied: &'a [Inputs],
+    pub(crate) applied: &'a [Inputs],
     /// The same inputs as each robot's odometry reported them: what its tracker is given.
-    odometry: &'a [Inputs],
+    pub(crate) odometry: &'a [Inputs],
 }
 
 /// Runs the demo.
@@ -586,9 +595,7 @@ fn run_demo_inner(
         let ctx = StepContext {
             step,
             t,
-            occluded: config
-                .occlusion
-                .is_some_and(|(a, b)| t >= a - 1e-9 && t < b - 1e-9),
+            occluded: config.occluded_at(t),
             poses: &poses,
             previous: &previous,
             applied: &applied,
@@ -641,7 +648,7 @@ fn run_demo_inner(
 }
 
 impl<'a> World<'a> {
-    fn new(config: &'a DemoConfig) -> Result<Self, DemoError> {
+    pub(crate) fn new(config: &'a DemoConfig) -> Result<Self, DemoError> {
         let camera = config.camera;
         Ok(Self {
             config,
@@ -659,7 +666,7 @@ impl<'a> World<'a> {
 }
 
 /// The robots' poses at `t = 0`: the scenario file's, else the starting line.
-fn start_poses(config: &DemoConfig) -> Vec<PlanarPose> {
+pub(crate) fn start_poses(config: &DemoConfig) -> Vec<PlanarPose> {
     match &config.scenario {
         Some(spec) => {
             let [fx, fy, ft] = spec.follower;
@@ -732,7 +739,7 @@ pub fn estimate_render_seconds(config: &DemoConfig) -> Result<f64, DemoError> {
     Ok(probe_s * rays / probe_rays.max(1.0))
 }
 
-fn validate(config: &DemoConfig) -> Result<(), DemoError> {
+pub(crate) fn validate(config: &DemoConfig) -> Result<(), DemoError> {
     if !(2..=6).contains(&config.robots) {
         return Err(DemoError::Config {
             what: "robots",
@@ -805,7 +812,7 @@ fn start_followers(world: &World<'_>, poses: &[PlanarPose]) -> Result<Vec<Follow
 
 /// The scene follower `me` sees: every other robot, less robot 1 from robot 2 during the
 /// occlusion; frame `k` of follower `me` uses noise seed `seed + k n + me`.
-fn follower_scene(
+pub(crate) fn follower_scene(
     world: &World<'_>,
     ctx: &StepContext<'_>,
     poses: &[PlanarPose],
@@ -846,7 +853,7 @@ fn follower_scene(
 
 /// The robots' poses at the sub-frame times of the exposure of step `ctx.step` (see the
 /// module documentation); without motion blur, only the poses at the frame time.
-fn exposure_poses(
+pub(crate) fn exposure_poses(
     config: &DemoConfig,
     ctx: &StepContext<'_>,
 ) -> Result<Vec<Vec<PlanarPose>>, DemoError> {

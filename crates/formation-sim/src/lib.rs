@@ -25,6 +25,7 @@ pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 pub mod annotate;
 pub mod demo;
 pub mod evaluate;
+pub mod pair;
 pub mod paper;
 pub mod plot;
 pub mod reproduce;
