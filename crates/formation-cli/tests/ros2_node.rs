@@ -299,3 +299,85 @@ fn bad_input_inside_a_namespace() {
     assert!(code.success(), "SIGINT is how a node stops: exit {code}");
     assert!(stdout.try_recv().is_err(), "more frames tracked than sent");
 }
+
+/// Done-when of #34: the loop closed across processes. `ros2-sim` simulates the robot pair
+/// and moves its follower by the `cmd_vel` that `ros2 --control` publishes from its tracked
+/// estimate. The leader is hidden from 2 s to 5 s: the follower holds the formation before,
+/// stops once the leader has been unseen for --stop-after (2 s, the documented default), and
+/// drives again once the leader is back.
+#[test]
+fn closed_loop_across_processes_holds_the_formation_and_stops_when_the_leader_is_hidden() {
+    let dir = std::env::temp_dir().join(format!("ft-ros2-loop-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let reference =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenarios/reference.yaml");
+    let scenario = std::fs::read_to_string(reference)
+        .unwrap()
+        .replace("duration: 8.0", "duration: 6.5")
+        + "vision:\n  render: {supersampling: 2}\n  occlusions: [{from: 2.0, to: 5.0}]\n";
+    std::fs::write(dir.join("scenario.yaml"), scenario).unwrap();
+    let out = in_namespace(
+        "\"$BIN\" ros2-sim --scenario scenario.yaml --write-controller controller.yaml 2> /dev/null; \
+         \"$BIN\" ros2 -q --control controller.yaml > /dev/null 2> node.err & node=$!; \
+         \"$BIN\" ros2-sim -q --scenario scenario.yaml --truth truth.csv 2> sim.err; \
+         kill -INT $node; wait $node; cat node.err sim.err >&2",
+        &dir,
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(stderr.contains("196 answered by a command"), "{stderr}");
+    let text = std::fs::read_to_string(dir.join("truth.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| {
+            l.split(',')
+                .map(|v| match v {
+                    "true" => 1.0,
+                    "false" => 0.0,
+                    v => v.parse().unwrap(),
+                })
+                .collect()
+        })
+        .collect();
+    assert_eq!(rows.len(), 196);
+    let (t, v, l12, l12d) = (col("t"), col("v2_command"), col("l12"), col("l12_desired"));
+    let (alpha, alphad) = (col("alpha12"), col("alpha12_desired"));
+    for r in &rows {
+        let moving = r[v].abs() > 1e-9;
+        if r[t] > 0.5 && r[t] < 2.0 {
+            // Holding the formation on the tracked estimate.
+            assert!(moving, "t = {}: stopped while the leader is seen", r[t]);
+            assert!(
+                (r[l12] - r[l12d]).abs() < 0.05,
+                "t = {}: l12 {} vs {}",
+                r[t],
+                r[l12],
+                r[l12d]
+            );
+            assert!(
+                (r[alpha] - r[alphad]).abs() < 0.05,
+                "t = {}: alpha12 {}",
+                r[t],
+                r[alpha]
+            );
+        }
+        if r[t] > 2.0 + 2.0 + 0.1 && r[t] < 5.0 {
+            assert!(
+                !moving,
+                "t = {}: still driving, the leader unseen for {} s",
+                r[t],
+                r[t] - 2.0
+            );
+        }
+        if r[t] > 5.3 {
+            assert!(
+                moving,
+                "t = {}: not driving again after the leader came back",
+                r[t]
+            );
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

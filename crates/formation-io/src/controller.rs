@@ -11,6 +11,8 @@
 //! k_alpha: 1.0            # convergence rate of the bearing error, 1/s (> 0)
 //! max_v: 1.5              # optional limit on |v2|, m/s
 //! max_w: 2.0              # optional limit on |w2|, rad/s
+//! setpoints:              # optional set-point changes, in force from `at` seconds after
+//!   - {at: 5.0, l12: 3.8}  # the first frame (each may change l12, alpha12 or both)
 //! ```
 //!
 //! Unknown fields are errors, and a value the controller refuses names its field.
@@ -45,8 +47,22 @@ pub enum ControllerFileError {
     },
 }
 
-/// A controller file, as read.
+/// A set-point change, in force from `at` seconds after the first frame.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SetpointChange {
+    /// When, seconds after the first frame (>= 0).
+    pub at: f64,
+    /// The new desired separation, metres; `None` keeps it.
+    #[serde(default)]
+    pub l12: Option<f64>,
+    /// The new desired bearing, radians; `None` keeps it.
+    #[serde(default)]
+    pub alpha12: Option<f64>,
+}
+
+/// A controller file, as read.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct Raw {
     leader: u32,
@@ -58,15 +74,32 @@ struct Raw {
     max_v: Option<f64>,
     #[serde(default)]
     max_w: Option<f64>,
+    #[serde(default)]
+    setpoints: Vec<SetpointChange>,
 }
 
 /// The follower's controller towards one leader.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct FollowerController {
     /// The leader's robot number.
     pub leader: u32,
-    /// Gains, set-points and limits.
+    /// Gains, set-points and limits at the first frame.
     pub controller: ControllerConfig,
+    /// Set-point changes, in time order.
+    pub setpoints: Vec<SetpointChange>,
+}
+
+impl FollowerController {
+    /// The controller in force `t` seconds after the first frame: the changes due by then
+    /// applied in order.
+    pub fn at(&self, t: f64) -> ControllerConfig {
+        let mut c = self.controller;
+        for change in self.setpoints.iter().take_while(|s| s.at <= t) {
+            c.l12_desired = change.l12.unwrap_or(c.l12_desired);
+            c.alpha12_desired = change.alpha12.unwrap_or(c.alpha12_desired);
+        }
+        c
+    }
 }
 
 /// Reads a controller file (at most [`textfile::MAX_TEXT_BYTES`]).
@@ -111,9 +144,25 @@ pub fn from_text(
     };
     // The controller's own checks name the field; the camera offset plays no part in them.
     SeparationBearingController::new(1.0, controller).map_err(|e| invalid(e.to_string()))?;
+    let mut setpoints = raw.setpoints;
+    for (i, change) in setpoints.iter().enumerate() {
+        if !(change.at.is_finite() && change.at >= 0.0) {
+            return Err(invalid(format!(
+                "field `setpoints[{i}].at`: {}: expected seconds >= 0",
+                change.at
+            )));
+        }
+        let mut c = controller;
+        c.l12_desired = change.l12.unwrap_or(c.l12_desired);
+        c.alpha12_desired = change.alpha12.unwrap_or(c.alpha12_desired);
+        SeparationBearingController::new(1.0, c)
+            .map_err(|e| invalid(format!("field `setpoints[{i}]`: {e}")))?;
+    }
+    setpoints.sort_by(|a, b| a.at.total_cmp(&b.at));
     Ok(FollowerController {
         leader: raw.leader,
         controller,
+        setpoints,
     })
 }
 
@@ -155,6 +204,32 @@ mod tests {
                 err.starts_with("controller file c.yaml: ") && err.contains(field),
                 "{field}: {err}"
             );
+        }
+    }
+
+    #[test]
+    fn set_point_changes_apply_in_time_order() {
+        let text =
+            format!("{GOOD}setpoints:\n  - {{at: 5.0, l12: 3.8}}\n  - {{at: 2.0, alpha12: 0.1}}\n");
+        let f = from_text(&text, false, "c.yaml").unwrap();
+        assert_eq!(f.at(0.0), f.controller);
+        assert_eq!(
+            (f.at(2.0).l12_desired, f.at(2.0).alpha12_desired),
+            (1.03, 0.1)
+        );
+        assert_eq!(
+            (f.at(9.0).l12_desired, f.at(9.0).alpha12_desired),
+            (3.8, 0.1)
+        );
+        for (bad, field) in [
+            ("  - {at: -1.0, l12: 2.0}\n", "setpoints[0].at"),
+            ("  - {at: 1.0, l12: 0.0}\n", "setpoints[0]"),
+            ("  - {at: 1.0, speed: 2.0}\n", "speed"),
+        ] {
+            let err = from_text(&format!("{GOOD}setpoints:\n{bad}"), false, "c.yaml")
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains(field), "{field}: {err}");
         }
     }
 

@@ -301,6 +301,11 @@ impl Pipeline {
         &self.tracker
     }
 
+    /// The tracker, to tell it what changes between frames (the follower's set-points).
+    pub fn tracker_mut(&mut self) -> &mut Tracker {
+        &mut self.tracker
+    }
+
     /// Processes one frame taken at `t` with the follower's inputs over the interval ending
     /// at it and the camera mount at that instant.
     ///

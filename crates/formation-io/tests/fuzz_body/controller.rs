@@ -23,4 +23,16 @@ pub fn run(data: &[u8]) {
         SeparationBearingController::new(0.5, c).is_ok(),
         "accepted a controller it refuses: {c:?}"
     );
+    // Every set-point change gives a controller it takes, at a time from 0 on.
+    for change in &own.setpoints {
+        assert!(
+            change.at.is_finite() && change.at >= 0.0,
+            "accepted {change:?}"
+        );
+        let c = own.at(change.at);
+        assert!(
+            SeparationBearingController::new(0.5, c).is_ok(),
+            "accepted a set-point change it refuses: {c:?}"
+        );
+    }
 }

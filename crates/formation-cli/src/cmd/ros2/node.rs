@@ -80,8 +80,9 @@ pub struct Args {
     #[arg(long, value_name = "TOPIC", default_value = "cmd_vel")]
     pub cmd_vel_topic: String,
     /// With --control: seconds without a measurement of the leader after which the
-    /// follower is stopped (zero twist) until the leader is seen again.
-    #[arg(long, value_name = "S", default_value_t = 0.5, value_parser = crate::cmd::numbers::positive)]
+    /// follower is stopped (zero twist) until the leader is seen again. The default is
+    /// `track`'s --lost-after: the tracker coasts through shorter gaps.
+    #[arg(long, value_name = "S", default_value_t = 2.0, value_parser = crate::cmd::numbers::positive)]
     pub stop_after: f64,
     /// Exit after this many frames are tracked (scripts and tests); default: run until
     /// interrupted.
@@ -159,10 +160,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let controller = match &args.control {
         Some(path) => {
             let own = formation_io::controller::load(path)?;
-            let law = SeparationBearingController::new(run_args.mount_offset, own.controller)
+            SeparationBearingController::new(run_args.mount_offset, own.controller)
                 .map_err(|e| format!("{}: {e}", path.display()))?;
             run_args.controller = Some(path.clone());
-            Some((own.leader, law))
+            Some(own)
         }
         None => None,
     };
@@ -378,7 +379,7 @@ struct NodeState<'a> {
     /// Stamp of the last frame in which the controlled leader was measured, ns.
     last_seen: Option<u64>,
     frames: FrameIds,
-    controller: Option<(u32, SeparationBearingController)>,
+    controller: Option<formation_io::controller::FollowerController>,
     /// Whether the last command sent was a stop.
     stopped: bool,
     /// When the controlled leader was last measured recently enough to drive on.
@@ -690,12 +691,12 @@ impl<'a> NodeState<'a> {
         {
             self.warn("publish", &format!("cannot publish the annotations: {e:?}"));
         }
-        if let (Some(p), Some((leader, law))) = (cmd_vel, &self.controller) {
+        if let (Some(p), Some(own)) = (cmd_vel, &self.controller) {
             let report = done
                 .report
                 .leaders
                 .iter()
-                .find(|l| l.robot == *leader && l.status != Status::Lost);
+                .find(|l| l.robot == own.leader && l.status != Status::Lost);
             let now = stamp.to_ns().unwrap_or(0);
             if report.is_some_and(|l| l.status == Status::Tracking) {
                 self.last_seen = Some(now);
@@ -703,9 +704,11 @@ impl<'a> NodeState<'a> {
             let fresh = self
                 .last_seen
                 .is_some_and(|s| (now.saturating_sub(s)) as f64 * 1e-9 <= self.args.stop_after);
+            // The set-points in force at this frame's time (from the first frame).
+            let t = now.saturating_sub(self.first_stamp.unwrap_or(now)) as f64 * 1e-9;
             let command = match report {
-                Some(l) if fresh => law
-                    .inputs(&l.formation, Inputs::new(l.v1, l.w1))
+                Some(l) if fresh => SeparationBearingController::new(mount.offset, own.at(t))
+                    .and_then(|law| law.inputs(&l.formation, Inputs::new(l.v1, l.w1)))
                     .map_err(|e| format!("controller: {e}")),
                 _ => Ok(Inputs::new(0.0, 0.0)),
             };

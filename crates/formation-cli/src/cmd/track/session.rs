@@ -49,6 +49,11 @@ pub struct Session<'a> {
     rig: RigModel,
     mount: CameraMount,
     pipeline: Option<Pipeline>,
+    /// The follower's own controller (`--controller`), and the set-points last told.
+    own: Option<(
+        formation_io::controller::FollowerController,
+        unicycle::ControllerConfig,
+    )>,
     mcap: Option<McapOut>,
     out: std::io::BufWriter<std::io::StdoutLock<'static>>,
     /// The progress line (also where per-frame errors are printed).
@@ -67,7 +72,16 @@ impl<'a> Session<'a> {
         len_hint: Option<u64>,
     ) -> Result<Self, CliError> {
         let rig = cmd::load_rig(args.rig.as_deref(), Dictionary::paper())?;
+        let own = match &args.controller {
+            Some(path) => {
+                let own = formation_io::controller::load(path)?;
+                let first = own.at(0.0);
+                Some((own, first))
+            }
+            None => None,
+        };
         Ok(Self {
+            own,
             args,
             calibration,
             rig,
@@ -108,7 +122,13 @@ impl<'a> Session<'a> {
                 if let Some(path) = &args.mcap {
                     self.mcap = Some(McapOut::create(path, args, self.rig.clone(), calibration)?);
                 }
-                let built = build_pipeline(args, calibration, self.rig.clone(), self.mount, fps)?;
+                let mut built =
+                    build_pipeline(args, calibration, self.rig.clone(), self.mount, fps)?;
+                if let Some((own, told)) = &self.own {
+                    built
+                        .tracker_mut()
+                        .set_follower_controller(own.leader, Some(*told));
+                }
                 self.pipeline.insert(built)
             }
         };
@@ -116,6 +136,16 @@ impl<'a> Session<'a> {
             pan: f.pan,
             ..self.mount
         };
+        // A set-point change of the controller file, told from its time on.
+        if let Some((own, told)) = &mut self.own {
+            let now = own.at(f.t);
+            if now != *told {
+                *told = now;
+                pipeline
+                    .tracker_mut()
+                    .set_follower_controller(own.leader, Some(now));
+            }
+        }
         match pipeline.process(
             &image.data,
             image.width,
@@ -309,10 +339,6 @@ pub fn build_pipeline(
     config.lost_after = args.lost_after;
     let mut tracker = Tracker::new(config)?;
     tracker.record_history(args.smooth);
-    if let Some(path) = &args.controller {
-        let own = formation_io::controller::load(path)?;
-        tracker.set_follower_controller(own.leader, Some(own.controller));
-    }
     let solver = PoseSolver::new(calibration.intrinsics).with_distortion(calibration.distortion);
     // The rig's dictionary: our own unless the rig file names another (e.g. tag36h11).
     let dictionary = rig.marker_dictionary()?.clone();
