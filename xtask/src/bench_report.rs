@@ -198,8 +198,16 @@ pub fn run(args: &[String]) -> Result {
         .into());
     }
     rows.sort_by(|a, b| a.id.cmp(&b.id));
-    let doc = render(&rows, &machine());
+    let mut doc = render(&rows, &machine());
     let out = root.join("docs").join("performance.md");
+    // Sections measured by other harnesses (the ROS 2 node's latency) follow a marker line
+    // and are kept as they are.
+    if let Ok(old) = std::fs::read_to_string(&out)
+        && let Some(at) = old.find(KEPT_MARKER)
+    {
+        doc.push('\n');
+        doc.push_str(&old[at..]);
+    }
     std::fs::write(&out, doc)?;
     println!(
         "bench-report: wrote {} ({} benchmarks)",
@@ -208,6 +216,9 @@ pub fn run(args: &[String]) -> Result {
     );
     Ok(())
 }
+
+/// Everything in `docs/performance.md` from this line on is kept by `bench-report`.
+const KEPT_MARKER: &str = "<!-- kept by bench-report: measured by other harnesses -->";
 
 struct Row {
     id: String,
