@@ -18,6 +18,7 @@ mod fingerprint;
 mod pyenv;
 mod random_scenes;
 mod release;
+mod ros2_interop;
 mod solvepnp;
 mod unused_deps;
 
@@ -58,6 +59,11 @@ commands:
                    mcap-ros2-support packages (venv in target/py-venv), the folder path's
                    estimates on the same frames, and check our --mcap output with the
                    Python mcap reader (--frames N: demo frames in demo_zstd.mcap, default 16)
+  ros2-interop     formation-tracker ros2 against CycloneDDS (pip cyclonedds, venv in
+                   target/py-venv) in a private network namespace: it publishes Image,
+                   CameraInfo and Odometry, decodes every message the node publishes and
+                   checks them against the node's JSON (--frames N: frames tracked, default
+                   150; --strict: also fail on the first and last messages the node loses)
 ";
 
 fn main() -> ExitCode {
@@ -76,6 +82,7 @@ fn main() -> ExitCode {
         Some("solvepnp") => solvepnp::run(&args[1..]),
         Some("bags") => bags::run(&args[1..]),
         Some("compare") => compare::run(&args[1..]),
+        Some("ros2-interop") => ros2_interop::run(&args[1..]),
         _ => {
             eprint!("{USAGE}");
             return ExitCode::from(2);
