@@ -63,7 +63,7 @@ commands:
                    target/py-venv) in a private network namespace: it publishes Image,
                    CameraInfo and Odometry, decodes every message the node publishes and
                    checks them against the node's JSON (--frames N: frames tracked, default
-                   150; --strict: also fail on the first and last messages the node loses)
+                   150; --lenient: tolerate a leader's first and the last frame's messages lost)
 ";
 
 fn main() -> ExitCode {

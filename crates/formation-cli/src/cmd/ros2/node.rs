@@ -84,6 +84,12 @@ pub struct Args {
     /// `track`'s --lost-after: the tracker coasts through shorter gaps.
     #[arg(long, value_name = "S", default_value_t = 2.0, value_parser = crate::cmd::numbers::positive)]
     pub stop_after: f64,
+    /// Leaders whose topics exist from the start (comma-separated robot ids; the --control
+    /// leader is added). Another leader gets its topics when first seen, and a subscriber
+    /// may miss its first messages: DDS matches a new writer with known readers only after
+    /// it is made.
+    #[arg(long, value_name = "IDS", value_delimiter = ',', default_value = "1")]
+    pub leaders: Vec<u32>,
     /// Exit after this many frames are tracked (scripts and tests); default: run until
     /// interrupted.
     #[arg(long, value_name = "N")]
@@ -223,6 +229,17 @@ pub fn run(args: Args) -> Result<(), CliError> {
         Some(_) => Some(publisher(&mut node, &args.cmd_vel_topic, &out)?),
         None => None,
     };
+    let mut leaders = HashMap::new();
+    let wanted = args
+        .leaders
+        .iter()
+        .copied()
+        .chain(controller.as_ref().map(|c| c.leader));
+    for robot in wanted {
+        if let std::collections::hash_map::Entry::Vacant(v) = leaders.entry(robot) {
+            v.insert(leader_publishers(&mut node, &args.output_prefix, robot)?);
+        }
+    }
     let calibration = args
         .camera
         .as_deref()
@@ -257,7 +274,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
         last_stamp: None,
         last_seq: HashMap::new(),
         counts: Counts::default(),
-        leaders: HashMap::new(),
+        leaders,
+        seen: std::collections::BTreeSet::new(),
         latencies: Vec::new(),
         stages: Vec::new(),
         window: Vec::new(),
@@ -349,7 +367,26 @@ pub fn run(args: Args) -> Result<(), CliError> {
             let _ = p.publish(msg::Twist::default());
         }
     }
+    // Reliable writers resend what a reader missed while the participant lives: let the
+    // last frame's messages (and the stop) reach their readers before it goes away.
+    std::thread::sleep(Duration::from_millis(300));
     state.finish()
+}
+
+/// The publishers of leader `robot`'s topics.
+fn leader_publishers(
+    node: &mut ros2_client::dds::Node,
+    prefix: &str,
+    robot: u32,
+) -> Result<LeaderPubs, CliError> {
+    let base = format!("{prefix}/leader_{robot}");
+    let q = reliable(10);
+    Ok(LeaderPubs {
+        pose: publisher(node, &format!("{base}/pose"), &q)?,
+        pose_base: publisher(node, &format!("{base}/pose_base"), &q)?,
+        twist: publisher(node, &format!("{base}/twist"), &q)?,
+        formation: publisher(node, &format!("{base}/formation"), &q)?,
+    })
 }
 
 /// Everything the node's loop carries between frames.
@@ -367,6 +404,8 @@ struct NodeState<'a> {
     last_seq: HashMap<u8, i64>,
     counts: Counts,
     leaders: HashMap<u32, LeaderPubs>,
+    /// The leaders tracked so far.
+    seen: std::collections::BTreeSet<u32>,
     /// Arrival-to-publication times of every tracked frame, ms.
     latencies: Vec<f64>,
     /// The same over the current diagnostics period.
@@ -648,19 +687,14 @@ impl<'a> NodeState<'a> {
                         continue;
                     }
                 };
+            self.seen.insert(report.robot);
             let pubs = match self.leaders.entry(report.robot) {
                 std::collections::hash_map::Entry::Occupied(o) => o.into_mut(),
-                std::collections::hash_map::Entry::Vacant(v) => {
-                    let session_node = &mut self.node;
-                    let base = format!("{}/leader_{}", self.args.output_prefix, report.robot);
-                    let q = reliable(10);
-                    v.insert(LeaderPubs {
-                        pose: publisher(session_node, &format!("{base}/pose"), &q)?,
-                        pose_base: publisher(session_node, &format!("{base}/pose_base"), &q)?,
-                        twist: publisher(session_node, &format!("{base}/twist"), &q)?,
-                        formation: publisher(session_node, &format!("{base}/formation"), &q)?,
-                    })
-                }
+                std::collections::hash_map::Entry::Vacant(v) => v.insert(leader_publishers(
+                    &mut self.node,
+                    &self.args.output_prefix,
+                    report.robot,
+                )?),
             };
             let sent = [
                 pubs.pose
@@ -753,7 +787,7 @@ impl NodeState<'_> {
         let dropped = (c.skipped + c.missed) - (before.skipped + before.missed);
         let bad = c.bad - before.bad;
         let (median, p99) = percentiles(&self.window);
-        let leaders = self.leaders.len();
+        let leaders = self.seen.len();
         let (level, message) = if tracked == 0 {
             (1, "no frame tracked in the last second".to_owned())
         } else if dropped > 0 || bad > 0 {
