@@ -385,7 +385,9 @@ fn closed_loop_across_processes_holds_the_formation_and_stops_when_the_leader_is
 /// Regression (found by `cargo xtask ros2-interop`): a subscriber gets every message the node
 /// publishes, the first of a leader's (its writers used to be made on first sight, and DDS
 /// matched them only after that first write) and the last frame's (the node used to exit
-/// before sending them).
+/// before sending them). The readers are best effort, as `ros2 topic echo`'s default: a
+/// reliable RustDDS reader in this test got nothing in about half the runs (CycloneDDS's
+/// reliable readers get everything: `cargo xtask ros2-interop`), see docs/ros2.md.
 #[test]
 fn a_subscriber_gets_every_message_the_node_publishes() {
     this_test_in_namespace("every_message_inside_a_namespace");
@@ -395,22 +397,12 @@ fn a_subscriber_gets_every_message_the_node_publishes() {
 #[ignore = "runs inside a private network namespace, from a_subscriber_gets_every_message_the_node_publishes"]
 fn every_message_inside_a_namespace() {
     use formation_ros2::msg;
-    use formation_ros2::topics::{reliable, subscription};
+    use formation_ros2::topics::{sensor_data, subscription};
     use std::time::{Duration, Instant};
 
     let frames = 30;
     let clip = reference_clip("ros2-every", frames);
-    let mut node = formation_ros2::RosEnv::from_env()
-        .unwrap()
-        .node("/", "listener")
-        .unwrap();
-    let formation = subscription::<msg::Float64MultiArray>(
-        &mut node,
-        "formation/leader_1/formation",
-        &reliable(100),
-    )
-    .unwrap();
-    let tf = subscription::<msg::TfMessage>(&mut node, "/tf", &reliable(100)).unwrap();
+    // The node runs first and a subscriber joins it, as `ros2 topic echo` would.
     let tracker = Command::new(BIN)
         .args(["ros2", "-q", "--json", "--max-frames", &frames.to_string()])
         .current_dir(&clip.dir)
@@ -418,6 +410,30 @@ fn every_message_inside_a_namespace() {
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
+    std::thread::sleep(Duration::from_millis(500));
+    let mut node = formation_ros2::RosEnv::from_env()
+        .unwrap()
+        .node("/", "listener")
+        .unwrap();
+    let formation = subscription::<msg::Float64MultiArray>(
+        &mut node,
+        "formation/leader_1/formation",
+        &sensor_data(100),
+    )
+    .unwrap();
+    let tf = subscription::<msg::TfMessage>(&mut node, "/tf", &sensor_data(100)).unwrap();
+    // The node's writers must know this reader before the first frame (discovery between
+    // two participants can take a while when one started first).
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while formation.get_publisher_count(&node) == 0 || tf.get_publisher_count(&node) == 0 {
+        assert!(
+            Instant::now() < deadline,
+            "the node's writers never matched"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // Matched here; the writers' side may learn of this reader a moment later.
+    std::thread::sleep(Duration::from_millis(500));
     let sim = Command::new(BIN)
         .args(["ros2-sim", "--replay", "."])
         .current_dir(&clip.dir)
