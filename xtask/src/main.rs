@@ -97,6 +97,24 @@ fn main() -> ExitCode {
     }
 }
 
+/// `cargo metadata --format-version 1` with `extra` arguments, parsed.
+pub fn cargo_metadata(
+    extra: &[&str],
+) -> std::result::Result<serde_json::Value, Box<dyn std::error::Error>> {
+    let out = std::process::Command::new(env!("CARGO"))
+        .args(["metadata", "--format-version", "1"])
+        .args(extra)
+        .output()?;
+    if !out.status.success() {
+        return Err(format!(
+            "cargo metadata failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        )
+        .into());
+    }
+    Ok(serde_json::from_slice(&out.stdout)?)
+}
+
 /// Crates whose presence means C is compiled or a system library is linked.
 const C_BUILDERS: &[&str] = &["cc", "cmake", "pkg-config", "bindgen", "alloca"];
 
@@ -134,17 +152,7 @@ fn no_c() -> Result {
             Some((name.to_owned(), version.to_owned()))
         })
         .collect();
-    let out = std::process::Command::new(env!("CARGO"))
-        .args(["metadata", "--format-version", "1", "--locked"])
-        .output()?;
-    if !out.status.success() {
-        return Err(format!(
-            "cargo metadata failed: {}",
-            String::from_utf8_lossy(&out.stderr)
-        )
-        .into());
-    }
-    let meta: serde_json::Value = serde_json::from_slice(&out.stdout)?;
+    let meta = cargo_metadata(&["--locked"])?;
     let packages = meta["packages"]
         .as_array()
         .ok_or("cargo metadata: no packages")?;

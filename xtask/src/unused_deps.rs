@@ -27,17 +27,7 @@ pub fn run(args: &[String]) -> Result {
     if let Some(extra) = args.first() {
         return Err(format!("unused-deps takes no arguments, got {extra}").into());
     }
-    let out = std::process::Command::new(env!("CARGO"))
-        .args(["metadata", "--format-version", "1", "--no-deps"])
-        .output()?;
-    if !out.status.success() {
-        return Err(format!(
-            "cargo metadata failed: {}",
-            String::from_utf8_lossy(&out.stderr)
-        )
-        .into());
-    }
-    let meta: Value = serde_json::from_slice(&out.stdout)?;
+    let meta: Value = crate::cargo_metadata(&["--no-deps"])?;
     let packages = meta["packages"]
         .as_array()
         .ok_or("cargo metadata: no `packages` array")?;
