@@ -34,48 +34,6 @@ fn stderr(out: &std::process::Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
-/// Every leader field of `got` equals `want`'s to 1e-9.
-fn same_estimates(got: &[serde_json::Value], want: &[serde_json::Value]) {
-    assert_eq!(got.len(), want.len(), "frame count");
-    let mut leaders = 0;
-    for (g, w) in got.iter().zip(want) {
-        assert_eq!(g["frame"], w["frame"]);
-        assert_eq!(g["markers"], w["markers"], "frame {}", w["frame"]);
-        let (gl, wl) = (
-            g["leaders"].as_array().unwrap(),
-            w["leaders"].as_array().unwrap(),
-        );
-        assert_eq!(gl.len(), wl.len(), "frame {}", w["frame"]);
-        for (a, b) in gl.iter().zip(wl) {
-            assert_eq!(a["robot"], b["robot"]);
-            assert_eq!(a["status"], b["status"]);
-            for k in [
-                "l12",
-                "alpha12",
-                "beta12",
-                "v1",
-                "w1",
-                "l12_std",
-                "alpha12_std",
-                "beta12_std",
-                "v1_std",
-                "w1_std",
-            ] {
-                let (x, y) = (a[k].as_f64().unwrap(), b[k].as_f64().unwrap());
-                assert!(
-                    (x - y).abs() <= 1e-9,
-                    "frame {} {k}: {x} vs {y}",
-                    w["frame"]
-                );
-            }
-            leaders += 1;
-        }
-        let (tg, tw) = (g["t"].as_f64().unwrap(), w["t"].as_f64().unwrap());
-        assert!((tg - tw).abs() < 1e-6, "t {tg} vs {tw}");
-    }
-    let _ = leaders;
-}
-
 fn expected(name: &str) -> Vec<serde_json::Value> {
     json_lines(&std::fs::read(fixtures().join(name)).unwrap())
 }
@@ -104,7 +62,7 @@ fn the_demo_bags_reproduce_the_folder_path() {
         );
         assert_eq!(out.status.code(), Some(0), "{bag}: {}", stderr(&out));
         let got = json_lines(&out.stdout);
-        same_estimates(&got, &want[..frames]);
+        common::same_estimates(&got, &want[..frames]);
         // Every line names its message and stamp.
         assert_eq!(got[1]["message"], 1);
         assert_eq!(got[0]["missing_before"], 0);
@@ -183,7 +141,7 @@ fn the_duckietown_rosbag2_folder_is_read_and_calibrated_from_camera_info() {
     );
     // tag36h11 is not read by this build: the folder path finds nothing either, and the
     // comparison checks frames, sources of time and marker counts.
-    same_estimates(
+    common::same_estimates(
         &json_lines(&out.stdout),
         &expected("duckietown.expected.jsonl"),
     );
@@ -512,5 +470,5 @@ fn a_truncated_or_corrupt_bag_keeps_the_frames_before_the_damage() {
     assert!(!before.is_empty());
     // The frames before the damage are the good bag's.
     let want = expected("demo.expected.jsonl");
-    same_estimates(&before, &want[..before.len()]);
+    common::same_estimates(&before, &want[..before.len()]);
 }

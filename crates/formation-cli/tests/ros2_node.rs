@@ -78,30 +78,12 @@ fn the_node_gives_what_track_gives() {
     assert!(stderr.contains("0 unusable"), "{stderr}");
     let got = json_lines(&std::fs::read_to_string(clip.dir.join("node.jsonl")).unwrap());
     assert_eq!(got.len(), frames, "{stderr}");
-    let mut compared = 0;
-    for (g, w) in got.iter().zip(&want) {
-        assert_eq!(g["frame"], w["frame"]);
-        let (gl, wl) = (
-            g["leaders"].as_array().unwrap(),
-            w["leaders"].as_array().unwrap(),
-        );
-        assert_eq!(gl.len(), wl.len(), "frame {}", w["frame"]);
-        for (a, b) in gl.iter().zip(wl) {
-            assert_eq!(a["robot"], b["robot"]);
-            assert_eq!(a["status"], b["status"], "frame {}", w["frame"]);
-            for k in ["l12", "alpha12", "beta12", "v1", "w1", "l12_std", "w1_std"] {
-                let (x, y) = (a[k].as_f64().unwrap(), b[k].as_f64().unwrap());
-                assert!(
-                    (x - y).abs() <= 1e-9,
-                    "frame {} {k}: node {x}, track {y}",
-                    w["frame"]
-                );
-                compared += 1;
-            }
-        }
-    }
+    let compared = common::same_estimates(&got, &want);
     // The leader is tracked through the clip: the comparison is not vacuous.
-    assert!(compared >= 7 * (frames - 2), "{compared} values compared");
+    assert!(
+        compared >= frames - 2,
+        "{compared} leader estimates compared"
+    );
     let _ = std::fs::remove_dir_all(&clip.dir);
 }
 

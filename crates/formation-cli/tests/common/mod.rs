@@ -146,3 +146,46 @@ pub fn lines_of(reader: impl std::io::Read + Send + 'static) -> std::sync::mpsc:
     });
     rx
 }
+
+/// Every leader field of `got` (JSON lines of `track` or the node) equals `want`'s to 1e-9,
+/// frame by frame; returns the number of leader estimates compared.
+pub fn same_estimates(got: &[serde_json::Value], want: &[serde_json::Value]) -> usize {
+    assert_eq!(got.len(), want.len(), "frame count");
+    let mut leaders = 0;
+    for (g, w) in got.iter().zip(want) {
+        assert_eq!(g["frame"], w["frame"]);
+        assert_eq!(g["markers"], w["markers"], "frame {}", w["frame"]);
+        let (gl, wl) = (
+            g["leaders"].as_array().unwrap(),
+            w["leaders"].as_array().unwrap(),
+        );
+        assert_eq!(gl.len(), wl.len(), "frame {}", w["frame"]);
+        for (a, b) in gl.iter().zip(wl) {
+            assert_eq!(a["robot"], b["robot"]);
+            assert_eq!(a["status"], b["status"]);
+            for k in [
+                "l12",
+                "alpha12",
+                "beta12",
+                "v1",
+                "w1",
+                "l12_std",
+                "alpha12_std",
+                "beta12_std",
+                "v1_std",
+                "w1_std",
+            ] {
+                let (x, y) = (a[k].as_f64().unwrap(), b[k].as_f64().unwrap());
+                assert!(
+                    (x - y).abs() <= 1e-9,
+                    "frame {} {k}: {x} vs {y}",
+                    w["frame"]
+                );
+            }
+            leaders += 1;
+        }
+        let (tg, tw) = (g["t"].as_f64().unwrap(), w["t"].as_f64().unwrap());
+        assert!((tg - tw).abs() < 1e-6, "t {tg} vs {tw}");
+    }
+    leaders
+}
