@@ -475,43 +475,16 @@ impl<'a> NodeState<'a> {
     }
 
     fn take_inputs(&mut self, sub: &InputsSub) {
-        let mut got: Vec<(Option<u64>, InputsResult)> = Vec::new();
-        let twist = |kind: &'static str, t: &msg::Twist| {
-            convert::follower_inputs(kind, t).map_err(|e| e.to_string())
-        };
-        match sub {
+        let got = match sub {
             InputsSub::Odometry(s) => {
-                let mut v = Vec::new();
-                drain(s, &mut v);
-                for m in v {
-                    got.push(match m {
-                        Ok((m, _)) => (m.header.stamp.to_ns(), twist("Odometry", &m.twist.twist)),
-                        Err(e) => (None, Err(format!("unreadable Odometry: {e}"))),
-                    });
-                }
+                inputs_of(s, "Odometry", |m| (m.header.stamp.to_ns(), &m.twist.twist))
             }
             InputsSub::Stamped(s) => {
-                let mut v = Vec::new();
-                drain(s, &mut v);
-                for m in v {
-                    got.push(match m {
-                        Ok((m, _)) => (m.header.stamp.to_ns(), twist("TwistStamped", &m.twist)),
-                        Err(e) => (None, Err(format!("unreadable TwistStamped: {e}"))),
-                    });
-                }
+                inputs_of(s, "TwistStamped", |m| (m.header.stamp.to_ns(), &m.twist))
             }
-            InputsSub::Twist(s) => {
-                let mut v = Vec::new();
-                drain(s, &mut v);
-                for m in v {
-                    got.push(match m {
-                        Ok((m, _)) => (None, twist("Twist", &m)),
-                        Err(e) => (None, Err(format!("unreadable Twist: {e}"))),
-                    });
-                }
-            }
-            InputsSub::None => {}
-        }
+            InputsSub::Twist(s) => inputs_of(s, "Twist", |m| (None, m)),
+            InputsSub::None => Vec::new(),
+        };
         for (stamp, r) in got {
             match r {
                 Ok((v, w)) => {
@@ -860,6 +833,30 @@ impl NodeState<'_> {
         errln!("ros2: {summary}");
         Ok(())
     }
+}
+
+/// Every inputs message waiting on `sub`: its stamp (if the type has one) and `(v2, w2)`, or
+/// why it is unusable.
+fn inputs_of<M: serde::de::DeserializeOwned + 'static>(
+    sub: &Subscription<M>,
+    kind: &'static str,
+    twist: impl Fn(&M) -> (Option<u64>, &msg::Twist),
+) -> Vec<(Option<u64>, InputsResult)> {
+    let mut taken = Vec::new();
+    drain(sub, &mut taken);
+    taken
+        .into_iter()
+        .map(|m| match m {
+            Ok((m, _)) => {
+                let (stamp, t) = twist(&m);
+                (
+                    stamp,
+                    convert::follower_inputs(kind, t).map_err(|e| e.to_string()),
+                )
+            }
+            Err(e) => (None, Err(format!("unreadable {kind}: {e}"))),
+        })
+        .collect()
 }
 
 /// The median and 99th percentile of `v` (0 when empty).
