@@ -10,7 +10,7 @@
 //! order of their `.msg` files, under their standard type names, so that `ros2 topic echo`
 //! and Foxglove read them with nothing of ours installed.
 //!
-//! - [`env`]: `ROS_DOMAIN_ID` and `ROS_AUTOMATIC_DISCOVERY_RANGE` (`LOCALHOST` keeps every
+//! - [`env`](mod@env): `ROS_DOMAIN_ID` and `ROS_AUTOMATIC_DISCOVERY_RANGE` (`LOCALHOST` keeps every
 //!   packet on the loopback interface), read as a ROS 2 installation reads them.
 //! - [`topics`]: names resolved as ROS resolves them, and the two QoS profiles: sensor data
 //!   (best effort, keep last) for what a camera driver publishes, reliable for estimates.

@@ -27,9 +27,9 @@ mod pair;
 /// --scenario FILE: the demo's robot pair of a scenario file. Each step renders the
 /// follower's camera and publishes it with its CameraInfo and the follower's odometry, then
 /// waits up to --step-timeout for a geometry_msgs/msg/Twist on --cmd-vel-topic and moves the
-/// follower by the latest one through the scenario's actuation. Time is the scenario's
-/// (stamps step by its frame period) whatever the wall-clock rate; --truth writes the true
-/// formation per step.
+/// follower by the latest one through the scenario's actuation. Frames go out at the
+/// scenario's frame rate when rendering and the node keep up, later when not; stamps step by
+/// the frame period either way. --truth writes the true formation per step.
 ///
 /// Waits for a subscriber to the images and the calibration before the first frame. The DDS
 /// domain is ROS_DOMAIN_ID; ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST keeps every packet on

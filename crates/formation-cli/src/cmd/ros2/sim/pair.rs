@@ -65,6 +65,11 @@ pub fn run(args: &Args, file: &Path) -> Result<(), CliError> {
         };
         let odometry = pair.odometry();
         let stamp_ns = base_ns + (t * 1e9).round() as u64;
+        // At the scenario's frame rate when rendering and the node keep up; later when not
+        // (lockstep: the simulated time waits for the follower's answer).
+        std::thread::sleep(
+            (started + Duration::from_secs_f64(t)).saturating_duration_since(Instant::now()),
+        );
         out.publish(args, stamp_ns, &camera, (odometry.v, odometry.w), &grey)?;
         // Lockstep: the follower's answer to this frame, or the last command after the
         // timeout (a frame the node dropped, or a node that does not drive).
