@@ -12,6 +12,16 @@ use common::{CLIP_ARGS, reference_clip};
 
 const BIN: &str = env!("CARGO_BIN_EXE_formation-tracker");
 
+/// One namespace test at a time: each runs a node against a 30 Hz publisher and counts
+/// dropped frames, which other tests' rendering on the same two cores must not cause.
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
+    ONE_AT_A_TIME
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
 /// Runs `script` (bash) in a new user and network namespace whose only interface is the
 /// loopback, up, with multicast routed to it; ROS 2 discovery kept on localhost.
 fn in_namespace(script: &str, dir: &Path) -> Output {
@@ -44,6 +54,7 @@ fn json_lines(text: &str) -> Vec<serde_json::Value> {
 /// `track`'s on the same frames to 1e-9, no frame dropped.
 #[test]
 fn the_node_gives_what_track_gives() {
+    let _serial = one_at_a_time();
     let frames = 45;
     let clip = reference_clip("ros2-node", frames);
     let track = Command::new(BIN)
@@ -119,6 +130,7 @@ fn this_test_in_namespace(name: &str) {
 /// and the node goes on, tracks the good frames, and stops cleanly on SIGINT.
 #[test]
 fn the_node_reports_bad_input_and_goes_on() {
+    let _serial = one_at_a_time();
     this_test_in_namespace("bad_input_inside_a_namespace");
 }
 
@@ -289,6 +301,7 @@ fn bad_input_inside_a_namespace() {
 /// drives again once the leader is back.
 #[test]
 fn closed_loop_across_processes_holds_the_formation_and_stops_when_the_leader_is_hidden() {
+    let _serial = one_at_a_time();
     let dir = std::env::temp_dir().join(format!("ft-ros2-loop-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
@@ -372,6 +385,7 @@ fn closed_loop_across_processes_holds_the_formation_and_stops_when_the_leader_is
 /// reliable readers get everything: `cargo xtask ros2-interop`), see docs/ros2.md.
 #[test]
 fn a_subscriber_gets_every_message_the_node_publishes() {
+    let _serial = one_at_a_time();
     this_test_in_namespace("every_message_inside_a_namespace");
 }
 
