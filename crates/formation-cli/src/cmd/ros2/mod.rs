@@ -21,17 +21,18 @@ pub enum InputsType {
     None,
 }
 
-/// Takes every sample waiting on `sub`, in arrival order, with its publisher sequence
-/// number; a sample that fails to decode is returned as its error text.
-fn drain<M: serde::de::DeserializeOwned + 'static>(
+/// Takes every sample waiting on `sub`, in arrival order, as `wrap` makes it, with its
+/// publisher sequence number; a sample that fails to decode is returned as its error text.
+fn drain<M: serde::de::DeserializeOwned + 'static, T>(
     sub: &Subscription<M>,
-    out: &mut Vec<Result<(M, i64), String>>,
+    wrap: impl Fn(M) -> T,
+    out: &mut Vec<Result<(T, i64), String>>,
 ) {
     // Bounded: the reader's history depth bounds what can be waiting, and this cap guards
     // against a publisher faster than the loop.
     for _ in 0..1024 {
         match sub.take() {
-            Ok(Some((m, info))) => out.push(Ok((m, info.sequence_number()))),
+            Ok(Some((m, info))) => out.push(Ok((wrap(m), info.sequence_number()))),
             Ok(None) => break,
             Err(e) => out.push(Err(format!("{e:?}"))),
         }

@@ -272,13 +272,13 @@ pub fn run(args: Args) -> Result<(), CliError> {
         inputs: VecDeque::new(),
         first_stamp: None,
         last_stamp: None,
-        last_seq: HashMap::new(),
+        last_seq: None,
         counts: Counts::default(),
         leaders,
         seen: std::collections::BTreeSet::new(),
-        latencies: Vec::new(),
-        stages: Vec::new(),
-        window: Vec::new(),
+        latencies: Histogram::new(),
+        stages: std::array::from_fn(|_| Histogram::new()),
+        window: Histogram::new(),
         said: HashMap::new(),
         last_seen: None,
         frames: FrameIds {
@@ -306,7 +306,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
         // Calibration and inputs first, so that a frame finds what arrived before it.
         let mut infos = Vec::new();
-        drain(&info, &mut infos);
+        drain(&info, |m| m, &mut infos);
         for m in infos {
             state.camera_info(m);
         }
@@ -314,22 +314,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
         let arrived = Instant::now();
         batch.clear();
         match &images {
-            Images::Raw(s) => {
-                let mut got = Vec::new();
-                drain(s, &mut got);
-                batch.extend(
-                    got.into_iter()
-                        .map(|r| r.map(|(m, q)| (Received::Raw(m), q))),
-                );
-            }
-            Images::Compressed(s) => {
-                let mut got = Vec::new();
-                drain(s, &mut got);
-                batch.extend(
-                    got.into_iter()
-                        .map(|r| r.map(|(m, q)| (Received::Compressed(m), q))),
-                );
-            }
+            Images::Raw(s) => drain(s, Received::Raw, &mut batch),
+            Images::Compressed(s) => drain(s, Received::Compressed, &mut batch),
         }
         let taken = Instant::now();
         if let Some(newest) = state.newest(&mut batch) {
@@ -339,14 +325,17 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 state.publish(&done, stamp, &tf, &annotations, cmd_vel.as_ref())?;
                 let ms = |from: Instant, to: Instant| (to - from).as_secs_f64() * 1e3;
                 let now = Instant::now();
-                state.latencies.push(ms(arrived, now));
-                state.window.push(ms(arrived, now));
-                state.stages.push([
+                state.latencies.add(ms(arrived, now));
+                state.window.add(ms(arrived, now));
+                let stages = [
                     ms(arrived, taken),
                     ms(taken, tracked) - done.timing.total_ms(),
                     done.timing.total_ms(),
                     ms(tracked, now),
-                ]);
+                ];
+                for (h, v) in state.stages.iter_mut().zip(stages) {
+                    h.add(v);
+                }
             }
         }
         if let (Some(p), Some(_)) = (&cmd_vel, &state.controller) {
@@ -357,7 +346,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 .publish(state.diagnostics(&window_counts))
                 .map_err(|e| format!("cannot publish /diagnostics: {e:?}"))?;
             window_counts = state.counts;
-            state.window.clear();
+            state.window = Histogram::new();
             next_diag += Duration::from_secs(1);
         }
     }
@@ -400,19 +389,19 @@ struct NodeState<'a> {
     inputs: VecDeque<(Option<u64>, f64, f64)>,
     first_stamp: Option<u64>,
     last_stamp: Option<u64>,
-    /// The last image sequence number seen per publisher (by its first sample's number).
-    last_seq: HashMap<u8, i64>,
+    /// The last image sequence number seen (one camera publisher).
+    last_seq: Option<i64>,
     counts: Counts,
     leaders: HashMap<u32, LeaderPubs>,
     /// The leaders tracked so far.
     seen: std::collections::BTreeSet<u32>,
-    /// Arrival-to-publication times of every tracked frame, ms.
-    latencies: Vec<f64>,
+    /// Arrival-to-publication times of every tracked frame.
+    latencies: Histogram,
     /// The same over the current diagnostics period.
-    window: Vec<f64>,
-    /// Per tracked frame, ms: taking the image (deserialising), decoding and the stdout
-    /// line, the pipeline, publishing.
-    stages: Vec<[f64; 4]>,
+    window: Histogram,
+    /// Per tracked frame: taking the image (deserialising), decoding and the stdout line,
+    /// the pipeline, publishing.
+    stages: [Histogram; 4],
     /// How many times each kind of problem was reported (the first few are printed).
     said: HashMap<&'static str, u64>,
     /// Stamp of the last frame in which the controlled leader was measured, ns.
@@ -529,7 +518,7 @@ impl<'a> NodeState<'a> {
                     self.counts.received += 1;
                     // One publisher per camera: a sequence number that goes back starts a
                     // new publisher.
-                    let last = self.last_seq.insert(0, seq);
+                    let last = self.last_seq.replace(seq);
                     if let Some(last) = last
                         && seq > last + 1
                     {
@@ -759,7 +748,7 @@ impl NodeState<'_> {
         let tracked = c.tracked - before.tracked;
         let dropped = (c.skipped + c.missed) - (before.skipped + before.missed);
         let bad = c.bad - before.bad;
-        let (median, p99) = percentiles(&self.window);
+        let (median, p99) = (self.window.quantile(0.5), self.window.quantile(0.99));
         let leaders = self.seen.len();
         let (level, message) = if tracked == 0 {
             (1, "no frame tracked in the last second".to_owned())
@@ -806,8 +795,8 @@ impl NodeState<'_> {
     /// Ends the run: the session's end (stdout flushed, `--mcap` kept) and the summary.
     fn finish(self) -> Result<(), CliError> {
         let c = self.counts;
-        let (median, p99) = percentiles(&self.latencies);
-        let stage = |i: usize| percentiles(&self.stages.iter().map(|s| s[i]).collect::<Vec<_>>()).0;
+        let (median, p99) = (self.latencies.quantile(0.5), self.latencies.quantile(0.99));
+        let stage = |i: usize| self.stages[i].quantile(0.5);
         let summary = format!(
             "{} frames tracked of {} received; {} dropped ({} skipped while busy, {} missing from the sequence), {} unusable, {} unusable inputs; latency from arrival to publication: median {median:.2} ms, 99th percentile {p99:.2} ms (medians: taking the image {:.2} ms, decoding and the stdout line {:.2} ms, pipeline {:.2} ms, publishing {:.2} ms)",
             c.tracked,
@@ -843,7 +832,7 @@ fn inputs_of<M: serde::de::DeserializeOwned + 'static>(
     twist: impl Fn(&M) -> (Option<u64>, &msg::Twist),
 ) -> Vec<(Option<u64>, InputsResult)> {
     let mut taken = Vec::new();
-    drain(sub, &mut taken);
+    drain(sub, |m| m, &mut taken);
     taken
         .into_iter()
         .map(|m| match m {
@@ -859,15 +848,46 @@ fn inputs_of<M: serde::de::DeserializeOwned + 'static>(
         .collect()
 }
 
-/// The median and 99th percentile of `v` (0 when empty).
-fn percentiles(v: &[f64]) -> (f64, f64) {
-    if v.is_empty() {
-        return (0.0, 0.0);
+/// Times in milliseconds, counted in 10 us bins up to 100 ms (and one bin beyond): the
+/// percentiles of a run of any length in fixed memory (a node runs for days).
+#[derive(Debug, Clone)]
+struct Histogram {
+    bins: Vec<u64>,
+    n: u64,
+}
+
+impl Histogram {
+    const BIN_MS: f64 = 0.01;
+    const BINS: usize = 10_000;
+
+    fn new() -> Self {
+        Self {
+            bins: vec![0; Self::BINS + 1],
+            n: 0,
+        }
     }
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    let at = |q: f64| s[((s.len() - 1) as f64 * q).round() as usize];
-    (at(0.5), at(0.99))
+
+    fn add(&mut self, ms: f64) {
+        let bin = (ms.max(0.0) / Self::BIN_MS) as usize;
+        self.bins[bin.min(Self::BINS)] += 1;
+        self.n += 1;
+    }
+
+    /// The `q` quantile (nearest rank), as the middle of its bin; 0 when empty.
+    fn quantile(&self, q: f64) -> f64 {
+        if self.n == 0 {
+            return 0.0;
+        }
+        let rank = ((self.n - 1) as f64 * q).round() as u64;
+        let mut below = 0;
+        for (i, &c) in self.bins.iter().enumerate() {
+            below += c;
+            if below > rank {
+                return (i as f64 + 0.5) * Self::BIN_MS;
+            }
+        }
+        (Self::BINS as f64 + 0.5) * Self::BIN_MS
+    }
 }
 
 fn twist_of(c: Inputs) -> msg::Twist {
@@ -921,4 +941,36 @@ fn annotations_of(
         });
     }
     a
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Histogram;
+
+    #[test]
+    fn histogram_quantiles_are_the_nearest_ranks_to_a_bin() {
+        let mut h = Histogram::new();
+        assert_eq!(h.quantile(0.5), 0.0);
+        for i in 1..=100 {
+            h.add(f64::from(i) * 0.1);
+        }
+        // Nearest rank of 1..100 x 0.1 ms: the median is the 51st value (5.1 ms), the 99th
+        // percentile the 99th (9.9 ms); each read back within half a bin.
+        assert!(
+            (h.quantile(0.5) - 5.1).abs() <= 0.005 + 1e-12,
+            "{}",
+            h.quantile(0.5)
+        );
+        assert!(
+            (h.quantile(0.99) - 9.9).abs() <= 0.005 + 1e-12,
+            "{}",
+            h.quantile(0.99)
+        );
+        // Beyond the last bin, and below zero, values are kept at the ends.
+        h.add(1e6);
+        h.add(-1.0);
+        assert_eq!(h.n, 102);
+        assert!(h.quantile(1.0) > 100.0);
+        assert!(h.quantile(0.0) < 0.01);
+    }
 }
