@@ -95,8 +95,7 @@ impl FollowerController {
     pub fn at(&self, t: f64) -> ControllerConfig {
         let mut c = self.controller;
         for change in self.setpoints.iter().take_while(|s| s.at <= t) {
-            c.l12_desired = change.l12.unwrap_or(c.l12_desired);
-            c.alpha12_desired = change.alpha12.unwrap_or(c.alpha12_desired);
+            c = c.with_setpoints(change.l12, change.alpha12);
         }
         c
     }
@@ -152,9 +151,7 @@ pub fn from_text(
                 change.at
             )));
         }
-        let mut c = controller;
-        c.l12_desired = change.l12.unwrap_or(c.l12_desired);
-        c.alpha12_desired = change.alpha12.unwrap_or(c.alpha12_desired);
+        let c = controller.with_setpoints(change.l12, change.alpha12);
         SeparationBearingController::new(1.0, c)
             .map_err(|e| invalid(format!("field `setpoints[{i}]`: {e}")))?;
     }

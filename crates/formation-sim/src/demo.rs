@@ -990,9 +990,10 @@ impl Follower {
         let mut due: Vec<_> = spec.setpoints.iter().filter(|s| t >= s.at).collect();
         due.sort_by(|a, b| a.at.total_cmp(&b.at));
         for change in due.iter().skip(self.setpoints_applied) {
-            let mut goal = *self.controller.config();
-            goal.l12_desired = change.l12.unwrap_or(goal.l12_desired);
-            goal.alpha12_desired = change.alpha12.unwrap_or(goal.alpha12_desired);
+            let goal = self
+                .controller
+                .config()
+                .with_setpoints(change.l12, change.alpha12);
             self.controller = SeparationBearingController::new(world.mount.offset, goal)?;
         }
         self.setpoints_applied = self.setpoints_applied.max(due.len());

@@ -119,8 +119,7 @@ impl RobotPair {
         let mut due: Vec<_> = self.spec.setpoints.iter().filter(|s| t >= s.at).collect();
         due.sort_by(|a, b| a.at.total_cmp(&b.at));
         for change in due {
-            goal.l12_desired = change.l12.unwrap_or(goal.l12_desired);
-            goal.alpha12_desired = change.alpha12.unwrap_or(goal.alpha12_desired);
+            goal = goal.with_setpoints(change.l12, change.alpha12);
         }
         Ok(goal)
     }

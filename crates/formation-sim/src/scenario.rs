@@ -396,8 +396,7 @@ impl<F: Fn(f64) -> Inputs> Simulation<F> {
         let truth = self.model.state_from_poses(&self.leader, &self.follower)?;
         let mut changed = false;
         while let Some(change) = self.schedule.get(self.next_change).filter(|c| t >= c.at) {
-            self.goal.l12_desired = change.l12.unwrap_or(self.goal.l12_desired);
-            self.goal.alpha12_desired = change.alpha12.unwrap_or(self.goal.alpha12_desired);
+            self.goal = self.goal.with_setpoints(change.l12, change.alpha12);
             self.next_change += 1;
             changed = true;
         }

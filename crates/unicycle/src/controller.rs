@@ -61,6 +61,16 @@ impl ControllerConfig {
             max_w: None,
         }
     }
+
+    /// These settings after a set-point change: the new `l12` and `alpha12` where given,
+    /// the old ones where `None`.
+    pub fn with_setpoints(self, l12: Option<f64>, alpha12: Option<f64>) -> Self {
+        Self {
+            l12_desired: l12.unwrap_or(self.l12_desired),
+            alpha12_desired: alpha12.unwrap_or(self.alpha12_desired),
+            ..self
+        }
+    }
 }
 
 /// The follower's separation-bearing (`l-psi`) controller; see the module documentation.
