@@ -1,5 +1,6 @@
 //! Topic names and qualities of service.
 
+use ros2_client::dds::rustdds::Topic;
 use ros2_client::dds::{Node, Publisher, Subscription};
 use ros2_client::qos::{Durability, History};
 use ros2_client::{MessageTypeName, Name, QosProfile};
@@ -55,8 +56,11 @@ pub fn resolve(namespace: &str, name: &str) -> Result<Name, Ros2Error> {
     Name::parse(&full).map_err(|e| bad(format!("{e:?}")))
 }
 
-fn type_name<M: RosType>() -> MessageTypeName {
-    MessageTypeName::new(M::PACKAGE, M::NAME)
+/// The topic `name` (resolved in the node's namespace) of `M`'s type.
+fn topic<M: RosType>(node: &mut Node, name: &str, qos: &QosProfile) -> Result<Topic, Ros2Error> {
+    let full = resolve(node.namespace(), name)?;
+    node.create_topic(&full, MessageTypeName::new(M::PACKAGE, M::NAME), qos)
+        .map_err(|e| Ros2Error::Dds(format!("topic {name}: {e:?}")))
 }
 
 /// A publisher of `M` on `name` (resolved in the node's namespace).
@@ -68,10 +72,7 @@ pub fn publisher<M: RosType + Serialize>(
     name: &str,
     qos: &QosProfile,
 ) -> Result<Publisher<M>, Ros2Error> {
-    let full = resolve(node.namespace(), name)?;
-    let topic = node
-        .create_topic(&full, type_name::<M>(), qos)
-        .map_err(|e| Ros2Error::Dds(format!("topic {name}: {e:?}")))?;
+    let topic = topic::<M>(node, name, qos)?;
     node.create_publisher(&topic, Some(qos.clone()))
         .map_err(|e| Ros2Error::Dds(format!("publisher on {name}: {e:?}")))
 }
@@ -85,10 +86,7 @@ pub fn subscription<M: RosType + DeserializeOwned + 'static>(
     name: &str,
     qos: &QosProfile,
 ) -> Result<Subscription<M>, Ros2Error> {
-    let full = resolve(node.namespace(), name)?;
-    let topic = node
-        .create_topic(&full, type_name::<M>(), qos)
-        .map_err(|e| Ros2Error::Dds(format!("topic {name}: {e:?}")))?;
+    let topic = topic::<M>(node, name, qos)?;
     node.create_subscription(&topic, Some(qos.clone()))
         .map_err(|e| Ros2Error::Dds(format!("subscription to {name}: {e:?}")))
 }
