@@ -22,15 +22,25 @@ fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
         .unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
-/// Runs `script` (bash) in a new user and network namespace whose only interface is the
-/// loopback, up, with multicast routed to it; ROS 2 discovery kept on localhost.
+/// `bash -c "SCRIPT"` (its arguments follow as `$0`, `$1`, ...) in a new user and network
+/// namespace whose only interface is the loopback, up, with multicast routed to it; ROS 2
+/// discovery kept on localhost, in `domain`.
+fn namespace_command(script: &str, domain: &str) -> Command {
+    let mut c = Command::new("unshare");
+    c.args(["--user", "--map-root-user", "--net", "bash", "-c"])
+        .arg(format!(
+            "set -e; ip link set lo up; ip link set lo multicast on; \
+             ip route add 224.0.0.0/4 dev lo; {script}"
+        ))
+        .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        .env("ROS_DOMAIN_ID", domain);
+    c
+}
+
+/// Runs `script` in a private network namespace ([`namespace_command`]), in `dir`, with the
+/// binary as `$BIN`.
 fn in_namespace(script: &str, dir: &Path) -> Output {
-    let setup = "set -e; ip link set lo up; ip link set lo multicast on; \
-                 ip route add 224.0.0.0/4 dev lo; export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST; \
-                 export ROS_DOMAIN_ID=17;";
-    let out = Command::new("unshare")
-        .args(["--user", "--map-root-user", "--net", "bash", "-c"])
-        .arg(format!("{setup} {script}"))
+    let out = namespace_command(script, "17")
         .env("BIN", BIN)
         .current_dir(dir)
         .output()
@@ -101,18 +111,14 @@ fn the_node_gives_what_track_gives() {
 /// Runs the ignored test `name` of this binary inside a private network namespace.
 fn this_test_in_namespace(name: &str) {
     let exe = std::env::current_exe().unwrap();
-    let out = Command::new("unshare")
-        .args(["--user", "--map-root-user", "--net", "bash", "-c"])
-        .arg(
-            "set -e; ip link set lo up; ip link set lo multicast on; \
-             ip route add 224.0.0.0/4 dev lo; exec \"$0\" --exact \"$1\" --include-ignored --nocapture",
-        )
-        .arg(exe)
-        .arg(name)
-        .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-        .env("ROS_DOMAIN_ID", "18")
-        .output()
-        .expect("`unshare` (util-linux) runs these tests in a private network namespace");
+    let out = namespace_command(
+        "exec \"$0\" --exact \"$1\" --include-ignored --nocapture",
+        "18",
+    )
+    .arg(exe)
+    .arg(name)
+    .output()
+    .expect("`unshare` (util-linux) runs these tests in a private network namespace");
     let text = format!(
         "{}\n{}",
         String::from_utf8_lossy(&out.stdout),
