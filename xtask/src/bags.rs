@@ -163,7 +163,7 @@ pub fn run(args: &[String]) -> Result {
     let k = demo_k(&camera_yaml)?;
 
     // 2. Duckietown.
-    let dt_dir = realdata(&root)?;
+    let dt_dir = crate::realdata(&root, "duckietown")?;
     let dt_folder = work.join("duckietown-frames");
     if dt_folder.exists() {
         std::fs::remove_dir_all(&dt_folder)?;
@@ -272,21 +272,6 @@ pub fn run(args: &[String]) -> Result {
         size as f64 / 1e6
     );
     Ok(())
-}
-
-/// `shared/realdata/duckietown` beside the repository (`../shared`), or beside one of its
-/// ancestors (a git worktree lives deeper), or `$FORMATION_REALDATA`.
-fn realdata(root: &Path) -> Result<PathBuf> {
-    if let Some(dir) = std::env::var_os("FORMATION_REALDATA") {
-        return Ok(PathBuf::from(dir).join("duckietown"));
-    }
-    root.ancestors()
-        .map(|a| a.join("shared/realdata/duckietown"))
-        .find(|d| d.is_dir())
-        .ok_or_else(|| {
-            "cannot find shared/realdata/duckietown beside the repository (set FORMATION_REALDATA)"
-                .into()
-        })
 }
 
 /// JSON lines without what changes from run to run or machine to machine: the wall-clock

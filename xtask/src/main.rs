@@ -15,12 +15,30 @@ mod dictionary;
 mod dukf_table;
 mod figures;
 mod fingerprint;
+mod photos;
 mod pyenv;
 mod random_scenes;
 mod release;
 mod ros2_interop;
 mod solvepnp;
 mod unused_deps;
+
+/// `shared/realdata/<sub>` beside the repository (`../shared`), or beside one of its
+/// ancestors (a git worktree lives deeper), or `$FORMATION_REALDATA/<sub>`.
+fn realdata(root: &std::path::Path, sub: &str) -> Result<std::path::PathBuf> {
+    if let Some(dir) = std::env::var_os("FORMATION_REALDATA") {
+        return Ok(std::path::PathBuf::from(dir).join(sub));
+    }
+    root.ancestors()
+        .map(|a| a.join("shared/realdata").join(sub))
+        .find(|d| d.is_dir())
+        .ok_or_else(|| {
+            format!(
+                "cannot find shared/realdata/{sub} beside the repository (set FORMATION_REALDATA)"
+            )
+            .into()
+        })
+}
 
 type Result<T = ()> = std::result::Result<T, Box<dyn std::error::Error>>;
 
@@ -50,6 +68,10 @@ commands:
                    solvePnP and a filterpy UKF on identical inputs, in a Python venv under
                    target/py-venv; writes docs/comparison.md and docs/img/comparison-*.svg
                    (--quick: few scenes; --scenes N: scenes per condition at 640x480)
+  photos           time our detector on the real photographs of shared/realdata (no markers,
+                   the NASA robots, OpenCV's ArUco photo, Duckietown) and print, per photo,
+                   the median time, the reads and where the work went (--reps N, default 20;
+                   --dictionary NAME, default tag36h11; or name photos/folders to time)
   unused-deps      fail if a workspace crate declares a dependency its code never names
   figures          run the demo and copy its figures into docs/img/ (the README's)
   solvepnp         OpenCV's single-marker poses (solvePnP IPPE_SQUARE) and lens projections
@@ -81,6 +103,7 @@ fn main() -> ExitCode {
         Some("figures") => figures::run(&args[1..]),
         Some("solvepnp") => solvepnp::run(&args[1..]),
         Some("bags") => bags::run(&args[1..]),
+        Some("photos") => photos::run(&args[1..]),
         Some("compare") => compare::run(&args[1..]),
         Some("ros2-interop") => ros2_interop::run(&args[1..]),
         _ => {

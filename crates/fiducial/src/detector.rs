@@ -104,6 +104,50 @@ pub struct Detector {
     /// scan), and how many of those were blurred readings.
     early: Vec<Option<Decoded>>,
     early_blurred: usize,
+    /// The work counters of the last detection.
+    stats: DetectStats,
+}
+
+/// How much work the last detection did, stage by stage ([`Detector::stats`]): where the
+/// time of a frame goes. A frame of synthetic markers has about as many components big
+/// enough to examine as markers, and no second look; a real photograph has hundreds of
+/// components, and the second look (`second_look_px`) is what costs most on it.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct DetectStats {
+    /// Dark components of the binary image.
+    pub components: usize,
+    /// Components big enough to hold a marker (the rest are dropped unexamined).
+    pub examined: usize,
+    /// Quads refined by the first pass (one per component that was a quadrilateral).
+    pub first_quads: usize,
+    /// Components that gave no quad and were handed to the second look.
+    pub retries: usize,
+    /// Pixels of the boxes the second look read (each box once per cut it made).
+    pub second_look_px: u64,
+    /// Quads the second look added (light cut, re-cut, boundary clusters).
+    pub second_quads: usize,
+    /// Quads read by the decoder.
+    pub decoded: usize,
+    /// Of those, read once more as motion-blurred markers.
+    pub blurred: usize,
+}
+
+impl std::fmt::Display for DetectStats {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "components {} examined {} quads {} retries {} second-look px {} second quads {} \
+             decoded {} blurred {}",
+            self.components,
+            self.examined,
+            self.first_quads,
+            self.retries,
+            self.second_look_px,
+            self.second_quads,
+            self.decoded,
+            self.blurred
+        )
+    }
 }
 
 impl Default for Detector {
@@ -172,6 +216,7 @@ impl Detector {
             region_out: Vec::new(),
             bands: 1,
             workers: Vec::new(),
+            stats: DetectStats::default(),
         }
     }
 
@@ -259,7 +304,14 @@ impl Detector {
                 }
             }
         }
+        self.stats.decoded = self.quads.len();
+        self.stats.blurred = self.decoding.blur.solved_quads;
         self.quads.len()
+    }
+
+    /// The work counters of the last detection ([`DetectStats`]).
+    pub fn stats(&self) -> DetectStats {
+        self.stats
     }
 
     /// How many quads the last decoding read once more as motion-blurred markers
@@ -389,6 +441,7 @@ impl Detector {
     /// corners are refined on `img` itself.
     fn find_quads_scaled(&mut self, img: &GrayView<'_>, factor: usize) {
         self.quads.clear();
+        self.stats = DetectStats::default();
         // The threads' readings belong to this scan's quads only.
         self.early.clear();
         self.early_blurred = 0;
@@ -468,6 +521,8 @@ impl Detector {
         };
         self.retried.clear();
         self.retried.resize(components.len(), false);
+        self.stats.components = components.len();
+        self.stats.examined = components.iter().filter(|c| !ctx.too_small(c)).count();
         if self.bands > 1 {
             let dctx = DecodeContext {
                 config: &self.config,
@@ -503,6 +558,8 @@ impl Detector {
                 }
             }
         }
+        self.stats.first_quads = self.quads.len();
+        self.stats.retries = self.retry.len();
         // The pixels the re-cut cuts again (it runs on a full-resolution scan only).
         self.retry_runs.clear();
         if f == 1 && !self.retry.is_empty() {
@@ -533,6 +590,7 @@ impl Detector {
             ..limits
         };
         self.split_retries(img, &full_limits, cells_across, f);
+        self.stats.second_quads = self.quads.len() - self.stats.first_quads;
     }
 
     /// Re-cuts the components that gave no quad ([`Splitter`]; only after a full-resolution
@@ -582,6 +640,7 @@ impl Detector {
             for &rect in &self.retry {
                 if rect.x1 - rect.x0 < LIGHT_CUT_MAX_SIDE && rect.y1 - rect.y0 < LIGHT_CUT_MAX_SIDE
                 {
+                    self.stats.second_look_px += area(&rect);
                     self.splitter.cut_at(
                         img,
                         None,
@@ -608,6 +667,8 @@ impl Detector {
             self.retry.push(u);
         }
         for &rect in &self.retry {
+            let passes = u64::from(factor == 1) + u64::from(cfg.boundary_clusters);
+            self.stats.second_look_px += passes * area(&rect);
             if factor == 1 {
                 self.splitter
                     .split(img, &self.retry_runs, rect, &params, |c| {

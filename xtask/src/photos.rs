@@ -1,0 +1,224 @@
+//! `cargo xtask photos`: our detector on real photographs, one photo at a time.
+//!
+//! Real frames are what a robot's camera sees: texture, edges, chessboards, JPEG artefacts.
+//! This times [`Detector::detect`] (one thread, `--reps` runs after one warm-up, median) on
+//! every photo of `shared/realdata/photos/notags`, the NASA robots, OpenCV's ArUco photo and
+//! the Duckietown frames, or on the photos and folders named, and prints per photo its size,
+//! the median time, the markers read and the detector's work counters
+//! ([`fiducial::DetectStats`]): where the time of a frame goes. The sums at the end are
+//! what `cargo xtask compare`'s real-photo section compares with the peers.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use fiducial::{Detector, DetectorConfig, GrayView, dictionary_by_name};
+
+const USAGE: &str = "usage: cargo xtask photos [--reps N] [--dictionary NAME] [PHOTO|FOLDER]...";
+
+/// Photo files (PNG or JPEG) of `dir`, sorted by name.
+pub(crate) fn photos_in(dir: &Path) -> crate::Result<Vec<PathBuf>> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| format!("{}: {e}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| matches!(e.to_ascii_lowercase().as_str(), "png" | "jpg" | "jpeg"))
+        })
+        .collect();
+    v.sort();
+    Ok(v)
+}
+
+/// The default photo set: every real photo beside the repository.
+pub(crate) fn default_photos(root: &Path) -> crate::Result<Vec<PathBuf>> {
+    let mut v = Vec::new();
+    for sub in ["photos/notags", "nasa", "photos/aruco", "duckietown"] {
+        v.extend(photos_in(&crate::realdata(root, sub)?)?);
+    }
+    Ok(v)
+}
+
+/// A photo as grey pixels.
+pub(crate) fn load_gray(path: &Path) -> crate::Result<(Vec<u8>, usize, usize)> {
+    let img = image::open(path)
+        .map_err(|e| format!("{}: {e}", path.display()))?
+        .to_luma8();
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    Ok((img.into_raw(), w, h))
+}
+
+/// The reference corners of a photo (`<photo>.txt` beside it, one tag a line: `id, (x y)`
+/// four times, in AprilTag's pixel convention, pixel centres at half-integers), in ours
+/// (integer pixel centres).
+pub(crate) fn reference(photo: &Path) -> crate::Result<Option<Vec<(usize, [[f64; 2]; 4])>>> {
+    let txt = photo.with_extension("txt");
+    if !txt.is_file() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&txt)?;
+    let mut out = Vec::new();
+    for (n, line) in text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+    {
+        let bad = || format!("{}:{}: not `id, (x y) x4`: {line}", txt.display(), n + 1);
+        let (id, rest) = line.split_once(',').ok_or_else(bad)?;
+        let id: usize = id.trim().parse().map_err(|_| bad())?;
+        let v: Vec<f64> = rest
+            .split(|c: char| c == '(' || c == ')' || c == ',' || c.is_whitespace())
+            .filter(|t| !t.is_empty())
+            .map(str::parse)
+            .collect::<Result<_, _>>()
+            .map_err(|_| bad())?;
+        if v.len() != 8 {
+            return Err(bad().into());
+        }
+        out.push((
+            id,
+            core::array::from_fn(|i| [v[2 * i] - 0.5, v[2 * i + 1] - 0.5]),
+        ));
+    }
+    Ok(Some(out))
+}
+
+/// The largest distance from a corner of `want` to the nearest corner of `got` (any start:
+/// AprilTag's corner order differs from ours).
+pub(crate) fn corner_error(got: &[[f64; 2]; 4], want: &[[f64; 2]; 4]) -> f64 {
+    want.iter()
+        .map(|w| {
+            got.iter()
+                .map(|g| (g[0] - w[0]).hypot(g[1] - w[1]))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .fold(0.0, f64::max)
+}
+
+pub fn run(args: &[String]) -> crate::Result {
+    let mut reps = 20usize;
+    let mut dictionary = "tag36h11".to_string();
+    let mut paths = Vec::new();
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--reps" => {
+                reps = it
+                    .next()
+                    .and_then(|v| v.parse().ok())
+                    .filter(|&n| n > 0)
+                    .ok_or("--reps needs a positive count")?
+            }
+            "--dictionary" => dictionary = it.next().ok_or("--dictionary needs a name")?.clone(),
+            "-h" | "--help" => {
+                println!("{USAGE}");
+                return Ok(());
+            }
+            s if s.starts_with('-') => return Err(format!("unknown option {s}\n{USAGE}").into()),
+            s => {
+                let p = PathBuf::from(s);
+                if p.is_dir() {
+                    paths.extend(photos_in(&p)?);
+                } else {
+                    paths.push(p);
+                }
+            }
+        }
+    }
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .ok_or("xtask has no parent folder")?
+        .to_path_buf();
+    if paths.is_empty() {
+        paths = default_photos(&root)?;
+    }
+    let dict = dictionary_by_name(&dictionary)?.clone();
+    let mut det = Detector::with_dictionary(DetectorConfig::default(), dict);
+    println!(
+        "{:<34} {:>10} {:>9} {:>5}  work",
+        "photo", "size", "ms", "reads"
+    );
+    let mut total = 0.0;
+    let mut out = Vec::new();
+    for p in &paths {
+        let (px, w, h) = load_gray(p)?;
+        let img = GrayView::new(&px, w, h)?;
+        det.detect(&img, &mut out);
+        let mut times = Vec::with_capacity(reps);
+        for _ in 0..reps {
+            let t = Instant::now();
+            det.detect(&img, &mut out);
+            times.push(t.elapsed().as_secs_f64());
+        }
+        times.sort_by(f64::total_cmp);
+        let med = times[times.len() / 2];
+        total += med;
+        let name = p
+            .file_name()
+            .map(|n| n.to_string_lossy())
+            .unwrap_or_default();
+        println!(
+            "{:<34} {:>10} {:>9.3} {:>5}  {}",
+            name,
+            format!("{w}x{h}"),
+            1e3 * med,
+            out.len(),
+            det.stats()
+        );
+        if let Some(refs) = reference(p)? {
+            for (id, want) in &refs {
+                let read = out
+                    .iter()
+                    .filter(|d| d.index == *id)
+                    .map(|d| corner_error(&d.corners.map(|c| [c.x, c.y]), want))
+                    .fold(f64::INFINITY, f64::min);
+                let quad = det
+                    .quads()
+                    .iter()
+                    .map(|q| corner_error(&q.corners.map(|c| [c.x, c.y]), want))
+                    .fold(f64::INFINITY, f64::min);
+                let why = if read < 3.0 {
+                    String::new()
+                } else if quad < 3.0 {
+                    let q = det
+                        .quads()
+                        .iter()
+                        .min_by(|a, b| {
+                            corner_error(&a.corners.map(|c| [c.x, c.y]), want)
+                                .total_cmp(&corner_error(&b.corners.map(|c| [c.x, c.y]), want))
+                        })
+                        .map(|q| q.corners);
+                    match q
+                        .map(|c| fiducial::decode(&img, &c, det.dictionary(), &det.config().decode))
+                    {
+                        Some(Err(e)) => format!(" decode: {e}"),
+                        Some(Ok(d)) => match &det.config().side_check {
+                            Some(check) => format!(
+                                " decodes alone; side check: {:?}",
+                                fiducial::side_offsets(&img, &d, det.dictionary().family(), check)
+                            ),
+                            None => " decodes alone".into(),
+                        },
+                        _ => String::new(),
+                    }
+                } else {
+                    String::new()
+                };
+                println!(
+                    "  reference tag {id} at ({:.0}, {:.0}): read {} (corner error {:.2} px), nearest quad {:.2} px{why}",
+                    want[0][0],
+                    want[0][1],
+                    read < 1.0,
+                    read,
+                    quad
+                );
+            }
+        }
+    }
+    println!(
+        "sum of medians: {:.2} ms over {} photos",
+        1e3 * total,
+        paths.len()
+    );
+    Ok(())
+}
