@@ -48,10 +48,13 @@ pub(crate) fn load_gray(path: &Path) -> crate::Result<(Vec<u8>, usize, usize)> {
     Ok((img.into_raw(), w, h))
 }
 
+/// A reference tag: its id and four corners.
+pub(crate) type RefTag = (usize, [[f64; 2]; 4]);
+
 /// The reference corners of a photo (`<photo>.txt` beside it, one tag a line: `id, (x y)`
 /// four times, in AprilTag's pixel convention, pixel centres at half-integers), in ours
 /// (integer pixel centres).
-pub(crate) fn reference(photo: &Path) -> crate::Result<Option<Vec<(usize, [[f64; 2]; 4])>>> {
+pub(crate) fn reference(photo: &Path) -> crate::Result<Option<Vec<RefTag>>> {
     let txt = photo.with_extension("txt");
     if !txt.is_file() {
         return Ok(None);
