@@ -114,6 +114,18 @@ for f in manifest["real"]:
     for k in KEYS:
         real[k].append(detect_frame(k, img, cv2.aruco.DICT_APRILTAG_36h11))
 
+# The real photographs: AprilTag 3 (tag36h11, decimate 1) and OpenCV ArUco with default
+# parameters in two dictionaries.
+PHOTO_ARUCO = {"aruco_4x4_50": cv2.aruco.DICT_4X4_50, "aruco_6x6_250": cv2.aruco.DICT_6X6_250}
+photos = {k: [] for k in ["apriltag_d1", *PHOTO_ARUCO]}
+for f in manifest["photos"]:
+    img = cv2.imread(f["path"], cv2.IMREAD_GRAYSCALE)
+    photos["apriltag_d1"].append(timed(lambda im: run_april(april(1), im), img))
+    for key, dict_id in PHOTO_ARUCO.items():
+        det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(dict_id),
+                                      cv2.aruco.DetectorParameters())
+        photos[key].append(timed(lambda im: run_aruco(det, im), img))
+
 # ---------------------------------------------------------------------------- pose
 
 pose_in = manifest["pose"]
@@ -173,6 +185,7 @@ json.dump({
     "versions": versions,
     "detection": detection,
     "real": real,
+    "photos": photos,
     "pose": pose,
     "filter": filters,
 }, open(sys.argv[2], "w"))

@@ -39,6 +39,14 @@ pub(crate) fn default_photos(root: &Path) -> crate::Result<Vec<PathBuf>> {
     Ok(v)
 }
 
+/// The photos of `cargo xtask compare`'s real-photo section: every photo of
+/// `shared/realdata/photos/notags` and the NASA photo.
+pub(crate) fn compared_photos(root: &Path) -> crate::Result<Vec<PathBuf>> {
+    let mut v = photos_in(&crate::realdata(root, "photos/notags")?)?;
+    v.extend(photos_in(&crate::realdata(root, "nasa")?)?);
+    Ok(v)
+}
+
 /// A photo as grey pixels.
 pub(crate) fn load_gray(path: &Path) -> crate::Result<(Vec<u8>, usize, usize)> {
     let img = image::open(path)

@@ -55,5 +55,8 @@ fn work_counters_add_up_on_clutter() {
         retries += s.retries;
         second_px += s.second_look_px;
     }
-    assert!(retries > 0 && second_px > 0, "{retries} retries, {second_px} px");
+    assert!(
+        retries > 0 && second_px > 0,
+        "{retries} retries, {second_px} px"
+    );
 }
