@@ -17,6 +17,8 @@
 //! [`Detector::decode_quads`]) so callers can time or visualise them apart;
 //! [`Detector::detect`] runs both.
 
+use std::time::Instant;
+
 use nalgebra::Point2;
 
 use crate::cluster::Clusterer;
@@ -111,7 +113,8 @@ pub struct Detector {
 /// How much work the last detection did, stage by stage ([`Detector::stats`]): where the
 /// time of a frame goes. A frame of synthetic markers has about as many components big
 /// enough to examine as markers, and no second look; a real photograph has hundreds of
-/// components, and the second look (`second_look_px`) is what costs most on it.
+/// components, and the second look (`second_look_px`) is what costs most on it. After
+/// [`Detector::detect_in_regions`], the counters are the last region's.
 #[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
 pub struct DetectStats {
     /// Dark components of the binary image.
@@ -130,6 +133,29 @@ pub struct DetectStats {
     pub decoded: usize,
     /// Of those, read once more as motion-blurred markers.
     pub blurred: usize,
+    /// Wall-clock time of each stage on the calling thread: binarization, labelling,
+    /// examining the components (trace, fit, refine), the second look (light cut, re-cut,
+    /// boundary clusters) and decoding.
+    pub time: StageTimes,
+}
+
+/// Wall-clock time of each stage of the last detection ([`DetectStats::time`]).
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct StageTimes {
+    /// Binarization (and, in a banded-parallel scan, the bands' own labelling).
+    pub binarize: std::time::Duration,
+    /// Labelling the components (in a banded-parallel scan, merging the bands').
+    pub label: std::time::Duration,
+    /// Tracing, fitting and refining the components (in a parallel scan, decoding too).
+    pub examine: std::time::Duration,
+    /// The second look at components that gave no quad.
+    pub second_look: std::time::Duration,
+    /// Decoding the quads.
+    pub decode: std::time::Duration,
+}
+
+fn ms(d: std::time::Duration) -> f64 {
+    1e3 * d.as_secs_f64()
 }
 
 impl std::fmt::Display for DetectStats {
@@ -137,7 +163,8 @@ impl std::fmt::Display for DetectStats {
         write!(
             f,
             "components {} examined {} quads {} retries {} second-look px {} second quads {} \
-             decoded {} blurred {}",
+             decoded {} blurred {} | ms: binarize {:.3} label {:.3} examine {:.3} second look {:.3} \
+             decode {:.3}",
             self.components,
             self.examined,
             self.first_quads,
@@ -145,7 +172,12 @@ impl std::fmt::Display for DetectStats {
             self.second_look_px,
             self.second_quads,
             self.decoded,
-            self.blurred
+            self.blurred,
+            ms(self.time.binarize),
+            ms(self.time.label),
+            ms(self.time.examine),
+            ms(self.time.second_look),
+            ms(self.time.decode),
         )
     }
 }
@@ -273,6 +305,7 @@ impl Detector {
     /// not markers are dropped; so is a second reading of a marker already read (kept: the
     /// one with fewer bit errors, then higher contrast). Returns the number of quads examined.
     pub fn decode_quads(&mut self, img: &GrayView<'_>, out: &mut Vec<Decoded>) -> usize {
+        let started = Instant::now();
         out.clear();
         self.decoding.blur.solved_quads = 0;
         let ctx = DecodeContext {
@@ -305,6 +338,7 @@ impl Detector {
             }
         }
         self.stats.decoded = self.quads.len();
+        self.stats.time.decode = started.elapsed();
         self.stats.blurred = self.decoding.blur.solved_quads;
         self.quads.len()
     }
@@ -469,6 +503,13 @@ impl Detector {
             self.quads.reserve(64);
         }
         self.bands_labelled = 0;
+        let mut clock = Instant::now();
+        let mut lap = || {
+            let now = Instant::now();
+            let d = now - clock;
+            clock = now;
+            d
+        };
         if f == 1 && self.bands > 1 {
             // Each band's rows labelled on the thread that cut them, while they are in its
             // cache; only the rows where bands meet are joined afterwards.
@@ -493,6 +534,7 @@ impl Detector {
             self.binarizer
                 .binarize(&small, cfg.threshold, &mut self.bin);
         }
+        self.stats.time.binarize = lap();
         let scale = f as f64;
         let limits = QuadLimits {
             min_side: cfg.min_side / scale,
@@ -519,6 +561,7 @@ impl Detector {
         } else {
             self.labeller.label(&self.bin, w)
         };
+        self.stats.time.label = lap();
         self.retried.clear();
         self.retried.resize(components.len(), false);
         self.stats.components = components.len();
@@ -559,6 +602,7 @@ impl Detector {
             }
         }
         self.stats.first_quads = self.quads.len();
+        self.stats.time.examine = lap();
         self.stats.retries = self.retry.len();
         // The pixels the re-cut cuts again (it runs on a full-resolution scan only).
         self.retry_runs.clear();
@@ -591,6 +635,7 @@ impl Detector {
         };
         self.split_retries(img, &full_limits, cells_across, f);
         self.stats.second_quads = self.quads.len() - self.stats.first_quads;
+        self.stats.time.second_look = lap();
     }
 
     /// Re-cuts the components that gave no quad ([`Splitter`]; only after a full-resolution

@@ -176,7 +176,7 @@ pub use crate::decode::{
     CellReading, DecodeParams, Decoded, Rejection, WhiteReference, decode, read_cells,
     read_cells_with,
 };
-pub use crate::detector::{DetectStats, Detector};
+pub use crate::detector::{DetectStats, Detector, StageTimes};
 pub use crate::dictionary::{Dictionary, GenerateParams, Match, PAPER_NAME, hamming};
 pub use crate::error::FiducialError;
 pub use crate::family::MarkerFamily;
