@@ -26,6 +26,10 @@ pub struct Component {
     pub y_max: u32,
     /// x of the leftmost pixel of the top row (the tracing start).
     pub start_x: u32,
+    /// Holes: the light regions it encloses (4-connected, as the light around 8-connected
+    /// dark components is), counted as the independent cycles of its runs' adjacency (a
+    /// run graph is planar, and each cycle closes around light pixels of its own).
+    pub holes: u32,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -45,6 +49,9 @@ pub struct Labeller {
     slot: Vec<u32>,
     /// The component of each run.
     run_component: Vec<u32>,
+    /// Per run: its joins to runs of the row above that were in its component already
+    /// (each closes a cycle around a hole).
+    cycles: Vec<u32>,
     components: Vec<Component>,
     /// The row being added: its y and first run.
     row: Option<(u32, usize)>,
@@ -70,6 +77,7 @@ impl Labeller {
     /// [`Labeller::finish`]: the re-cut labels only the pixels it cut.
     pub(crate) fn begin(&mut self) {
         self.runs.clear();
+        self.cycles.clear();
         self.parent.clear();
         self.components.clear();
         self.row = None;
@@ -105,6 +113,7 @@ impl Labeller {
                 x1: x0 + x as u32,
             });
             self.parent.push(idx);
+            self.cycles.push(0);
         }
     }
 
@@ -139,7 +148,9 @@ impl Labeller {
             }
             let mut q = p;
             while q < prev_end && self.runs[q].x0 <= b.x1 {
-                self.union(q as u32, r as u32);
+                if !self.union(q as u32, r as u32) {
+                    self.cycles[r] += 1;
+                }
                 q += 1;
             }
         }
@@ -183,6 +194,7 @@ impl Labeller {
                 (y, start, off)
             });
             self.runs.extend_from_slice(&band.runs);
+            self.cycles.extend_from_slice(&band.cycles);
             self.parent
                 .extend(band.parent.iter().map(|&p| p + off as u32));
             if let (Some((py, start, _)), Some(first)) = (prev, band.runs.first())
@@ -221,6 +233,7 @@ impl Labeller {
                     y_min: run.y,
                     y_max: run.y,
                     start_x: run.x0,
+                    holes: self.cycles[i],
                 });
             } else {
                 let c = &mut self.components[s as usize];
@@ -228,6 +241,7 @@ impl Labeller {
                 c.x_min = c.x_min.min(run.x0);
                 c.x_max = c.x_max.max(run.x1 - 1);
                 c.y_max = c.y_max.max(run.y);
+                c.holes += self.cycles[i];
             }
         }
         &self.components
@@ -251,7 +265,8 @@ impl Labeller {
         i
     }
 
-    fn union(&mut self, a: u32, b: u32) {
+    /// Joins the components of runs `a` and `b`; `false` if they were one already.
+    fn union(&mut self, a: u32, b: u32) -> bool {
         let ra = self.find(a);
         let rb = self.find(b);
         // The smaller index stays root, so a root is always its component's first run.
@@ -260,6 +275,7 @@ impl Labeller {
         } else if rb < ra {
             self.parent[ra as usize] = rb;
         }
+        ra != rb
     }
 }
 
@@ -387,7 +403,86 @@ mod tests {
         (bin, w)
     }
 
+    /// The holes of the component of `runs` written out: the 4-connected light regions of
+    /// an image holding only its pixels (with a light frame around), less the outside one.
+    fn holes_by_flood_fill(runs: &[(u32, u32, u32)], w: usize, h: usize) -> u32 {
+        let (fw, fh) = (w + 2, h + 2);
+        let mut dark = vec![false; fw * fh];
+        for &(y, x0, x1) in runs {
+            for x in x0..x1 {
+                dark[(y as usize + 1) * fw + x as usize + 1] = true;
+            }
+        }
+        let mut seen = dark.clone();
+        let mut regions = 0;
+        for start in 0..fw * fh {
+            if seen[start] {
+                continue;
+            }
+            regions += 1;
+            seen[start] = true;
+            let mut stack = vec![start];
+            while let Some(i) = stack.pop() {
+                let (x, y) = (i % fw, i / fw);
+                let next = [
+                    (x > 0).then(|| i - 1),
+                    (x + 1 < fw).then(|| i + 1),
+                    (y > 0).then(|| i - fw),
+                    (y + 1 < fh).then(|| i + fw),
+                ];
+                for j in next.into_iter().flatten() {
+                    if !seen[j] {
+                        seen[j] = true;
+                        stack.push(j);
+                    }
+                }
+            }
+        }
+        regions - 1
+    }
+
+    #[test]
+    fn counts_holes() {
+        let (bin, w) = parse(&[
+            "#####..#.#.", //
+            "#.#.#...#..", //
+            "#####..#.#.", //
+            "...........", //
+            ".....#.....", //
+            "....#.#....",
+            ".....#.....",
+        ]);
+        let mut l = Labeller::new();
+        let holes: Vec<u32> = l.label(&bin, w).iter().map(|c| c.holes).collect();
+        // A ring with a bar (two holes), an X of diagonal pixels (a light pixel at its
+        // centre, open along the diagonals: none) and a diamond (one).
+        assert_eq!(holes, vec![2, 0, 1]);
+    }
+
     proptest::proptest! {
+        /// Every component's hole count is the number of light regions it encloses, on
+        /// random images of every density.
+        #[test]
+        fn holes_are_the_enclosed_light_regions(
+            w in 1usize..20,
+            h in 1usize..20,
+            seed in proptest::prelude::any::<u64>(),
+            density in 1u64..7,
+        ) {
+            let bin = crate::test_bytes(seed, w * h, |_, state| u8::from(state % 8 < density));
+            let mut l = Labeller::new();
+            let comps = l.label(&bin, w).to_vec();
+            let runs: Vec<_> = l.runs().collect();
+            for (k, c) in comps.iter().enumerate() {
+                let own: Vec<_> = runs
+                    .iter()
+                    .filter(|r| r.0 == k)
+                    .map(|&(_, y, x0, x1)| (y, x0, x1))
+                    .collect();
+                proptest::prop_assert_eq!(c.holes, holes_by_flood_fill(&own, w, h), "component {}", k);
+            }
+        }
+
         /// Labelling an image in horizontal bands and merging them gives the components,
         /// their order and the runs of labelling it whole, wherever the bands are cut
         /// (empty rows at a cut included).

@@ -93,7 +93,15 @@ fn clutter_rarely_takes_the_blurred_reading_and_sharp_markers_never() {
         reads += det.blurred_reads();
     }
     eprintln!("clutter: {reads} blurred reads of {quads} quads");
-    assert!(reads * 8 <= quads, "{reads} blurred reads of {quads} quads");
+    // At most two blurred readings a frame. (The bound was an eighth of the quads, but the
+    // quads are the wrong measure: since the re-cut drops components without holes, which
+    // no marker is, these frames give 70 quads instead of 261, and 10 blurred readings
+    // instead of 15.)
+    assert!(quads >= 20, "the clutter offers only {quads} quads");
+    assert!(
+        reads <= 2 * 10,
+        "{reads} blurred reads of {quads} quads in 10 frames"
+    );
 
     let dict = Dictionary::paper();
     let cfg = SceneConfig {

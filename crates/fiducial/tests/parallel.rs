@@ -74,7 +74,9 @@ fn parallel_decoding_equals_single_threaded_on_clutter() {
     det.detect(&img, &mut serial);
     let quads = det.quads().to_vec();
     let blurred = det.blurred_reads();
-    assert!(quads.len() > 20, "only {} quads", quads.len());
+    // (Over 20 until the re-cut stopped handing on components without holes, which the
+    // clutter's solid squares are; 14 now, still several per thread.)
+    assert!(quads.len() > 10, "only {} quads", quads.len());
     assert!(
         !serial.is_empty() && blurred > 0,
         "{} markers, {blurred} blurred",
