@@ -13,7 +13,32 @@ use std::time::Instant;
 
 use fiducial::{Detector, DetectorConfig, GrayView, dictionary_by_name};
 
-const USAGE: &str = "usage: cargo xtask photos [--reps N] [--dictionary NAME] [PHOTO|FOLDER]...";
+const USAGE: &str =
+    "usage: cargo xtask photos [--reps N] [--dictionary NAME] [--clutter] [PHOTO|FOLDER]...
+
+--clutter: first time the frame of the criterion bench fiducial/detect_clutter_640x480
+(marker_testkit's clutter, seed 43), to see where its time goes";
+
+/// The frame of the bench `fiducial/detect_clutter_640x480`: `marker_testkit`'s clutter,
+/// seed 43, without entries of the paper dictionary.
+fn bench_clutter() -> crate::Result<Vec<u8>> {
+    use rand::SeedableRng;
+    fn paper_entry(code: u64) -> bool {
+        fiducial::Dictionary::paper()
+            .lookup_within(code, 0)
+            .is_some()
+    }
+    let f = fiducial::Dictionary::paper().family();
+    let not = marker_testkit::NotMarkers {
+        rows: f.rows() as usize,
+        cols: f.cols() as usize,
+        is_marker: &paper_entry,
+    };
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(43);
+    Ok(marker_testkit::clutter_frame(
+        640, 480, 1.0, 3.0, not, &mut rng,
+    )?)
+}
 
 /// Photo files (PNG or JPEG) of `dir`, sorted by name.
 pub(crate) fn photos_in(dir: &Path) -> crate::Result<Vec<PathBuf>> {
@@ -110,6 +135,7 @@ pub fn run(args: &[String]) -> crate::Result {
     let mut reps = 20usize;
     let mut dictionary = "tag36h11".to_string();
     let mut paths = Vec::new();
+    let mut clutter = false;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -121,6 +147,7 @@ pub fn run(args: &[String]) -> crate::Result {
                     .ok_or("--reps needs a positive count")?
             }
             "--dictionary" => dictionary = it.next().ok_or("--dictionary needs a name")?.clone(),
+            "--clutter" => clutter = true,
             "-h" | "--help" => {
                 println!("{USAGE}");
                 return Ok(());
@@ -140,7 +167,7 @@ pub fn run(args: &[String]) -> crate::Result {
         .parent()
         .ok_or("xtask has no parent folder")?
         .to_path_buf();
-    if paths.is_empty() {
+    if paths.is_empty() && !clutter {
         paths = default_photos(&root)?;
     }
     let dict = dictionary_by_name(&dictionary)?.clone();
@@ -151,8 +178,19 @@ pub fn run(args: &[String]) -> crate::Result {
     );
     let mut total = 0.0;
     let mut out = Vec::new();
-    for p in &paths {
-        let (px, w, h) = load_gray(p)?;
+    let frames = clutter
+        .then(|| PathBuf::from("clutter_640x480 (bench, seed 43)"))
+        .into_iter()
+        .chain(paths);
+    for p in frames {
+        let (px, w, h) = if clutter
+            && p.file_name()
+                .is_some_and(|n| n.to_string_lossy().starts_with("clutter_640x480"))
+        {
+            (bench_clutter()?, 640, 480)
+        } else {
+            load_gray(&p)?
+        };
         let img = GrayView::new(&px, w, h)?;
         det.detect(&img, &mut out);
         let mut times = Vec::with_capacity(reps);
@@ -176,7 +214,7 @@ pub fn run(args: &[String]) -> crate::Result {
             out.len(),
             det.stats()
         );
-        if let Some(refs) = reference(p)? {
+        if let Some(refs) = reference(&p)? {
             for (id, want) in &refs {
                 let read = out
                     .iter()
@@ -226,10 +264,6 @@ pub fn run(args: &[String]) -> crate::Result {
             }
         }
     }
-    println!(
-        "sum of medians: {:.2} ms over {} photos",
-        1e3 * total,
-        paths.len()
-    );
+    println!("sum of medians: {:.2} ms", 1e3 * total);
     Ok(())
 }
