@@ -244,7 +244,12 @@ pub fn run(args: &[String]) -> crate::Result {
                         Some(Ok(d)) => match &det.config().side_check {
                             Some(check) => format!(
                                 " decodes alone; side check: {:?}",
-                                fiducial::side_offsets(&img, &d, det.dictionary().family(), check)
+                                fiducial::stages_for_tools::side_offsets(
+                                    &img,
+                                    &d,
+                                    det.dictionary().family(),
+                                    check
+                                )
                             ),
                             None => " decodes alone".into(),
                         },

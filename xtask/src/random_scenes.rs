@@ -558,8 +558,8 @@ fn inspect(
                     near.len()
                 );
                 {
-                    use fiducial::contour::{Labeller, trace_outer};
-                    use fiducial::quad::{QuadLimits, fit_quad};
+                    use fiducial::stages_for_tools::{Labeller, trace_outer};
+                    use fiducial::stages_for_tools::{QuadLimits, fit_quad};
                     let cfg = *detector.config();
                     let bin = detector.binary().to_vec();
                     let mut lab = Labeller::new();
@@ -586,7 +586,7 @@ fn inspect(
                         };
                         let coarse = fit_quad(&contour, &limits);
                         let refined = coarse.and_then(|q| {
-                            fiducial::refine::Refiner::new().refine(
+                            fiducial::stages_for_tools::Refiner::new().refine(
                                 &view,
                                 &q,
                                 &cfg.refine,

@@ -164,7 +164,7 @@ fn benches(c: &mut Criterion) {
     // Binarization of the clutter frame: textures everywhere, so (unlike the marker scenes,
     // mostly plain background) nearly every tile has contrast and needs its levels computed.
     let clutter_img = GrayView::new(&clutter, 640, 480).expect("valid frame");
-    let mut binarizer = fiducial::threshold::Binarizer::new();
+    let mut binarizer = fiducial::stages_for_tools::Binarizer::new();
     let mut bin = Vec::new();
     c.bench_function("fiducial/binarize_clutter_640x480", |b| {
         b.iter(|| {
@@ -185,7 +185,7 @@ fn benches(c: &mut Criterion) {
     // The stages of the quad phase apart: binarization (3x3 box and tile threshold), then
     // run-length labelling of the binary image; the rest of find_quads is contour tracing,
     // quad fitting and sub-pixel refinement of the surviving components.
-    let mut binarizer = fiducial::threshold::Binarizer::new();
+    let mut binarizer = fiducial::stages_for_tools::Binarizer::new();
     let mut bin = Vec::new();
     c.bench_function("fiducial/binarize_640x480", |b| {
         b.iter(|| {
@@ -193,7 +193,7 @@ fn benches(c: &mut Criterion) {
             black_box(bin.len())
         })
     });
-    let mut labeller = fiducial::contour::Labeller::new();
+    let mut labeller = fiducial::stages_for_tools::Labeller::new();
     c.bench_function("fiducial/label_640x480", |b| {
         b.iter(|| black_box(labeller.label(black_box(&bin), 640).len()))
     });

@@ -36,11 +36,11 @@ pub struct DetectorConfig {
     /// still has a closed outline ([`crate::Detector`]'s light cut).
     pub motion_blur: bool,
     /// Drop a decoded marker one of whose sides is not its border's outer edge, as when the
-    /// side runs along an occluder ([`crate::sides`], issue #16). Default on, with
+    /// side runs along an occluder (the crate's side check, issue #16). Default on, with
     /// [`SideCheck::default`]; `None` turns it off.
     pub side_check: Option<SideCheck>,
     /// Look for quads in the boundary clusters of large dark components that gave no quad
-    /// ([`crate::cluster::Clusterer`], AprilTag 3's quad search; issue #13): finds markers whose border has
+    /// (AprilTag 3's quad search, the second look's boundary clusters; issue #13): finds markers whose border has
     /// merged with something as dark as their ink, e.g. flat tags at grazing angles on real
     /// frames (it reads the last 4 of the 56 Duckietown tags). Default off here (the
     /// per-frame loop of a robot; `formation-tracker detect` turns it on): it labels the

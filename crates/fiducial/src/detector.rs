@@ -5,13 +5,7 @@
 //! first frame of a size and are then reused, so a steady stream of frames of one size is
 //! detected without touching the heap (an integration test counts allocations to prove it).
 //!
-//! Stages: [`Binarizer`] (adaptive tile threshold, or Otsu), [`Labeller`] (run-length
-//! union-find), cheap rejection of components by size, shape and frame-border contact,
-//! [`crate::contour::trace_outer`] (Moore border following) and [`crate::quad::fit_quad`] (four-vertex polygon), then
-//! [`Refiner`] (sub-pixel corners from grey-level edge lines), and finally [`decode()`](crate::decode())
-//! (cross-ratio cell sampling and dictionary lookup) on each quad. Large dark components
-//! that gave no quad get two more looks inside their boxes: a re-cut at a darker threshold
-//! ([`Splitter`]) and boundary clustering ([`Clusterer`], AprilTag 3's quad search).
+//! The stages, and what each may reject, are listed in the crate's documentation.
 //!
 //! The two phases are exposed separately ([`Detector::find_quads`] and
 //! [`Detector::decode_quads`]) so callers can time or visualise them apart;
@@ -267,6 +261,27 @@ impl Detector {
     /// [`Decoded`] carries the dictionary index, code, Hamming distance corrected, corners
     /// in the marker's own NW, NE, SE, SW order and contrast/confidence. Returns the number
     /// of quads examined.
+    ///
+    /// ```
+    /// use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, RenderOptions, render_marker};
+    ///
+    /// // Marker 7 of the paper's dictionary, 10 px a cell, with a wide white margin.
+    /// let dict = Dictionary::paper();
+    /// let options = RenderOptions { px_per_cell: 10, quiet_cells: 4 };
+    /// let marker = render_marker(dict.family(), dict.codes()[7], &options)?;
+    /// let frame = GrayView::new(marker.pixels(), marker.width(), marker.height())?;
+    ///
+    /// let mut detector = Detector::new(DetectorConfig::default());
+    /// let mut found = Vec::new();
+    /// detector.detect(&frame, &mut found);
+    /// assert_eq!(found.len(), 1);
+    /// assert_eq!(found[0].index, 7);
+    /// // Corners in the marker's own NW, NE, SE, SW order, sub-pixel.
+    /// for (got, want) in found[0].corners.iter().zip(marker.corners()) {
+    ///     assert!((got - want).norm() < 0.1, "{got} vs {want}");
+    /// }
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn detect(&mut self, img: &GrayView<'_>, out: &mut Vec<Decoded>) -> usize {
         self.find_quads(img);
         self.decode_quads(img, out)

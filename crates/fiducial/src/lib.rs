@@ -33,41 +33,60 @@
 //! # The detector
 //!
 //! [`Detector::detect`] takes a grey frame ([`GrayView`]) to a list of [`Decoded`] markers
-//! (spec 3.4):
+//! (spec 3.4) in six stages. Each says what it may reject; nothing is rejected anywhere
+//! else, and [`Detector::stats`] counts and times each stage's work on the last frame.
 //!
-//! 1. **Binarize** ([`threshold`]): local adaptive thresholds from 8 px tiles (minimum
-//!    contrast 30, so flat areas stay white) by default, or the paper's global Otsu. On
-//!    x86-64 its row loops are also compiled for AVX2 and chosen at run time when the CPU
-//!    has it (same bits; the crate's only `unsafe` is that call).
-//! 2. **Components and contours** ([`contour`]): run-length union-find labelling; dark
-//!    components too small (side < 10 px), too sparse or touching the frame border (2 px)
-//!    are dropped before their outer border is traced.
-//! 3. **Quads** ([`quad`]): a four-vertex polygon fitted to the contour, with straight
-//!    sides (1.5 px + 5 % of the side) and interior angles >= 30 degrees.
-//! 4. **Sub-pixel corners** ([`refine`]): per side, up to 64 grey-level edge profiles away
-//!    from the corners (each at most 2.5 px and 0.4 border cell long either side of the
-//!    edge, so it never reaches the data cells behind the border), each edge located by the area under its normalised profile (exact
-//!    for any symmetric blur), a total-least-squares line with outliers dropped, corners
-//!    at the lines' intersections; done twice. On the accuracy scenes (`docs/
-//!    detector-accuracy.md`, markers of 20-120 px, blur 1, noise 3) the corner RMS error
-//!    is about 0.04 px; a property test holds every corner within 0.1 px for markers of
-//!    40-160 px.
-//! 5. **Decode** ([`decode()`]): cross-ratio cell centres, cells averaged over +-0.1 cell,
-//!    black/white references from border and quiet zone, dictionary lookup with
-//!    **soft-decision correction**: a reading that is not an entry may have its one or two
-//!    least confident cells flipped, each only if its level is within 0.3 of half the
-//!    contrast from the threshold, and the result must then be an entry exactly (hard
-//!    correction, which accepts any entry within two bits, is off by default because it
-//!    invents markers in clutter). A soft read is still never 3 or more bits from its
-//!    entry. Two readings of one marker are merged.
-//! 6. **Corners against the decoded pattern** (`RefineConfig::with_pattern`, default on):
-//!    once a marker with cells under 8 px is read, its whole cell pattern is known, so the
-//!    ink and paper levels and the blur are fitted to every cell, and each edge is corrected
-//!    for the blur of its white inner neighbours and of the adjacent sides, which the plain
-//!    refinement's per-side levels cannot see on a one-cell border a few pixels wide. On
-//!    the accuracy scenes it halves the corner error of 20-40 px markers (own family 0.055
-//!    -> 0.027 px, tag36h11 0.063 -> 0.026 px); corners that the model cannot fit keep the
-//!    plain refinement's.
+//! 1. **Binarize** (module `threshold`): local adaptive thresholds from 8 px tiles of a
+//!    lightly smoothed frame (minimum contrast 30, so flat areas stay light) by default, or
+//!    the paper's global Otsu. On x86-64 its row loops are also compiled for AVX2 and
+//!    chosen at run time when the CPU has it (same bits; the crate's only `unsafe` is that
+//!    call). Rejects nothing.
+//! 2. **Label** (module `contour`): run-length union-find labelling of the dark pixels
+//!    (8-connected), with each component's pixel count, box and holes. Rejects nothing.
+//! 3. **Examine** each component: *trace* its outer border (Moore following), *fit* a
+//!    four-vertex polygon (module `quad`: straight sides within 1.5 px + 5 % of the side,
+//!    interior angles >= 30 degrees), *refine* its corners to sub-pixel (module `refine`: per
+//!    side, up to 64 grey-level edge profiles away from the corners, each at most 2.5 px and
+//!    0.4 border cell long either side of the edge, located by the area under the
+//!    normalised profile, exact for any symmetric blur; a total-least-squares line with
+//!    outliers dropped; corners at the lines' intersections; twice). Rejects components
+//!    too small to hold a marker (longer side < `min_side`, 10 px, or shorter side under
+//!    half of it) and quads whose sides the refinement cannot fit; hands a component that
+//!    is too sparse, within `border_margin` (2 px) of the frame's edge, or not a
+//!    quadrilateral to the second look. On the accuracy scenes (`docs/detector-accuracy.md`,
+//!    markers of 20-120 px, blur 1, noise 3) the refined corners are within about 0.04 px
+//!    RMS; a property test holds every corner within 0.1 px for markers of 40-160 px.
+//! 4. **Second look** at the boxes of the components that gave no quad (`detector`'s
+//!    `split_retries`): the *light cut* (with [`DetectorConfig::motion_blur`], boxes under
+//!    160 px cut at 0.7 of the local range, where a smeared outline is closed), the
+//!    *re-cut* (module `split`: the component's own pixels cut again at 0.25 of the local
+//!    range, where a border merged with its surroundings through a blurred margin stands
+//!    alone) and the *boundary clusters* (module `cluster`, AprilTag 3's quad search, off
+//!    by default: [`DetectorConfig::boundary_clusters`]). Their components are examined as
+//!    above; it also rejects components without holes (no marker lacks light cells) and
+//!    candidates at the place of, or inside, a quad already found, before refining them.
+//! 5. **Decode** each quad: *read* its cells (module `decode`: cross-ratio cell centres,
+//!    cells averaged over +-0.1 cell, black and white references from the border and the
+//!    quiet zone or the light cells, dictionary lookup with soft-decision correction: the
+//!    one or two least confident cells may be flipped, each only if its level is within
+//!    0.3 of half the contrast from the threshold, and the result must then be an entry;
+//!    hard correction is off by default because it invents markers in clutter); then, for
+//!    a quad with a marker's contrast and border but no entry's code, the *blurred reading*
+//!    (module `blur`: the motion estimated from the quad's edges, the cell levels solved
+//!    for it); the *side check* (module `sides`) of a marker read; and the *pattern step*
+//!    (module `pattern`, `RefineConfig::with_pattern`): once a marker with cells under
+//!    8 px is read, the ink and paper levels and the blur are fitted to every cell and each
+//!    edge corrected for the blur of its inner neighbours, which halves the corner error of
+//!    20-40 px markers on the accuracy scenes. Rejects quads whose contrast is under 20
+//!    grey levels, with more than one light border cell, or whose code is no entry (read
+//!    plainly or blurred); markers one of whose sides runs along an occluder (a border
+//!    thinner than its grid says, a light corner cell, an outline inside the quad); the
+//!    blurred reading of a quad whose motion is under 1.5 cells or whose levels at the
+//!    estimated motion do not read as a marker. The pattern step rejects nothing: corners
+//!    the model cannot fit keep the plain refinement's.
+//! 6. **Reconcile**: two readings of one marker (same dictionary and id, centres within
+//!    half a side) are reported once, the one with fewer corrected bits, then the higher
+//!    contrast.
 //!
 //! Measured on seeded synthetic scenes (`cargo xtask detector-accuracy`): 1599 of 1600
 //! markers found, no wrong code, no code read in 1000 marker-free clutter frames, none from
@@ -103,11 +122,8 @@
 //!   and quiet zone, lookup, orientation.
 //! - [`image`]: the borrowed [`GrayView`] every stage reads, and the [`Corners`] type.
 //!
-//! Detector:
-//! - [`threshold`]: binarization (Otsu and local adaptive).
-//! - [`contour`]: run-length labelling and Moore border following.
-//! - [`quad`]: four-corner polygons from contours.
-//! - [`refine`]: sub-pixel corners from grey-level edge lines.
+//! Detector (the stage modules above are the crate's own; the benchmarks reach them
+//! through a hidden module):
 //! - [`detector`](mod@detector): the pipeline ([`Detector`], [`DetectorConfig`]).
 //! - [`roi`]: regions of interest for tracking-guided detection
 //!   ([`Detector::detect_in_regions`]); [`Detector::detect_coarse`] scans a whole frame at
@@ -148,9 +164,9 @@
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 mod blur;
-pub mod cluster;
+pub(crate) mod cluster;
 pub(crate) mod config;
-pub mod contour;
+pub(crate) mod contour;
 pub mod cross_ratio;
 pub mod decode;
 pub mod detector;
@@ -160,15 +176,15 @@ pub mod family;
 pub mod image;
 pub(crate) mod parallel;
 mod pattern;
-pub mod quad;
-pub mod refine;
+pub(crate) mod quad;
+pub(crate) mod refine;
 pub mod render;
 pub mod roi;
-pub mod sides;
-pub mod split;
+pub(crate) mod sides;
+pub(crate) mod split;
 pub(crate) mod stages;
 pub mod standard;
-pub mod threshold;
+pub(crate) mod threshold;
 
 pub use crate::config::DetectorConfig;
 pub use crate::cross_ratio::CrossRatioFrame;
@@ -181,14 +197,27 @@ pub use crate::dictionary::{Dictionary, GenerateParams, Match, PAPER_NAME, hammi
 pub use crate::error::FiducialError;
 pub use crate::family::MarkerFamily;
 pub use crate::image::{Corners, GrayView, ImageError};
+pub use crate::refine::RefineConfig;
 pub use crate::render::{RenderOptions, RenderedMarker, render_marker, render_svg};
 pub use crate::roi::Region;
-pub use crate::sides::{SideCheck, SideOffsets, side_offsets};
+pub use crate::sides::SideCheck;
 pub use crate::stages::Quad;
 pub use crate::standard::{
     StandardDictionary, canonical_name, dictionary_by_name, dictionary_names, standard_dictionaries,
 };
 pub use crate::threshold::{Threshold, rgb_to_gray, rgba_to_gray};
+
+/// The detector's stages one by one, for the crate's benchmarks and the workspace's
+/// measurement tools (`xtask`): not part of the API, and free to change with the
+/// detector. Users call [`Detector`].
+#[doc(hidden)]
+pub mod stages_for_tools {
+    pub use crate::contour::{Component, Labeller, trace_outer};
+    pub use crate::quad::{QuadLimits, fit_quad};
+    pub use crate::refine::Refiner;
+    pub use crate::sides::{SideOffsets, side_offsets};
+    pub use crate::threshold::{Binarizer, DARK, otsu_level};
+}
 
 /// `n` seeded bytes for the crate's property tests: `f(i, r)` of each index `i` and the
 /// `i`-th number `r` of a xorshift64 sequence started from `seed`.

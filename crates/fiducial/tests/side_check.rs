@@ -3,7 +3,8 @@
 //! occluder's edge never makes it out of the detector.
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
-use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, SideCheck, side_offsets};
+use fiducial::stages_for_tools::{SideOffsets, side_offsets};
+use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, SideCheck};
 use marker_testkit::{Canvas, CellPattern, Effects};
 use proptest::prelude::*;
 
@@ -184,7 +185,7 @@ fn corner_board(quad: &[[f64; 2]; 4], k: usize, a: f64, b: f64) -> [[f64; 2]; 4]
 }
 
 /// The marker read from `pixels` with the side check off, and its side check.
-fn unchecked(pixels: &[u8]) -> (fiducial::Decoded, fiducial::SideOffsets) {
+fn unchecked(pixels: &[u8]) -> (fiducial::Decoded, SideOffsets) {
     let found = detect(
         pixels,
         DetectorConfig {
