@@ -247,6 +247,12 @@ impl Labeller {
         &self.components
     }
 
+    /// The components of the last labelling ([`Labeller::label`], [`Labeller::merge`],
+    /// [`Labeller::finish`]).
+    pub(crate) fn components(&self) -> &[Component] {
+        &self.components
+    }
+
     /// The runs of the last [`Labeller::label`] call in raster order, as `(component, y,
     /// x0, x1)` (`x1` exclusive; `component` indexes the slice that call returned).
     pub(crate) fn runs(&self) -> impl Iterator<Item = (usize, u32, u32, u32)> + '_ {

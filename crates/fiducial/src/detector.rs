@@ -29,6 +29,29 @@ use crate::split::{Rect, SplitParams, Splitter};
 use crate::stages::{DecodeContext, Decoding, Examined, Quad, Scan, push_unique};
 use crate::threshold::Binarizer;
 
+/// The size of one search's binary image: `factor` (1 to 4) is the scale of the quad
+/// search, `bands` the labellings of a banded binarization (0: labelled whole).
+#[derive(Debug, Clone, Copy)]
+struct ScanSize {
+    w: usize,
+    h: usize,
+    factor: usize,
+    bands: usize,
+}
+
+/// Lap times of the stages.
+struct Clock(Instant);
+
+impl Clock {
+    /// The time since the last lap (or the start).
+    fn lap(&mut self) -> std::time::Duration {
+        let now = Instant::now();
+        let d = now - self.0;
+        self.0 = now;
+        d
+    }
+}
+
 /// Two outlines of one marker: their centres are within half a side of each other.
 fn same_place(a: &Corners, b: &Corners) -> bool {
     let centre = |c: &Corners| {
@@ -65,9 +88,6 @@ pub struct Detector {
     /// One labeller per band of [`Detector::detect_parallel`]'s binarization: each band's
     /// rows are labelled on the thread that cut them, then merged into `labeller`.
     band_labellers: Vec<Labeller>,
-    /// How many of `band_labellers` the last full-resolution scan used (0: none, the frame
-    /// was labelled whole).
-    bands_labelled: usize,
     contour: Vec<[i32; 2]>,
     refiner: Refiner,
     quads: Vec<Quad>,
@@ -86,20 +106,19 @@ pub struct Detector {
     regions: Vec<Region>,
     /// One region's markers before they are moved into frame coordinates.
     region_out: Vec<Decoded>,
-    /// Bands of binarization run on rayon threads (1: single-threaded; see
-    /// [`Detector::detect_parallel`]).
-    bands: usize,
     /// Per-thread scratch of [`Detector::detect_parallel`].
     workers: Vec<crate::parallel::Worker>,
     /// Scratch of decoding on the calling thread.
     decoding: Decoding,
     /// Scratch of the parallel paths' index-ordered merges.
     merge: crate::parallel::Merge,
-    /// In [`Detector::detect_parallel`]: the readings of the first `early.len()` quads of
-    /// the last scan, which the threads decoded as they found them (empty after any other
-    /// scan), and how many of those were blurred readings.
+    /// Within one detection on threads: the readings of the first `early.len()` quads,
+    /// which the threads decoded in stage 3 as they found them, and how many of those were
+    /// blurred readings (stage 5 takes them; every detection clears them first).
     early: Vec<Option<Decoded>>,
     early_blurred: usize,
+    /// The markers read by stage 5, in quad order, before stage 6 reconciles them.
+    readings: Vec<Decoded>,
     /// The work counters of the last detection.
     stats: DetectStats,
 }
@@ -222,13 +241,13 @@ impl Detector {
             merge: Default::default(),
             early: Vec::new(),
             early_blurred: 0,
+            readings: Vec::new(),
             grid_of,
             dictionaries,
             binarizer: Binarizer::default(),
             bin: Vec::new(),
             labeller: Labeller::default(),
             band_labellers: Vec::new(),
-            bands_labelled: 0,
             contour: Vec::new(),
             refiner: Refiner::default(),
             quads: Vec::new(),
@@ -240,7 +259,6 @@ impl Detector {
             small: Vec::new(),
             regions: Vec::new(),
             region_out: Vec::new(),
-            bands: 1,
             workers: Vec::new(),
             stats: DetectStats::default(),
         }
@@ -283,8 +301,38 @@ impl Detector {
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
     pub fn detect(&mut self, img: &GrayView<'_>, out: &mut Vec<Decoded>) -> usize {
-        self.find_quads(img);
-        self.decode_quads(img, out)
+        self.run(img, 1, 1, out)
+    }
+
+    /// One detection, stage by stage (the crate's documentation says what each stage may
+    /// reject): the quad search at `1 / factor` of the resolution (corners are always
+    /// refined on `img` itself), its work handed to `threads` workers (1: the calling thread
+    /// alone). `out` is cleared first. Returns the number of quads examined.
+    fn run(
+        &mut self,
+        img: &GrayView<'_>,
+        factor: usize,
+        threads: usize,
+        out: &mut Vec<Decoded>,
+    ) -> usize {
+        out.clear();
+        self.quads.clear();
+        self.stats = DetectStats::default();
+        let mut clock = Clock(Instant::now());
+        let Some(scan) = self.binarize(img, factor, threads) else {
+            return 0;
+        };
+        self.stats.time.binarize = clock.lap();
+        self.label(scan);
+        self.stats.time.label = clock.lap();
+        self.examine(img, scan, threads);
+        self.stats.time.examine = clock.lap();
+        self.second_look(img, scan);
+        self.stats.time.second_look = clock.lap();
+        self.decode(img, threads);
+        self.reconcile(out);
+        self.stats.time.decode = clock.lap();
+        self.quads.len()
     }
 
     /// [`Detector::detect`] with binarization (the stage that reads every pixel) cut into
@@ -301,18 +349,14 @@ impl Detector {
     pub fn detect_parallel(&mut self, img: &GrayView<'_>, out: &mut Vec<Decoded>) -> usize {
         #[cfg(feature = "parallel")]
         if img.width() * img.height() >= 1 << 20 {
-            self.bands = rayon::current_num_threads();
+            let threads = rayon::current_num_threads();
             // The whole frame as one job of the pool: the stages' parallel parts then start
             // from one of its threads, and the calling thread (outside the pool) is woken
             // once at the end rather than after each stage (worth about 0.05 of the frame
             // at 1920x1080 on 2 cores).
-            let n = rayon::scope(|_| self.detect(img, out));
-            self.bands = 1;
-            return n;
+            return rayon::scope(|_| self.run(img, 1, threads, out));
         }
-        let n = self.detect(img, out);
-        self.bands = 1;
-        n
+        self.run(img, 1, 1, out)
     }
 
     /// The decoding phase alone: reads every quad of the last [`Detector::find_quads`] call
@@ -320,41 +364,11 @@ impl Detector {
     /// not markers are dropped; so is a second reading of a marker already read (kept: the
     /// one with fewer bit errors, then higher contrast). Returns the number of quads examined.
     pub fn decode_quads(&mut self, img: &GrayView<'_>, out: &mut Vec<Decoded>) -> usize {
-        let started = Instant::now();
         out.clear();
-        self.decoding.blur.solved_quads = 0;
-        let ctx = DecodeContext {
-            config: &self.config,
-            dictionaries: &self.dictionaries,
-            grid_of: &self.grid_of,
-        };
-        // The quads the threads already read (detect_parallel), in quad order.
-        for d in self.early.iter().flatten() {
-            push_unique(out, *d);
-        }
-        self.decoding.blur.solved_quads = self.early_blurred;
-        let rest = &self.quads[self.early.len()..];
-        if self.bands > 1 && rest.len() > 1 {
-            crate::parallel::decode_all(
-                img,
-                &ctx,
-                rest,
-                self.bands,
-                &mut self.workers,
-                &mut self.merge,
-                &mut self.decoding,
-                out,
-            );
-        } else {
-            for q in rest {
-                if let Some(d) = ctx.decode(img, q, &mut self.decoding) {
-                    push_unique(out, d);
-                }
-            }
-        }
-        self.stats.decoded = self.quads.len();
-        self.stats.time.decode = started.elapsed();
-        self.stats.blurred = self.decoding.blur.solved_quads;
+        self.early.clear();
+        self.early_blurred = 0;
+        self.decode(img, 1);
+        self.reconcile(out);
         self.quads.len()
     }
 
@@ -393,7 +407,13 @@ impl Detector {
     /// quad-finding phase of detection (no decoding). The returned slice lives in the
     /// detector and is overwritten by the next call.
     pub fn find_quads(&mut self, img: &GrayView<'_>) -> &[Quad] {
-        self.find_quads_scaled(img, 1);
+        self.quads.clear();
+        self.stats = DetectStats::default();
+        if let Some(scan) = self.binarize(img, 1, 1) {
+            self.label(scan);
+            self.examine(img, scan, 1);
+            self.second_look(img, scan);
+        }
         &self.quads
     }
 
@@ -455,8 +475,7 @@ impl Detector {
             let Some(sub) = img.crop(r) else {
                 continue;
             };
-            self.find_quads_scaled(&sub, factor.clamp(1, 4));
-            examined += self.decode_quads(&sub, &mut found);
+            examined += self.run(&sub, factor.clamp(1, 4), 1, &mut found);
             let (dx, dy) = (r.x as f64, r.y as f64);
             for mut d in found.drain(..) {
                 for c in &mut d.corners {
@@ -482,26 +501,36 @@ impl Detector {
         factor: usize,
         out: &mut Vec<Decoded>,
     ) -> usize {
-        self.find_quads_scaled(img, factor.clamp(1, 4));
-        self.decode_quads(img, out)
+        self.run(img, factor.clamp(1, 4), 1, out)
     }
 
-    /// The quad phase at `1 / factor` of the resolution (see [`Detector::detect_coarse`]);
-    /// corners are refined on `img` itself.
-    fn find_quads_scaled(&mut self, img: &GrayView<'_>, factor: usize) {
-        self.quads.clear();
-        self.stats = DetectStats::default();
-        // The threads' readings belong to this scan's quads only.
-        self.early.clear();
-        self.early_blurred = 0;
-        let cfg = self.config;
-        // The most cells across of any dictionary: the narrowest border cell the edge
-        // profiles must stay within.
-        let cells_across = self
-            .dictionaries
+    /// The most cells across of any dictionary: the narrowest border cell the edge
+    /// profiles must stay within.
+    fn cells_across(&self) -> f64 {
+        self.dictionaries
             .iter()
             .map(|d| f64::from(d.family().width_cells().max(d.family().height_cells())))
-            .fold(0.0, f64::max);
+            .fold(0.0, f64::max)
+    }
+
+    /// The quad limits of a search at `1 / factor` of the resolution.
+    fn limits(&self, factor: usize) -> QuadLimits {
+        let cfg = &self.config;
+        QuadLimits {
+            min_side: cfg.min_side / factor as f64,
+            min_angle_deg: cfg.min_angle_deg,
+            line_tolerance: cfg.line_tolerance,
+            line_tolerance_rel: cfg.line_tolerance_rel,
+        }
+    }
+
+    /// Stage 1, binarize: the binary image of `img` (of its `factor x factor` block means
+    /// when `factor > 1`) into `self.bin`. With `threads > 1` at full resolution it is cut
+    /// in bands, each band's rows labelled on the thread that cut them while they are in
+    /// its cache (stage 2 then only joins the bands). `None` when the frame is too small to
+    /// search.
+    fn binarize(&mut self, img: &GrayView<'_>, factor: usize, threads: usize) -> Option<ScanSize> {
+        let cfg = self.config;
         let f = factor.max(1);
         let (w, h) = if f == 1 {
             (img.width(), img.height())
@@ -509,7 +538,7 @@ impl Detector {
             (img.width() / f, img.height() / f)
         };
         if w < 3 || h < 3 {
-            return;
+            return None;
         }
         // Reserve for the frame size once, so that later frames of this size do not grow
         // the buffers (the run list grows only past one run per 16 pixels).
@@ -517,71 +546,74 @@ impl Detector {
             self.contour.reserve(2 * (w + h) + 16);
             self.quads.reserve(64);
         }
-        self.bands_labelled = 0;
-        let mut clock = Instant::now();
-        let mut lap = || {
-            let now = Instant::now();
-            let d = now - clock;
-            clock = now;
-            d
-        };
-        if f == 1 && self.bands > 1 {
-            // Each band's rows labelled on the thread that cut them, while they are in its
-            // cache; only the rows where bands meet are joined afterwards.
-            if self.band_labellers.len() < self.bands {
-                self.band_labellers
-                    .resize_with(self.bands, Labeller::default);
+        let mut bands = 0;
+        if f == 1 && threads > 1 {
+            if self.band_labellers.len() < threads {
+                self.band_labellers.resize_with(threads, Labeller::default);
             }
-            self.bands_labelled = self.binarizer.binarize_parallel_then(
+            bands = self.binarizer.binarize_parallel_then(
                 img,
                 cfg.threshold,
                 &mut self.bin,
-                &mut self.band_labellers[..self.bands],
+                &mut self.band_labellers[..threads],
                 &|l: &mut Labeller, y0, rows: &[u8]| l.label_band(y0, rows, w),
             );
         } else if f == 1 {
             self.binarizer.binarize(img, cfg.threshold, &mut self.bin);
         } else {
             crate::image::decimate(img, f, &mut self.small);
-            let Ok(small) = GrayView::new(&self.small, w, h) else {
-                return;
-            };
+            let small = GrayView::new(&self.small, w, h).ok()?;
             self.binarizer
                 .binarize(&small, cfg.threshold, &mut self.bin);
         }
-        self.stats.time.binarize = lap();
-        let scale = f as f64;
-        let limits = QuadLimits {
-            min_side: cfg.min_side / scale,
-            min_angle_deg: cfg.min_angle_deg,
-            line_tolerance: cfg.line_tolerance,
-            line_tolerance_rel: cfg.line_tolerance_rel,
+        Some(ScanSize {
+            w,
+            h,
+            factor: f,
+            bands,
+        })
+    }
+
+    /// Stage 2, label: the dark components of `self.bin` (joining the bands' labellings
+    /// after a banded stage 1).
+    fn label(&mut self, scan: ScanSize) {
+        self.stats.components = if scan.bands > 0 {
+            self.labeller
+                .merge(&self.band_labellers[..scan.bands])
+                .len()
+        } else {
+            self.labeller.label(&self.bin, scan.w).len()
         };
+    }
+
+    /// Stage 3, examine: each component traced, fitted and refined into `self.quads`, or
+    /// its box kept in `self.retry` for the second look. With `threads > 1` this runs on
+    /// the threads, which at full resolution also read each quad as soon as they find it
+    /// (into `self.early`, which stage 5 of the same detection takes).
+    fn examine(&mut self, img: &GrayView<'_>, scan: ScanSize, threads: usize) {
+        let cfg = self.config;
+        let limits = self.limits(scan.factor);
+        let cells_across = self.cells_across();
         let ctx = Scan {
             img,
             bin: &self.bin,
-            w,
-            h,
+            w: scan.w,
+            h: scan.h,
             limits: &limits,
             margin: cfg.border_margin.max(1),
-            min_side: (cfg.min_side / scale).max(3.0) as u32,
-            factor: f,
+            min_side: (cfg.min_side / scan.factor as f64).max(3.0) as u32,
+            factor: scan.factor,
             config: &cfg,
             cells_across,
         };
+        let components = self.labeller.components();
         self.retry.clear();
-        let components = if self.bands_labelled > 0 {
-            self.labeller
-                .merge(&self.band_labellers[..self.bands_labelled])
-        } else {
-            self.labeller.label(&self.bin, w)
-        };
-        self.stats.time.label = lap();
         self.retried.clear();
         self.retried.resize(components.len(), false);
-        self.stats.components = components.len();
         self.stats.examined = components.iter().filter(|c| !ctx.too_small(c)).count();
-        if self.bands > 1 {
+        self.early.clear();
+        self.early_blurred = 0;
+        if threads > 1 {
             let dctx = DecodeContext {
                 config: &self.config,
                 dictionaries: &self.dictionaries,
@@ -590,12 +622,12 @@ impl Detector {
             crate::parallel::examine_all(
                 &ctx,
                 components,
-                self.bands,
+                threads,
                 &mut self.workers,
                 &mut self.merge,
                 // A full-resolution scan on threads decodes its quads as it finds them
-                // (`decode_quads` then reads only the re-cut's).
-                (f == 1).then_some(&dctx),
+                // (stage 5 then reads only the second look's).
+                (scan.factor == 1).then_some(&dctx),
                 crate::parallel::Examined {
                     quads: &mut self.quads,
                     readings: &mut self.early,
@@ -617,8 +649,13 @@ impl Detector {
             }
         }
         self.stats.first_quads = self.quads.len();
-        self.stats.time.examine = lap();
         self.stats.retries = self.retry.len();
+    }
+
+    /// Stage 4, second look: the boxes of the components that gave no quad cut again
+    /// (`split_retries`); the new quads are appended to `self.quads`.
+    fn second_look(&mut self, img: &GrayView<'_>, scan: ScanSize) {
+        let f = scan.factor;
         // The pixels the re-cut cuts again (it runs on a full-resolution scan only).
         self.retry_runs.clear();
         if f == 1 && !self.retry.is_empty() {
@@ -630,10 +667,10 @@ impl Detector {
                     .map(|(_, y, x0, x1)| [y, x0, x1]),
             );
         }
-        // Boundary clustering (and, at full resolution, the re-cut) runs on full-resolution
-        // pixels: a coarser scan's boxes are scaled up first, so that a coarse or guided scan
-        // looks again at the same places as a full-resolution one (a marker merged with its
-        // surroundings is as likely at any scale).
+        // The second look runs on full-resolution pixels: a coarser scan's boxes are scaled
+        // up first, so that a coarse or guided scan looks again at the same places as a
+        // full-resolution one (a marker merged with its surroundings is as likely at any
+        // scale).
         if f > 1 {
             let (fw, fh) = (img.width() as u32, img.height() as u32);
             let s = f as u32;
@@ -644,13 +681,52 @@ impl Detector {
                 r.y1 = ((r.y1 + 1) * s - 1).min(fh - 1);
             }
         }
-        let full_limits = QuadLimits {
-            min_side: cfg.min_side,
-            ..limits
-        };
+        let full_limits = self.limits(1);
+        let cells_across = self.cells_across();
         self.split_retries(img, &full_limits, cells_across, f);
         self.stats.second_quads = self.quads.len() - self.stats.first_quads;
-        self.stats.time.second_look = lap();
+    }
+
+    /// Stage 5, decode: every quad read, the markers into `self.readings` in quad order (the
+    /// quads the threads read in stage 3 of this detection are not read again).
+    fn decode(&mut self, img: &GrayView<'_>, threads: usize) {
+        self.readings.clear();
+        self.readings.extend(self.early.iter().flatten());
+        self.decoding.blur.solved_quads = self.early_blurred;
+        let ctx = DecodeContext {
+            config: &self.config,
+            dictionaries: &self.dictionaries,
+            grid_of: &self.grid_of,
+        };
+        let rest = &self.quads[self.early.len()..];
+        if threads > 1 && rest.len() > 1 {
+            crate::parallel::decode_all(
+                img,
+                &ctx,
+                rest,
+                threads,
+                &mut self.workers,
+                &mut self.merge,
+                &mut self.decoding,
+                &mut self.readings,
+            );
+        } else {
+            for q in rest {
+                if let Some(d) = ctx.decode(img, q, &mut self.decoding) {
+                    self.readings.push(d);
+                }
+            }
+        }
+        self.stats.decoded = self.quads.len();
+        self.stats.blurred = self.decoding.blur.solved_quads;
+    }
+
+    /// Stage 6, reconcile: the markers read into `out`, a marker read twice reported once
+    /// (the reading with fewer corrected bits, then higher contrast).
+    fn reconcile(&self, out: &mut Vec<Decoded>) {
+        for d in &self.readings {
+            push_unique(out, *d);
+        }
     }
 
     /// Re-cuts the components that gave no quad ([`Splitter`]; only after a full-resolution

@@ -18,7 +18,7 @@ use crate::decode::Decoded;
 use crate::image::GrayView;
 use crate::refine::Refiner;
 use crate::split::Rect;
-use crate::stages::{DecodeContext, Decoding, Examined as Done, Quad, Scan, push_unique};
+use crate::stages::{DecodeContext, Decoding, Examined as Done, Quad, Scan};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Hands the items of `order` (indices, in that order) out to the workers, one at a time
@@ -187,8 +187,8 @@ fn perimeter(q: &Quad) -> f64 {
         .sum()
 }
 
-/// Decodes `quads` on `threads` workers (the largest quads first) and merges their markers
-/// into `out` in quad order, as [`crate::Detector::decode_quads`]'s loop does; the count of
+/// Decodes `quads` on `threads` workers (the largest quads first) and appends their markers
+/// to `out` in quad order, as the detector's single-threaded loop does; the count of
 /// blurred readings is summed into `main`. `merged` is scratch.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn decode_all(
@@ -222,7 +222,5 @@ pub(crate) fn decode_all(
         merged.found.extend_from_slice(&w.found);
     }
     merged.found.sort_unstable_by_key(|e| e.0);
-    for (_, m) in &merged.found {
-        push_unique(out, *m);
-    }
+    out.extend(merged.found.iter().map(|e| e.1));
 }
