@@ -27,7 +27,7 @@
 //! synthetic marker scenes); on a cluttered frame one labelling of the re-cut boxes, in
 //! time linear in their area, plus a sort of the boundary pixels.
 
-use crate::image::GrayView;
+use crate::image::{Corners, GrayView};
 use crate::quad::{QuadLimits, fit_quad};
 use crate::split::{Rect, SplitParams};
 
@@ -105,7 +105,7 @@ impl Clusterer {
         img: &GrayView<'_>,
         rect: Rect,
         params: &SplitParams<'_>,
-        mut found: impl FnMut([[f64; 2]; 4]),
+        mut found: impl FnMut(Corners),
     ) {
         let (w, h) = (img.width(), img.height());
         if w == 0 || h == 0 {
@@ -304,7 +304,9 @@ mod tests {
             min_side: 10,
         };
         let mut found = Vec::new();
-        Clusterer::default().clusters(&img, rect, &params, |q| found.push(q));
+        Clusterer::default().clusters(&img, rect, &params, |q| {
+            found.push(crate::image::to_arrays(&q))
+        });
         found
     }
 

@@ -13,8 +13,6 @@
 
 use std::time::Instant;
 
-use nalgebra::Point2;
-
 use crate::cluster::Clusterer;
 use crate::config::DetectorConfig;
 use crate::contour::Labeller;
@@ -761,7 +759,7 @@ impl Detector {
         let cfg = &self.config;
         let params = split_params(cfg, limits);
         let (quads, refiner) = (&mut self.quads, &mut self.refiner);
-        let mut add = |coarse: [[f64; 2]; 4], min_angle_deg: f64| {
+        let mut add = |coarse: Corners, min_angle_deg: f64| {
             add_refined(
                 quads,
                 refiner,
@@ -870,12 +868,12 @@ fn add_refined(
     quads: &mut Vec<Quad>,
     refiner: &mut Refiner,
     img: &GrayView<'_>,
-    coarse: [[f64; 2]; 4],
+    coarse: Corners,
     cfg: &DetectorConfig,
     min_angle_deg: f64,
     cells_across: f64,
 ) {
-    let rough = coarse.map(|[x, y]| Point2::new(x, y));
+    let rough = coarse;
     if quads
         .iter()
         .any(|q| same_place(&q.corners, &rough) || contains(&q.corners, &rough))
@@ -887,7 +885,7 @@ fn add_refined(
     else {
         return;
     };
-    let corners = c.map(|[x, y]| Point2::new(x, y));
+    let corners = c;
     if !quads.iter().any(|q| same_place(&q.corners, &corners)) {
         quads.push(Quad { corners, contrast });
     }

@@ -53,7 +53,7 @@
 
 use crate::cross_ratio::CrossRatioFrame;
 use crate::family::MarkerFamily;
-use crate::image::GrayView;
+use crate::image::{Corners, GrayView, to_arrays, to_points};
 use crate::refine::{
     Line, PROFILE, RefineConfig, STEP, SideFrame, edge_in_profile, fit_line_trimmed, intersect,
     sample_profile,
@@ -258,11 +258,12 @@ impl PatternRefiner {
     pub(crate) fn refine(
         &mut self,
         img: &GrayView<'_>,
-        corners: &[[f64; 2]; 4],
+        corners: &Corners,
         family: MarkerFamily,
         code: u64,
         cfg: &RefineConfig,
-    ) -> Option<[[f64; 2]; 4]> {
+    ) -> Option<Corners> {
+        let corners = &to_arrays(corners);
         let cells = Cells::new(family, code)?;
         let cw = mean_length(corners, 0) / cells.cols as f64;
         let ch = mean_length(corners, 1) / cells.rows as f64;
@@ -354,7 +355,7 @@ impl PatternRefiner {
                 return None;
             }
         }
-        Some(out)
+        Some(to_points(out))
     }
 
     /// Samples every cell and fits the levels and the blur.
@@ -782,13 +783,15 @@ mod tests {
         let img = GrayView::new(pixels, w, pixels.len() / w).ok()?;
         let dict = Dictionary::paper();
         let code = dict.code(0)?;
-        PatternRefiner::default().refine(
-            &img,
-            corners,
-            dict.family(),
-            code,
-            &RefineConfig::default(),
-        )
+        PatternRefiner::default()
+            .refine(
+                &img,
+                &to_points(*corners),
+                dict.family(),
+                code,
+                &RefineConfig::default(),
+            )
+            .map(|c| to_arrays(&c))
     }
 
     #[test]

@@ -15,6 +15,8 @@
 //! makes them deviate from 90 degrees, so the tolerance is generous). Every step is linear
 //! in the contour length and allocates nothing.
 
+use crate::image::{Corners, to_points};
+
 /// Limits on an acceptable quadrilateral.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct QuadLimits {
@@ -30,7 +32,7 @@ pub struct QuadLimits {
 
 /// Fits four corners (pixel coordinates of contour points, clockwise in the image) to a closed
 /// contour, or `None` if the contour is not a quadrilateral within `limits`.
-pub fn fit_quad(contour: &[[i32; 2]], limits: &QuadLimits) -> Option<[[f64; 2]; 4]> {
+pub fn fit_quad(contour: &[[i32; 2]], limits: &QuadLimits) -> Option<Corners> {
     if contour.len() < 8 {
         return None;
     }
@@ -39,7 +41,7 @@ pub fn fit_quad(contour: &[[i32; 2]], limits: &QuadLimits) -> Option<[[f64; 2]; 
     contour.settle_vertices(&mut v);
     let lines = contour.side_lines(&v, limits)?;
     let corners = contour.corners(&lines, &v, limits)?;
-    convex_clockwise(&corners, limits.min_angle_deg).then_some(corners)
+    convex_clockwise(&corners, limits.min_angle_deg).then(|| to_points(corners))
 }
 
 /// A closed contour (at least 8 points) and the point searches of the quad fit.
@@ -404,6 +406,7 @@ pub fn convex_clockwise(c: &[[f64; 2]; 4], min_angle_deg: f64) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::image::to_arrays;
 
     const LIMITS: QuadLimits = QuadLimits {
         min_side: 5.0,
@@ -433,7 +436,7 @@ mod tests {
     #[test]
     fn rectangle_gives_its_corners_clockwise() {
         let c = rect_contour(3, 4, 20, 12);
-        let q = fit_quad(&c, &LIMITS).unwrap();
+        let q = to_arrays(&fit_quad(&c, &LIMITS).unwrap());
         let mut got: Vec<[f64; 2]> = q.iter().map(|c| [c[0].round(), c[1].round()]).collect();
         assert!(q.iter().flatten().all(|v| (v - v.round()).abs() < 1e-9));
         got.sort_by(|a, b| a.partial_cmp(b).unwrap());
@@ -506,7 +509,9 @@ mod tests {
             }
         });
         let mask: Vec<&str> = rows.iter().map(String::as_str).collect();
-        let q = fit_quad(&traced(&mask), &MARKER_LIMITS).expect("notched rectangle rejected");
+        let q = to_arrays(
+            &fit_quad(&traced(&mask), &MARKER_LIMITS).expect("notched rectangle rejected"),
+        );
         let mut got: Vec<[f64; 2]> = q.iter().map(|c| [c[0].round(), c[1].round()]).collect();
         got.sort_by(|a, b| a.partial_cmp(b).unwrap());
         assert_eq!(

@@ -14,7 +14,7 @@
 //! corners are the intersections of adjacent lines. The whole is done twice, the second
 //! time with stations placed on the refined lines so the profiles are centred on the edge.
 
-use crate::image::GrayView;
+use crate::image::{Corners, GrayView, to_arrays, to_points};
 use crate::quad::convex_clockwise;
 
 /// Settings of the refinement.
@@ -251,12 +251,12 @@ impl Refiner {
     pub fn refine(
         &mut self,
         img: &GrayView<'_>,
-        coarse: &[[f64; 2]; 4],
+        coarse: &Corners,
         cfg: &RefineConfig,
         min_angle_deg: f64,
         cells_across: f64,
-    ) -> Option<([[f64; 2]; 4], f64)> {
-        let mut corners = *coarse;
+    ) -> Option<(Corners, f64)> {
+        let mut corners = to_arrays(coarse);
         let mut contrast = 0.0;
         // First pass: the true edge lies about half a pixel outside the dark pixel centres.
         for pass in [0, 1] {
@@ -313,7 +313,7 @@ impl Refiner {
                 return None;
             }
         }
-        convex_clockwise(&corners, min_angle_deg).then_some((corners, contrast))
+        convex_clockwise(&corners, min_angle_deg).then(|| (to_points(corners), contrast))
     }
 
     /// Fits the edge line of the side from `a` to `b` (clockwise, so the outside is on the

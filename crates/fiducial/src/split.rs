@@ -38,7 +38,7 @@
 //! clustering ([`crate::cluster`]), which reads them.
 
 use crate::contour::{Labeller, trace_outer};
-use crate::image::GrayView;
+use crate::image::{Corners, GrayView};
 use crate::quad::{QuadLimits, fit_quad};
 use crate::threshold::DARK;
 
@@ -237,7 +237,7 @@ impl Splitter {
         runs: &[[u32; 3]],
         rect: Rect,
         params: &SplitParams<'_>,
-        found: impl FnMut([[f64; 2]; 4]),
+        found: impl FnMut(Corners),
     ) {
         self.cut_at(img, Some(runs), rect, params, CUT, 0, found);
     }
@@ -255,7 +255,7 @@ impl Splitter {
         params: &SplitParams<'_>,
         cut: f64,
         min_contrast: u8,
-        mut found: impl FnMut([[f64; 2]; 4]),
+        mut found: impl FnMut(Corners),
     ) {
         let (w, h) = (img.width(), img.height());
         let (x0, y0) = (rect.x0 as usize, rect.y0 as usize);
@@ -355,7 +355,7 @@ impl Splitter {
                 continue;
             };
             let (ox, oy) = (x0 as f64 - 1.0, y0 as f64 - 1.0);
-            found(coarse.map(|[x, y]| [x + ox, y + oy]));
+            found(coarse.map(|p| nalgebra::Point2::new(p.x + ox, p.y + oy)));
         }
         // Light again: every dark pixel is in a run of the labelling.
         for (_, y, a, b) in labeller.runs() {

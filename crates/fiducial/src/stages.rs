@@ -3,8 +3,6 @@
 //! merge of readings. `detector` runs them on the calling thread, `parallel` on rayon's
 //! threads; neither module imports the other's internals, both import these.
 
-use nalgebra::Point2;
-
 use crate::contour::{Component, trace_outer};
 use crate::decode::{
     CellReading, Decoded, Rejection, WhiteReference, match_reading, read_oriented,
@@ -102,8 +100,8 @@ impl Scan<'_, '_> {
             let scale = self.factor as f64;
             let off = 0.5 * (scale - 1.0);
             for c in &mut coarse {
-                c[0] = c[0] * scale + off;
-                c[1] = c[1] * scale + off;
+                c.x = c.x * scale + off;
+                c.y = c.y * scale + off;
             }
         }
         let Some((corners, contrast)) = refiner.refine(
@@ -115,10 +113,7 @@ impl Scan<'_, '_> {
         ) else {
             return Examined::Dropped;
         };
-        Examined::Quad(Quad {
-            corners: corners.map(|[x, y]| Point2::new(x, y)),
-            contrast,
-        })
+        Examined::Quad(Quad { corners, contrast })
     }
 }
 
@@ -217,14 +212,12 @@ impl DecodeContext<'_> {
         }
         if self.config.refine.with_pattern {
             let family = self.dictionaries[d.dictionary].family();
-            if let Some(c) = scratch.pattern.refine(
-                img,
-                &d.corners.map(|p| [p.x, p.y]),
-                family,
-                d.code,
-                &self.config.refine,
-            ) {
-                d.corners = c.map(|[x, y]| Point2::new(x, y));
+            if let Some(c) =
+                scratch
+                    .pattern
+                    .refine(img, &d.corners, family, d.code, &self.config.refine)
+            {
+                d.corners = c;
             }
         }
         Some(d)
