@@ -214,6 +214,16 @@ pub fn run(args: &[String]) -> crate::Result {
             out.len(),
             det.stats()
         );
+        if std::env::var_os("PHOTOS_LIST").is_some() {
+            for d in &out {
+                println!(
+                    "  read id {} corners {:?} distance {}",
+                    d.index,
+                    d.corners.map(|c| [c.x.round(), c.y.round()]),
+                    d.distance
+                );
+            }
+        }
         if let Some(refs) = reference(&p)? {
             for (id, want) in &refs {
                 let read = out

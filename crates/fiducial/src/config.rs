@@ -36,7 +36,10 @@ pub struct DetectorConfig {
     /// still has a closed outline ([`crate::Detector`]'s light cut).
     pub motion_blur: bool,
     /// Drop a decoded marker one of whose sides is not its border's outer edge, as when the
-    /// side runs along an occluder (the crate's side check, issue #16). Default on, with
+    /// side runs along an occluder (the crate's side check, issue #16), measured on the
+    /// plain corners and, when that fails, on the corners fitted to the decoded pattern (a
+    /// tag seen obliquely in a real photo has borders of 2-3 px, where the plain corners'
+    /// grid can be a few tenths of a pixel off; issue #31). Default on, with
     /// [`SideCheck::default`]; `None` turns it off.
     pub side_check: Option<SideCheck>,
     /// Look for quads in the boundary clusters of large dark components that gave no quad

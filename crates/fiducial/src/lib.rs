@@ -80,7 +80,8 @@
 //!    20-40 px markers on the accuracy scenes. Rejects quads whose contrast is under 20
 //!    grey levels, with more than one light border cell, or whose code is no entry (read
 //!    plainly or blurred); markers one of whose sides runs along an occluder (a border
-//!    thinner than its grid says, a light corner cell, an outline inside the quad); the
+//!    thinner than its grid says, a light corner cell, an outline inside the quad) with the
+//!    plain corners and with the pattern step's; the
 //!    blurred reading of a quad whose motion is under 1.5 cells or whose levels at the
 //!    estimated motion do not read as a marker. The pattern step rejects nothing: corners
 //!    the model cannot fit keep the plain refinement's.

@@ -203,22 +203,32 @@ impl DecodeContext<'_> {
                 .flatten()
         });
         let mut d = best?;
-        // A side along an occluder, not the border (issue #16).
+        let family = self.dictionaries[d.dictionary].family();
+        // The corners against the decoded pattern (issue #13).
+        let refined = if self.config.refine.with_pattern {
+            scratch
+                .pattern
+                .refine(img, &d.corners, family, d.code, &self.config.refine)
+        } else {
+            None
+        };
+        // A side along an occluder, not the border (issue #16). On a narrow border under a
+        // wider blur than the side check allows for (a tag seen obliquely in a real photo,
+        // cells of 2-3 px), the plain corners can put the grid a few tenths of a pixel off,
+        // which reads as a border too thin; the pattern step's corners, fitted to every
+        // cell, put it right. So a marker is dropped only when the check fails on both.
         if let Some(check) = &self.config.side_check {
-            let family = self.dictionaries[d.dictionary].family();
-            if side_offsets(img, &d, family, check).is_some_and(|o| !o.consistent()) {
+            let fails = |corners: &crate::image::Corners| {
+                let mut e = d;
+                e.corners = *corners;
+                side_offsets(img, &e, family, check).is_some_and(|o| !o.consistent())
+            };
+            if fails(&d.corners) && refined.as_ref().is_none_or(fails) {
                 return None;
             }
         }
-        if self.config.refine.with_pattern {
-            let family = self.dictionaries[d.dictionary].family();
-            if let Some(c) =
-                scratch
-                    .pattern
-                    .refine(img, &d.corners, family, d.code, &self.config.refine)
-            {
-                d.corners = c;
-            }
+        if let Some(c) = refined {
+            d.corners = c;
         }
         Some(d)
     }
