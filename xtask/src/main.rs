@@ -71,7 +71,8 @@ commands:
   photos           time our detector on the real photographs of shared/realdata (no markers,
                    the NASA robots, OpenCV's ArUco photo, Duckietown) and print, per photo,
                    the median time, the reads and where the work went (--reps N, default 20;
-                   --dictionary NAME, default tag36h11; or name photos/folders to time)
+                   --dictionary NAME, default tag36h11; --clutter: the clutter bench's
+                   frame too; --list: every marker read; or name photos/folders to time)
   unused-deps      fail if a workspace crate declares a dependency its code never names
   figures          run the demo and copy its figures into docs/img/ (the README's)
   solvepnp         OpenCV's single-marker poses (solvePnP IPPE_SQUARE) and lens projections

@@ -14,8 +14,9 @@ use std::time::Instant;
 use fiducial::{Detector, DetectorConfig, GrayView, dictionary_by_name};
 
 const USAGE: &str =
-    "usage: cargo xtask photos [--reps N] [--dictionary NAME] [--clutter] [PHOTO|FOLDER]...
+    "usage: cargo xtask photos [--reps N] [--dictionary NAME] [--clutter] [--list] [PHOTO|FOLDER]...
 
+--list: also print every marker read (id, corners rounded to pixels, bits corrected)
 --clutter: first time the frame of the criterion bench fiducial/detect_clutter_640x480
 (marker_testkit's clutter, seed 43), to see where its time goes";
 
@@ -136,6 +137,7 @@ pub fn run(args: &[String]) -> crate::Result {
     let mut dictionary = "tag36h11".to_string();
     let mut paths = Vec::new();
     let mut clutter = false;
+    let mut list = false;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -148,6 +150,7 @@ pub fn run(args: &[String]) -> crate::Result {
             }
             "--dictionary" => dictionary = it.next().ok_or("--dictionary needs a name")?.clone(),
             "--clutter" => clutter = true,
+            "--list" => list = true,
             "-h" | "--help" => {
                 println!("{USAGE}");
                 return Ok(());
@@ -214,7 +217,7 @@ pub fn run(args: &[String]) -> crate::Result {
             out.len(),
             det.stats()
         );
-        if std::env::var_os("PHOTOS_LIST").is_some() {
+        if list {
             for d in &out {
                 println!(
                     "  read id {} corners {:?} distance {}",
