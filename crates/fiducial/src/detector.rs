@@ -873,10 +873,9 @@ fn add_refined(
     min_angle_deg: f64,
     cells_across: f64,
 ) {
-    let rough = coarse;
     if quads
         .iter()
-        .any(|q| same_place(&q.corners, &rough) || contains(&q.corners, &rough))
+        .any(|q| same_place(&q.corners, &coarse) || contains(&q.corners, &coarse))
     {
         return;
     }
@@ -885,8 +884,10 @@ fn add_refined(
     else {
         return;
     };
-    let corners = c;
-    if !quads.iter().any(|q| same_place(&q.corners, &corners)) {
-        quads.push(Quad { corners, contrast });
+    if !quads.iter().any(|q| same_place(&q.corners, &c)) {
+        quads.push(Quad {
+            corners: c,
+            contrast,
+        });
     }
 }

@@ -263,15 +263,14 @@ impl PatternRefiner {
         code: u64,
         cfg: &RefineConfig,
     ) -> Option<Corners> {
-        let corners = &to_arrays(corners);
         let cells = Cells::new(family, code)?;
-        let cw = mean_length(corners, 0) / cells.cols as f64;
-        let ch = mean_length(corners, 1) / cells.rows as f64;
+        let plain = to_arrays(corners);
+        let cw = mean_length(&plain, 0) / cells.cols as f64;
+        let ch = mean_length(&plain, 1) / cells.rows as f64;
         if !(cw >= 1.0 && ch >= 1.0) || cw.min(ch) >= MAX_CELL_PX {
             return None;
         }
-        let frame =
-            CrossRatioFrame::new(&corners.map(|[x, y]| nalgebra::Point2::new(x, y))).ok()?;
+        let frame = CrossRatioFrame::new(corners).ok()?;
         let model = self.fit_levels(img, &frame, &cells, cw, ch)?;
         let mut lines = [Line {
             n: [0.0, 0.0],
@@ -279,7 +278,7 @@ impl PatternRefiner {
         }; 4];
         let mut geoms = [None; 4];
         for (side, g) in geoms.iter_mut().enumerate() {
-            *g = Self::geometry(corners, &frame, &cells, side, cw, ch, cfg);
+            *g = Self::geometry(&plain, &frame, &cells, side, cw, ch, cfg);
         }
         let [Some(g0), Some(g1), Some(g2), Some(g3)] = geoms else {
             return None;
@@ -349,7 +348,7 @@ impl PatternRefiner {
         // The plain refinement is within a fraction of a pixel; anything further is a failed
         // model, not a correction.
         let limit = 0.5f64.max(0.05 * cw.min(ch));
-        for (c, k) in out.iter().zip(corners) {
+        for (c, k) in out.iter().zip(&plain) {
             let moved = (k[0] - c[0]).hypot(k[1] - c[1]);
             if moved.is_nan() || moved > limit {
                 return None;

@@ -218,7 +218,7 @@ impl DecodeContext<'_> {
         // which reads as a border too thin; the pattern step's corners, fitted to every
         // cell, put it right. So a marker is dropped only when the check fails on both.
         if let Some(check) = &self.config.side_check {
-            let fails = |corners: &crate::image::Corners| {
+            let fails = |corners: &Corners| {
                 let mut e = d;
                 e.corners = *corners;
                 side_offsets(img, &e, family, check).is_some_and(|o| !o.consistent())
