@@ -36,6 +36,8 @@ use rand_chacha::ChaCha8Rng;
 use serde_json::{Value, json};
 use unicycle::{PolarModel, wrap_angle};
 
+use crate::photos::load_gray;
+
 const USAGE: &str = "usage: cargo xtask compare [--quick] [--scenes N] [--keep-frames]
 
   --quick        few scenes, cases and seeds (for iterating; the document says so)
@@ -643,8 +645,6 @@ fn thread_cpu() -> f64 {
     let t = rustix::time::clock_gettime(rustix::time::ClockId::ThreadCPUTime);
     t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
 }
-
-use crate::photos::load_gray;
 
 /// Our detector on every frame of its families: ours with the frame's own dictionary.
 fn run_ours(frames: &[Frame], reps: usize) -> crate::Result<Vec<Reads>> {
@@ -1317,7 +1317,7 @@ fn photo_section(photos: &[PathBuf], ours: &[Vec<Reads>], peers: &Value) -> crat
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
-        let (_, w, h) = load_gray(p)?;
+        let (w, h) = image::image_dimensions(p)?;
         write!(text, "| {name} | {w}x{h} |")?;
         let mut peer_reads_of = Vec::new();
         for (k, (_, _, key)) in PHOTO_PEERS.iter().enumerate() {
@@ -1373,21 +1373,21 @@ fn photo_section(photos: &[PathBuf], ours: &[Vec<Reads>], peers: &Value) -> crat
         1e3 * worst_640.0
     )?;
     if let Some((name, refs, ours, peer)) = nasa {
-        let within = |markers: &[[[f64; 2]; 4]]| {
+        // The reference tags read (same id, every corner within 1 px).
+        let within = |markers: &[(usize, [Point2<f64>; 4])]| {
             refs.iter()
-                .filter(|(_, want)| {
+                .filter(|(id, want)| {
                     markers
                         .iter()
-                        .any(|got| crate::photos::corner_error(got, want) <= 1.0)
+                        .any(|(i, got)| i == id && crate::photos::corner_error(got, want) <= 1.0)
                 })
                 .count()
         };
-        let ours: Vec<[[f64; 2]; 4]> = ours.iter().map(|(_, c)| c.map(|p| [p.x, p.y])).collect();
         // AprilTag's corners have pixel centres at half-integers.
-        let peer: Vec<[[f64; 2]; 4]> = peer
+        let peer: Vec<(usize, [Point2<f64>; 4])> = peer
             .markers
             .iter()
-            .map(|(_, c)| c.map(|p| [p.x - 0.5, p.y - 0.5]))
+            .map(|(i, c)| (*i, c.map(|p| Point2::new(p.x - 0.5, p.y - 0.5))))
             .collect();
         writeln!(
             text,

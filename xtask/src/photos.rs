@@ -11,7 +11,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use fiducial::{Detector, DetectorConfig, GrayView, dictionary_by_name};
+use fiducial::{Corners, Detector, DetectorConfig, GrayView, dictionary_by_name};
 
 const USAGE: &str =
     "usage: cargo xtask photos [--reps N] [--dictionary NAME] [--clutter] [--list] [PHOTO|FOLDER]...
@@ -56,20 +56,21 @@ pub(crate) fn photos_in(dir: &Path) -> crate::Result<Vec<PathBuf>> {
     Ok(v)
 }
 
-/// The default photo set: every real photo beside the repository.
-pub(crate) fn default_photos(root: &Path) -> crate::Result<Vec<PathBuf>> {
-    let mut v = Vec::new();
-    for sub in ["photos/notags", "nasa", "photos/aruco", "duckietown"] {
-        v.extend(photos_in(&crate::realdata(root, sub)?)?);
-    }
-    Ok(v)
-}
-
 /// The photos of `cargo xtask compare`'s real-photo section: every photo of
 /// `shared/realdata/photos/notags` and the NASA photo.
 pub(crate) fn compared_photos(root: &Path) -> crate::Result<Vec<PathBuf>> {
     let mut v = photos_in(&crate::realdata(root, "photos/notags")?)?;
     v.extend(photos_in(&crate::realdata(root, "nasa")?)?);
+    Ok(v)
+}
+
+/// The default photo set: every real photo beside the repository (those compared, then
+/// OpenCV's ArUco photo and the Duckietown frames).
+fn default_photos(root: &Path) -> crate::Result<Vec<PathBuf>> {
+    let mut v = compared_photos(root)?;
+    for sub in ["photos/aruco", "duckietown"] {
+        v.extend(photos_in(&crate::realdata(root, sub)?)?);
+    }
     Ok(v)
 }
 
@@ -122,11 +123,11 @@ pub(crate) fn reference(photo: &Path) -> crate::Result<Option<Vec<RefTag>>> {
 
 /// The largest distance from a corner of `want` to the nearest corner of `got` (any start:
 /// AprilTag's corner order differs from ours).
-pub(crate) fn corner_error(got: &[[f64; 2]; 4], want: &[[f64; 2]; 4]) -> f64 {
+pub(crate) fn corner_error(got: &Corners, want: &[[f64; 2]; 4]) -> f64 {
     want.iter()
         .map(|w| {
             got.iter()
-                .map(|g| (g[0] - w[0]).hypot(g[1] - w[1]))
+                .map(|g| (g.x - w[0]).hypot(g.y - w[1]))
                 .fold(f64::INFINITY, f64::min)
         })
         .fold(0.0, f64::max)
@@ -180,108 +181,118 @@ pub fn run(args: &[String]) -> crate::Result {
         "photo", "size", "ms", "reads"
     );
     let mut total = 0.0;
-    let mut out = Vec::new();
-    let frames = clutter
-        .then(|| PathBuf::from("clutter_640x480 (bench, seed 43)"))
-        .into_iter()
-        .chain(paths);
-    for p in frames {
-        let (px, w, h) = if clutter
-            && p.file_name()
-                .is_some_and(|n| n.to_string_lossy().starts_with("clutter_640x480"))
-        {
-            (bench_clutter()?, 640, 480)
-        } else {
-            load_gray(&p)?
-        };
-        let img = GrayView::new(&px, w, h)?;
-        det.detect(&img, &mut out);
-        let mut times = Vec::with_capacity(reps);
-        for _ in 0..reps {
-            let t = Instant::now();
-            det.detect(&img, &mut out);
-            times.push(t.elapsed().as_secs_f64());
-        }
-        times.sort_by(f64::total_cmp);
-        let med = times[times.len() / 2];
-        total += med;
+    if clutter {
+        let px = bench_clutter()?;
+        let img = GrayView::new(&px, 640, 480)?;
+        total += report(
+            &mut det,
+            "clutter_640x480 (bench, seed 43)",
+            &img,
+            reps,
+            list,
+            None,
+        );
+    }
+    for p in &paths {
+        let (px, w, h) = load_gray(p)?;
         let name = p
             .file_name()
-            .map(|n| n.to_string_lossy())
+            .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
-        println!(
-            "{:<34} {:>10} {:>9.3} {:>5}  {}",
-            name,
-            format!("{w}x{h}"),
-            1e3 * med,
-            out.len(),
-            det.stats()
+        let refs = reference(p)?;
+        total += report(
+            &mut det,
+            &name,
+            &GrayView::new(&px, w, h)?,
+            reps,
+            list,
+            refs.as_deref(),
         );
-        if list {
-            for d in &out {
-                println!(
-                    "  read id {} corners {:?} distance {}",
-                    d.index,
-                    d.corners.map(|c| [c.x.round(), c.y.round()]),
-                    d.distance
-                );
-            }
-        }
-        if let Some(refs) = reference(&p)? {
-            for (id, want) in &refs {
-                let read = out
-                    .iter()
-                    .filter(|d| d.index == *id)
-                    .map(|d| corner_error(&d.corners.map(|c| [c.x, c.y]), want))
-                    .fold(f64::INFINITY, f64::min);
-                let quad = det
-                    .quads()
-                    .iter()
-                    .map(|q| corner_error(&q.corners.map(|c| [c.x, c.y]), want))
-                    .fold(f64::INFINITY, f64::min);
-                let why = if read < 3.0 {
-                    String::new()
-                } else if quad < 3.0 {
-                    let q = det
-                        .quads()
-                        .iter()
-                        .min_by(|a, b| {
-                            corner_error(&a.corners.map(|c| [c.x, c.y]), want)
-                                .total_cmp(&corner_error(&b.corners.map(|c| [c.x, c.y]), want))
-                        })
-                        .map(|q| q.corners);
-                    match q
-                        .map(|c| fiducial::decode(&img, &c, det.dictionary(), &det.config().decode))
-                    {
-                        Some(Err(e)) => format!(" decode: {e}"),
-                        Some(Ok(d)) => match &det.config().side_check {
-                            Some(check) => format!(
-                                " decodes alone; side check: {:?}",
-                                fiducial::stages_for_tools::side_offsets(
-                                    &img,
-                                    &d,
-                                    det.dictionary().family(),
-                                    check
-                                )
-                            ),
-                            None => " decodes alone".into(),
-                        },
-                        _ => String::new(),
-                    }
-                } else {
-                    String::new()
-                };
-                println!(
-                    "  reference tag {id} at ({:.0}, {:.0}): read {} (corner error {:.2} px), nearest quad {:.2} px{why}",
-                    want[0][0],
-                    want[0][1],
-                    read < 1.0,
-                    read,
-                    quad
-                );
-            }
-        }
     }
     println!("sum of medians: {:.2} ms", 1e3 * total);
     Ok(())
+}
+
+/// Times `det` on `img` (`reps` runs after one warm-up) and prints the median, the reads,
+/// the work counters and, with `list`, every marker read; for each tag of `refs`, whether
+/// it was read (corners within 1 px), the nearest quad and why that quad was dropped.
+/// Returns the median, seconds.
+fn report(
+    det: &mut Detector,
+    name: &str,
+    img: &GrayView<'_>,
+    reps: usize,
+    list: bool,
+    refs: Option<&[RefTag]>,
+) -> f64 {
+    let mut out = Vec::new();
+    det.detect(img, &mut out);
+    let mut times = Vec::with_capacity(reps);
+    for _ in 0..reps {
+        let t = Instant::now();
+        det.detect(img, &mut out);
+        times.push(t.elapsed().as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    let med = times[times.len() / 2];
+    println!(
+        "{:<34} {:>10} {:>9.3} {:>5}  {}",
+        name,
+        format!("{}x{}", img.width(), img.height()),
+        1e3 * med,
+        out.len(),
+        det.stats()
+    );
+    if list {
+        for d in &out {
+            println!(
+                "  read id {} corners {:?} distance {}",
+                d.index,
+                d.corners.map(|c| [c.x.round(), c.y.round()]),
+                d.distance
+            );
+        }
+    }
+    for (id, want) in refs.unwrap_or_default() {
+        let read = out
+            .iter()
+            .filter(|d| d.index == *id)
+            .map(|d| corner_error(&d.corners, want))
+            .fold(f64::INFINITY, f64::min);
+        let nearest = det
+            .quads()
+            .iter()
+            .map(|q| (corner_error(&q.corners, want), q.corners))
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        let quad = nearest.map_or(f64::INFINITY, |n| n.0);
+        let why = match nearest {
+            Some((e, c)) if read >= 3.0 && e < 3.0 => {
+                match fiducial::decode(img, &c, det.dictionary(), &det.config().decode) {
+                    Err(e) => format!(" decode: {e}"),
+                    Ok(d) => match &det.config().side_check {
+                        Some(check) => format!(
+                            " decodes alone; side check: {:?}",
+                            fiducial::stages_for_tools::side_offsets(
+                                img,
+                                &d,
+                                det.dictionary().family(),
+                                check
+                            )
+                        ),
+                        None => " decodes alone".into(),
+                    },
+                }
+            }
+            _ => String::new(),
+        };
+        println!(
+            "  reference tag {id} at ({:.0}, {:.0}): read {} (corner error {:.2} px), nearest quad {:.2} px{why}",
+            want[0][0],
+            want[0][1],
+            read < 1.0,
+            read,
+            quad
+        );
+    }
+    med
 }
