@@ -346,7 +346,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 .publish(state.diagnostics(&window_counts))
                 .map_err(|e| format!("cannot publish /diagnostics: {e:?}"))?;
             window_counts = state.counts;
-            state.window = Histogram::new();
+            state.window.clear();
             next_diag += Duration::from_secs(1);
         }
     }
@@ -867,6 +867,12 @@ impl Histogram {
         }
     }
 
+    /// Empties the histogram, keeping its bins' memory.
+    fn clear(&mut self) {
+        self.bins.fill(0);
+        self.n = 0;
+    }
+
     fn add(&mut self, ms: f64) {
         let bin = (ms.max(0.0) / Self::BIN_MS) as usize;
         self.bins[bin.min(Self::BINS)] += 1;
@@ -972,5 +978,13 @@ mod tests {
         assert_eq!(h.n, 102);
         assert!(h.quantile(1.0) > 100.0);
         assert!(h.quantile(0.0) < 0.01);
+        h.clear();
+        assert_eq!(h.quantile(0.5), 0.0);
+        h.add(2.0);
+        assert!(
+            (h.quantile(0.5) - 2.005).abs() < 1e-9,
+            "{}",
+            h.quantile(0.5)
+        );
     }
 }
