@@ -15,15 +15,19 @@ use formation_tracker::mount::CameraMount;
 /// stdout (JSON with --json); --mcap also writes a file that opens in Foxglove.
 #[derive(Debug, ClapArgs)]
 pub struct Args {
+    /// A folder of images, a y4m file, `-` for y4m on stdin, or a ROS 2 bag (.mcap file or
     /// rosbag2 folder).
     #[arg(value_name = "INPUT")]
     pub input: PathBuf,
+    /// Camera calibration (OpenCV YAML or ROS camera_info); for a bag, default: its
     /// CameraInfo.
     #[arg(long, value_name = "FILE")]
     pub camera: Option<PathBuf>,
+    /// Bag input: the image topic (sensor_msgs/msg/Image or CompressedImage); default: the
     /// bag's only image topic.
     #[arg(long, value_name = "TOPIC")]
     pub image_topic: Option<String>,
+    /// Bag input: the follower's inputs topic (nav_msgs/msg/Odometry, geometry_msgs/msg/Twist
     /// or TwistStamped); default: the bag's only one (Odometry first). --inputs CSV wins.
     #[arg(long, value_name = "TOPIC")]
     pub inputs_topic: Option<String>,
@@ -42,10 +46,6 @@ pub struct Args {
 /// tracking.
 #[derive(Debug, Clone, ClapArgs)]
 pub struct RunArgs {
-    /// A folder of images, a y4m file, `-` for y4m on stdin, or a ROS 2 bag (.mcap file or
-    /// Camera calibration (OpenCV YAML or ROS camera_info); for a bag, default: its
-    /// Bag input: the image topic (sensor_msgs/msg/Image or CompressedImage); default: the
-    /// Bag input: the follower's inputs topic (nav_msgs/msg/Odometry, geometry_msgs/msg/Twist
     /// Also write the results as MCAP for Foxglove: images, marker and rig annotations,
     /// camera-to-leader transforms and the formation estimate (docs/outputs.md).
     #[arg(long, value_name = "OUT.mcap")]
