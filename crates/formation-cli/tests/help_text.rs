@@ -3,6 +3,8 @@
 //! moved into their own struct, the first lines of five descriptions were left behind, and
 //! `track --help` printed `<INPUT>  rosbag2 folder)` and `--camera <FILE>  CameraInfo`.
 
+#![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
+
 use std::process::Command;
 
 fn help(args: &[&str]) -> String {
