@@ -769,6 +769,16 @@ pub(crate) fn validate(config: &DemoConfig) -> Result<(), DemoError> {
     Ok(())
 }
 
+/// The followers' tracker settings: the defaults, told the noise of the follower's own
+/// odometry (a property of the robot, from the scenario file; exact without one).
+fn tracker_config(world: &World<'_>) -> TrackerConfig {
+    let mut c = TrackerConfig::reference(world.mount.offset, world.config.dt);
+    if let Some(s) = &world.config.scenario {
+        c.filter.tuning.input_noise_std = nalgebra::Vector2::from(s.odometry_noise_std);
+    }
+    c
+}
+
 /// Robot `i` of `n` at `((n - i) 1.5, (n - i) 0.25, 0)`.
 fn starting_line(n: usize) -> Vec<PlanarPose> {
     (1..=n)
@@ -792,7 +802,7 @@ fn start_followers(world: &World<'_>, poses: &[PlanarPose]) -> Result<Vec<Follow
                 (w, h),
                 world.rig.clone(),
                 RobotConfig::default(),
-                Tracker::new(TrackerConfig::reference(d, world.config.dt))?,
+                Tracker::new(tracker_config(world))?,
             );
             pipeline.set_guided(world.config.guided)?;
             Ok(Follower {

@@ -40,8 +40,10 @@
 //! built-in demo's value, so a file without it gives exactly `demo`'s camera, rendering and
 //! occlusion. `reproduce dukf` ignores it; `noise_std`, `bias` and `filter_x0` are the
 //! dual-UKF experiment's and the demo ignores them (its measurements come from the images).
-//! `actuation` and `odometry_noise_std` are the follower's: in `reproduce dukf` it moves by
-//! the executed inputs and the filter is given its odometry, never the executed inputs.
+//! `actuation` and `odometry_noise_std` are the follower's: in `reproduce dukf` and the demo
+//! it moves by the executed inputs and the filter is given its odometry, never the executed
+//! inputs. The demo's trackers are also told `odometry_noise_std`, as a robot knows its own
+//! odometry's noise (`FilterTuning::input_noise_std` of `formation-filter`).
 //! `control` says what the follower's controller acts on in `reproduce dukf` and
 //! `cargo xtask dukf-table` ([`Control`]): `estimate` (the default, as on a robot: the
 //! filter's estimate after each measurement), `truth` (the paper's setting, Figs. 12-13) or
