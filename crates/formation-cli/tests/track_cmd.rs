@@ -301,3 +301,28 @@ fn the_follower_controller_is_told_from_a_file() {
     );
     let _ = std::fs::remove_dir_all(&clip.dir);
 }
+
+/// #30: `--odometry-noise` reaches the tracker: told that its inputs are noisy, it widens its
+/// predictions, so the reported uncertainty grows and the estimates differ.
+#[test]
+fn the_odometry_noise_is_told_from_the_command_line() {
+    let clip = common::reference_clip("odometry", FRAMES);
+    let base = common::CLIP_ARGS;
+    let (plain, stderr, code) = track(&base, &clip.dir, None);
+    assert_eq!(code, Some(0), "{stderr}");
+    let mut args = base.to_vec();
+    args.extend(["--odometry-noise", "0.01,0.01"]);
+    let (told, stderr, code) = track(&args, &clip.dir, None);
+    assert_eq!(code, Some(0), "{stderr}");
+    let (plain, told) = (lines(&plain), lines(&told));
+    assert_eq!(plain.len(), told.len());
+    let std = |f: &serde_json::Value| f["leaders"][0]["l12_std"].as_f64().unwrap();
+    let last = (plain.last().unwrap(), told.last().unwrap());
+    assert!(
+        std(last.1) > std(last.0),
+        "l12 std {} told, {} not told",
+        std(last.1),
+        std(last.0)
+    );
+    let _ = std::fs::remove_dir_all(&clip.dir);
+}

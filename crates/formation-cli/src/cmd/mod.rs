@@ -160,6 +160,29 @@ pub mod numbers {
         }
     }
 
+    /// The follower's odometry noise, `V,W`: two finite non-negative standard deviations,
+    /// m/s and rad/s (at most 10 m/s and 10 rad/s, beyond any odometry worth the name).
+    pub fn odometry_noise(s: &str) -> Result<[f64; 2], String> {
+        let parts: Vec<&str> = s.split(',').collect();
+        let [v, w] = parts[..] else {
+            return Err(format!(
+                "`{s}` is not two numbers `V,W` (m/s, rad/s), e.g. 0.01,0.01"
+            ));
+        };
+        let mut out = [0.0; 2];
+        for (slot, (part, unit)) in out.iter_mut().zip([(v, "m/s"), (w, "rad/s")]) {
+            let x = finite(part)?;
+            if !(0.0..=10.0).contains(&x) {
+                return Err(format!(
+                    "{} {unit} is not an odometry noise (0 up to 10 {unit})",
+                    short(x)
+                ));
+            }
+            *slot = x;
+        }
+        Ok(out)
+    }
+
     /// An angle in radians within `[-pi, pi]`; a value that would be a plausible angle in
     /// degrees says so (`--pan 30` is 30 rad, not 30 degrees).
     pub fn angle(s: &str) -> Result<f64, String> {

@@ -93,6 +93,14 @@ pub struct RunArgs {
     #[arg(long, value_name = "PX", default_value_t = formation_io::frames::MAX_SIDE,
           value_parser = crate::cmd::numbers::max_side)]
     pub max_side: usize,
+    /// The follower's odometry noise `V,W`: white-noise standard deviations of the inputs
+    /// it reports (`--inputs` or the bag's odometry), m/s and rad/s, e.g. 0.01,0.01. The
+    /// tracker widens each prediction by what that noise moves the formation
+    /// (docs/tracking.md); without it the odometry is taken as exact, and with a precise
+    /// camera good measurements are then gated. Default: 0,0.
+    #[arg(long, value_name = "V,W", value_parser = crate::cmd::numbers::odometry_noise,
+          allow_hyphen_values = true)]
+    pub odometry_noise: Option<[f64; 2]>,
     /// Seconds without a measurement before a track is dropped.
     #[arg(long, value_name = "S", default_value_t = 2.0, value_parser = crate::cmd::numbers::positive)]
     pub lost_after: f64,

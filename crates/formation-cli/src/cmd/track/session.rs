@@ -337,6 +337,9 @@ pub fn build_pipeline(
 ) -> Result<Pipeline, CliError> {
     let mut config = TrackerConfig::reference(mount.offset, 1.0 / fps);
     config.lost_after = args.lost_after;
+    if let Some(noise) = args.odometry_noise {
+        config.filter.tuning.input_noise_std = nalgebra::Vector2::from(noise);
+    }
     let mut tracker = Tracker::new(config)?;
     tracker.record_history(args.smooth);
     let solver = PoseSolver::new(calibration.intrinsics).with_distortion(calibration.distortion);
