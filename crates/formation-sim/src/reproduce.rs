@@ -458,6 +458,11 @@ impl FilterRun {
         Ok(out)
     }
 
+    /// The filter as it stands (e.g. its model probabilities, [`FormationFilter::model_probabilities`]).
+    pub fn filter(&self) -> &FormationFilter {
+        &self.filter
+    }
+
     /// The follower's estimate of the formation and of the leader's inputs now: what its
     /// controller acts on under [`Control::Estimate`].
     pub fn control_estimate(&self) -> (Formation, Inputs) {
@@ -599,6 +604,11 @@ impl<F: Fn(f64) -> Inputs> ClosedLoop<F> {
     /// The scenario's configuration.
     pub fn config(&self) -> &ScenarioConfig {
         self.simulation.config()
+    }
+
+    /// The filter run as it stands after the last sample.
+    pub fn run(&self) -> &FilterRun {
+        &self.run
     }
 
     /// As [`FilterRun::smoothed_records`].
