@@ -804,6 +804,48 @@ impl FormationFilter {
         Ok(())
     }
 
+    /// **An oracle, for comparisons only**: sets the leader-velocity estimate to `w` (the
+    /// truth a simulation knows) with a negligible variance, and no correlation with the
+    /// rest of the state, before the next step. The IMM is restarted from its mixed estimate
+    /// so pinned, with the accelerations zero and model A (the leader moves as its state says)
+    /// certain: its models B and C, which infer the velocity, only re-enter through the
+    /// switching. `cargo xtask dukf-table --held-out` calls it before every step for its
+    /// oracle column (issue #30): what the filter would reach if it knew the leader's inputs.
+    /// No robot has them.
+    ///
+    /// # Errors
+    /// A non-finite `w`; a covariance the filter refuses. On error the filter is unchanged.
+    pub fn pin_leader_velocity(&mut self, w: Inputs) -> Result<(), FilterError> {
+        const PINNED_VARIANCE: f64 = 1e-12;
+        let w: Vector2<f64> = w.into();
+        check_inputs(&w)?;
+        match &mut self.engine {
+            Engine::Dual(dual) => {
+                dual.parameter_filter_mut()
+                    .reset(w, Matrix2::identity() * PINNED_VARIANCE)?;
+                self.snapshot = dual_snapshot(dual);
+            }
+            Engine::Imm(engine) => {
+                let (mut z, mut p) = engine.imm.estimate();
+                z[6] = w[0];
+                z[7] = w[1];
+                z[8] = 0.0;
+                z[9] = 0.0;
+                for i in 6..10 {
+                    for j in 0..10 {
+                        p[(i, j)] = 0.0;
+                        p[(j, i)] = 0.0;
+                    }
+                    p[(i, i)] = PINNED_VARIANCE;
+                }
+                engine.imm.reset(z, p, [1.0, 0.0, 0.0])?;
+                self.model_probabilities = Some([1.0, 0.0, 0.0]);
+                self.snapshot = engine.snapshot();
+            }
+        }
+        Ok(())
+    }
+
     /// One frame without a measurement (e.g. the leader was not detected): the state coasts
     /// on the model with the current velocity estimate and the covariances grow.
     ///

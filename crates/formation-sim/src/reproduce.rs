@@ -402,6 +402,9 @@ pub struct FilterRun {
     history: Option<Vec<FilterStep>>,
     /// Restart from the first measurement with this configuration (see [`Self::new`]).
     restart: Option<FilterConfig>,
+    /// Whether the filter is handed the leader's true inputs before each step
+    /// ([`Self::oracle`]).
+    oracle: bool,
 }
 
 /// Standard deviation of the leader's world pose `[x1, y1, theta1]` when a filter starts at
@@ -439,7 +442,17 @@ impl FilterRun {
             history,
             // Off the paper's setting the filter starts as a robot's does.
             restart: (scenario.control != Control::Truth).then(|| config.clone()),
+            oracle: false,
         })
+    }
+
+    /// **An oracle, for comparisons only**: before every step the filter is handed the
+    /// leader's true inputs over it ([`FormationFilter::pin_leader_velocity`]). The
+    /// held-out table's oracle column (issue #30): what the same filter reaches when the
+    /// leader's velocities are known. No robot has them.
+    pub fn oracle(mut self) -> Self {
+        self.oracle = true;
+        self
     }
 
     /// Feeds the next sample. The first sample (`t = 0`) only starts the run and gives
@@ -498,6 +511,9 @@ impl FilterRun {
         if self.follower_controller {
             // The follower knows its own controller: the IMM's models B and C use it.
             filter.set_follower_controller(Some(prev.controller))?;
+        }
+        if self.oracle {
+            filter.pin_leader_velocity(prev.leader_inputs)?;
         }
         // The follower's odometry, as a robot has it (not what its wheels executed).
         filter.step(&now.measurement, &self.r, prev.odometry)?;
@@ -611,6 +627,37 @@ impl<F: Fn(f64) -> Inputs> ClosedLoop<F> {
         &self.run
     }
 
+    /// The same loop with an oracle filter ([`FilterRun::oracle`]): comparisons only.
+    pub fn oracle(mut self) -> Self {
+        self.run = self.run.oracle();
+        self
+    }
+
+    /// Runs the loop to its end and collects it, as [`run_closed_loop`] does.
+    ///
+    /// # Errors
+    /// Any [`ReproduceError`].
+    pub fn collect_run(mut self) -> Result<(Scenario, Reproduction), ReproduceError> {
+        let scenario_config = self.config().clone();
+        let mut samples = Vec::with_capacity(scenario_config.steps() + 1);
+        let mut records = Vec::with_capacity(scenario_config.steps());
+        let mut consistency = Vec::with_capacity(scenario_config.steps());
+        for step in self.by_ref() {
+            let (sample, filtered) = step?;
+            samples.push(sample);
+            if let Some((record, stats)) = filtered {
+                records.push(record);
+                consistency.push(stats);
+            }
+        }
+        let reproduction = reproduction(&self.run, &scenario_config, records, consistency)?;
+        let scenario = Scenario {
+            config: scenario_config,
+            samples,
+        };
+        Ok((scenario, reproduction))
+    }
+
     /// As [`FilterRun::smoothed_records`].
     ///
     /// # Errors
@@ -653,25 +700,7 @@ pub fn run_closed_loop<F: Fn(f64) -> Inputs>(
     config: &FilterConfig,
     follower_controller: bool,
 ) -> Result<(Scenario, Reproduction), ReproduceError> {
-    let scenario_config = simulation.config().clone();
-    let mut run = ClosedLoop::new(simulation, config, follower_controller, true)?;
-    let mut samples = Vec::with_capacity(scenario_config.steps() + 1);
-    let mut records = Vec::with_capacity(scenario_config.steps());
-    let mut consistency = Vec::with_capacity(scenario_config.steps());
-    for step in run.by_ref() {
-        let (sample, filtered) = step?;
-        samples.push(sample);
-        if let Some((record, stats)) = filtered {
-            records.push(record);
-            consistency.push(stats);
-        }
-    }
-    let reproduction = reproduction(&run.run, &scenario_config, records, consistency)?;
-    let scenario = Scenario {
-        config: scenario_config,
-        samples,
-    };
-    Ok((scenario, reproduction))
+    ClosedLoop::new(simulation, config, follower_controller, true)?.collect_run()
 }
 
 /// The reproduction of the paper's Figs. 12-13: the reference scenario with `seed` (and the

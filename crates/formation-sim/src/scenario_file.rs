@@ -823,7 +823,8 @@ impl ScenarioSpec {
 
     /// The filter configuration: [`Self::filter_x0`] with the reference tuning and the
     /// IMM design (the design `reproduce dukf` runs, and the tracker's default too:
-    /// `formation_tracker::tracker::TrackerConfig::reference`).
+    /// `formation_tracker::tracker::TrackerConfig::reference`), told the follower's
+    /// `odometry_noise_std` (`FilterTuning::input_noise_std`), as the demo's trackers are.
     pub fn filter_config(&self) -> FilterConfig {
         let mut config = FilterConfig::new(
             self.camera_offset,
@@ -831,6 +832,7 @@ impl ScenarioSpec {
             PolarState::from_row_slice(&self.filter_x0()),
         );
         config.tuning.design = FilterDesign::Imm;
+        config.tuning.input_noise_std = nalgebra::Vector2::from(self.odometry_noise_std);
         config
     }
 
