@@ -18,7 +18,9 @@ use std::path::Path;
 use std::process::Command;
 
 use formation_filter::{FilterConfig, FilterDesign};
-use formation_sim::reproduce::{Baseline, Reproduction, START_WORLD_POSE_STD, Summary, baseline};
+use formation_sim::reproduce::{
+    Baseline, ClosedLoop, Reproduction, START_WORLD_POSE_STD, Summary, baseline,
+};
 use formation_sim::scenario::{Control, Scenario};
 use formation_sim::scenario_file::ScenarioSpec;
 use serde_json::{Value, json};
@@ -58,6 +60,9 @@ const BASELINE_FRACTION: f64 = 0.8;
 const RAW_FRACTION: f64 = 0.5;
 /// The offline smoother's median MSE at most this fraction of the causal filter's (issue #30).
 const SMOOTHED_FRACTION: f64 = 0.7;
+/// Where the oracle itself is above [`BASELINE_FRACTION`] of the best baseline, the default
+/// filter's MSE at most this multiple of the oracle's instead (issue #30).
+const ORACLE_FRACTION: f64 = 1.2;
 
 /// The grid of the scalar baselines' process noise (per step for the random walk, the
 /// spectral density of the white acceleration for the constant-velocity model): 1e-10 to 1
@@ -278,7 +283,7 @@ fn scenario_section(
     let mut tune: Vec<(Scenario, Reproduction)> = Vec::new();
     let mut test: Vec<(Scenario, Reproduction)> = Vec::new();
     let (mut duals, mut not_told, mut paper) = (Vec::new(), Vec::new(), Vec::new());
-    let mut jumps = Vec::new();
+    let (mut jumps, mut oracle) = (Vec::new(), Vec::new());
     let jump = with_jump(&config);
     for seed in SEEDS {
         tune.push(spec.run(seed, false, &config, true)?);
@@ -298,6 +303,11 @@ fn scenario_section(
         paper.push(summary_figures(
             &paper_spec.run(seed, false, &config, true)?.1.summary,
         ));
+        // The same filter handed the leader's true inputs before every step, driving its own
+        // follower.
+        let simulation = spec.simulation(seed, false)?;
+        let run = ClosedLoop::new(simulation, &config, true, true)?.oracle();
+        oracle.push(summary_figures(&run.collect_run()?.1.summary));
     }
     let tune_s: Vec<&Scenario> = tune.iter().map(|r| &r.0).collect();
     let test_s: Vec<&Scenario> = test.iter().map(|r| &r.0).collect();
@@ -374,11 +384,11 @@ fn scenario_section(
     let _ = writeln!(md, "### `{file}`: {what}\n");
     let _ = writeln!(
         md,
-        "| figure | default filter | raw | random walk | constant velocity | filterpy UKF | x best baseline (<= {BASELINE_FRACTION}) | x raw (<= {RAW_FRACTION}) | dual UKF | IMM not told | IMM with J, not told | paper setting (truth control) | default filter smoothed offline (x causal, <= {SMOOTHED_FRACTION}) |"
+        "| figure | default filter | raw | random walk | constant velocity | filterpy UKF | oracle (true v1, w1) | x best baseline (<= {BASELINE_FRACTION}, or {ORACLE_FRACTION}x the oracle) | x raw (<= {RAW_FRACTION}) | dual UKF | IMM not told | IMM with J, not told | paper setting (truth control) | default filter smoothed offline (x causal, <= {SMOOTHED_FRACTION}) |"
     );
     let _ = writeln!(
         md,
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
     );
     let names = [
         "MSE l12 [m^2]",
@@ -407,12 +417,23 @@ fn scenario_section(
                 .fold(f64::INFINITY, f64::min);
             let raw_m = med(&raw, i);
             let (a, b) = (o / best, o / raw_m);
-            verdicts.push(a <= BASELINE_FRACTION);
+            // Issue #30: where the oracle itself does not reach the fraction of the best
+            // baseline, the row's target is a multiple of the oracle's figure instead.
+            let or = med(&oracle, i);
+            let cell = if or / best <= BASELINE_FRACTION {
+                verdicts.push(a <= BASELINE_FRACTION);
+                format!("{a:.2} {}", verdict(a <= BASELINE_FRACTION))
+            } else {
+                let vs_oracle = o / or;
+                verdicts.push(vs_oracle <= ORACLE_FRACTION);
+                format!(
+                    "{a:.2}; oracle {:.2}, so {vs_oracle:.2}x the oracle {}",
+                    or / best,
+                    verdict(vs_oracle <= ORACLE_FRACTION)
+                )
+            };
             verdicts.push(b <= RAW_FRACTION);
-            (
-                format!("{a:.2} {}", verdict(a <= BASELINE_FRACTION)),
-                format!("{b:.2} {}", verdict(b <= RAW_FRACTION)),
-            )
+            (cell, format!("{b:.2} {}", verdict(b <= RAW_FRACTION)))
         } else {
             // The velocities: at most the tuned filterpy UKF's.
             let theirs = med(&columns[2].1, i);
@@ -440,10 +461,11 @@ fn scenario_section(
         };
         let _ = writeln!(
             md,
-            "| {name} | {o:.3e} | {raw_cell} | {} | {} | {} | {vs_best} | {vs_raw} | {:.3e} | {:.3e} | {:.3e} | {:.3e} | {smoothed_cell} |",
+            "| {name} | {o:.3e} | {raw_cell} | {} | {} | {} | {:.3e} | {vs_best} | {vs_raw} | {:.3e} | {:.3e} | {:.3e} | {:.3e} | {smoothed_cell} |",
             cells[0],
             cells[1],
             cells[2],
+            med(&oracle, i),
             med(&duals, i),
             med(&not_told, i),
             med(&jumps, i),
@@ -522,12 +544,16 @@ pub fn document() -> Result<String> {
          smoother (`docs/smoothing.md`), against the causal figure. \
          *Paper setting*: the default filter on the same scenario with the follower's \
          controller on the truth (`control: truth`), shown for comparison only: no robot has \
-         the truth.\n\n\
+         the truth. *Oracle*: the default filter handed the leader's true `v1`, `w1` before \
+         every step (`FormationFilter::pin_leader_velocity`), driving its own follower; no \
+         robot has them either. Where the oracle's MSE is itself above {BASELINE_FRACTION}x \
+         the best baseline's, that row's target is {ORACLE_FRACTION}x the oracle's figure \
+         instead (issue #30), and the cell says so.\n\n\
          Targets (issue #30): MSE at most {BASELINE_FRACTION}x the best tuned baseline and at \
          most {RAW_FRACTION}x the raw measurements, and smoothed at most {SMOOTHED_FRACTION}x \
          the causal filter; RMS `v1`, `w1` after 2 s at most the tuned \
-         filterpy UKF's; NIS and NEES inside their 95 % bands.\n\n\
-         Not yet in this table: the oracle column (the same filter given the true `v1`, `w1`).\n"
+         filterpy UKF's; NIS and NEES inside their 95 % bands. The filters are told the \
+         follower's odometry noise (`FilterTuning::input_noise_std`, from the scenario file).\n"
     );
     let mut pass = 0;
     let mut total = 0;
