@@ -259,6 +259,21 @@ fn guided_mode_tracks_as_full_frame_does() {
     assert_eq!(code, Some(2), "{stderr}");
 }
 
+/// The clip tracked as it is and with `extra` options (both must succeed), as JSON lines,
+/// one per frame each.
+fn plain_and_told(dir: &Path, extra: &[&str]) -> (Vec<serde_json::Value>, Vec<serde_json::Value>) {
+    let base = common::CLIP_ARGS;
+    let (plain, stderr, code) = track(&base, dir, None);
+    assert_eq!(code, Some(0), "{stderr}");
+    let mut args = base.to_vec();
+    args.extend(extra);
+    let (told, stderr, code) = track(&args, dir, None);
+    assert_eq!(code, Some(0), "{stderr}");
+    let (plain, told) = (lines(&plain), lines(&told));
+    assert_eq!(plain.len(), told.len());
+    (plain, told)
+}
+
 /// #30: `--controller FILE` tells the tracker the follower's own controller (the reference
 /// scenario's, holding the start), which changes the leader's filter; a bad file is one
 /// error line naming the field.
@@ -271,15 +286,8 @@ fn the_follower_controller_is_told_from_a_file() {
          k_l: 1.0\nk_alpha: 1.0\n",
     )
     .unwrap();
+    let (plain, told) = plain_and_told(&clip.dir, &["--controller", "controller.yaml"]);
     let base = common::CLIP_ARGS;
-    let (plain, stderr, code) = track(&base, &clip.dir, None);
-    assert_eq!(code, Some(0), "{stderr}");
-    let mut args = base.to_vec();
-    args.extend(["--controller", "controller.yaml"]);
-    let (told, stderr, code) = track(&args, &clip.dir, None);
-    assert_eq!(code, Some(0), "{stderr}");
-    let (plain, told) = (lines(&plain), lines(&told));
-    assert_eq!(plain.len(), told.len());
     let v1 = |f: &serde_json::Value| f["leaders"][0]["v1"].as_f64().unwrap();
     let last = (plain.last().unwrap(), told.last().unwrap());
     assert!(v1(last.1).is_finite());
@@ -307,15 +315,7 @@ fn the_follower_controller_is_told_from_a_file() {
 #[test]
 fn the_odometry_noise_is_told_from_the_command_line() {
     let clip = common::reference_clip("odometry", FRAMES);
-    let base = common::CLIP_ARGS;
-    let (plain, stderr, code) = track(&base, &clip.dir, None);
-    assert_eq!(code, Some(0), "{stderr}");
-    let mut args = base.to_vec();
-    args.extend(["--odometry-noise", "0.01,0.01"]);
-    let (told, stderr, code) = track(&args, &clip.dir, None);
-    assert_eq!(code, Some(0), "{stderr}");
-    let (plain, told) = (lines(&plain), lines(&told));
-    assert_eq!(plain.len(), told.len());
+    let (plain, told) = plain_and_told(&clip.dir, &["--odometry-noise", "0.01,0.01"]);
     let std = |f: &serde_json::Value| f["leaders"][0]["l12_std"].as_f64().unwrap();
     let last = (plain.last().unwrap(), told.last().unwrap());
     assert!(

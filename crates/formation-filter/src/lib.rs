@@ -367,14 +367,14 @@ struct Snapshot {
     joint: Option<dukf::Gaussian<10>>,
 }
 
-/// What the dual filter's per-step process noise is made of (borrowed from the filter while
-/// its engine is borrowed mutably).
-struct DualNoise<'a> {
-    model: &'a PolarModel,
+/// What the dual filter's per-step process noise is made of (copied from the filter, whose
+/// engine is then borrowed mutably).
+struct DualNoise {
+    model: PolarModel,
     dt: f64,
-    q: &'a Matrix6,
+    q: Matrix6,
     propagate: bool,
-    input_variance: &'a Vector2<f64>,
+    input_variance: Vector2<f64>,
 }
 
 /// A filter tracking one leader's formation variables and velocities: by default the IMM,
@@ -687,13 +687,13 @@ impl FormationFilter {
     /// A copy of the dual filter to step, with this step's state process noise: `Q`, plus
     /// `F_w Pw- F_w^T` when configured, with `F_w = df/dw` by central differences at the
     /// current estimates, plus the odometry noise's term ([`input_noise`]).
-    fn prepared(noise: &DualNoise<'_>, dual: &Dual, u: &Vector2<f64>) -> Result<Dual, FilterError> {
+    fn prepared(noise: &DualNoise, dual: &Dual, u: &Vector2<f64>) -> Result<Dual, FilterError> {
         let mut next = *dual;
-        let (model, dt) = (noise.model, noise.dt);
+        let (model, dt) = (&noise.model, noise.dt);
         let odometry = input_noise(
             model,
             dt,
-            noise.input_variance,
+            &noise.input_variance,
             dual.state(),
             dual.parameters(),
             u,
@@ -713,6 +713,17 @@ impl FormationFilter {
         }
         next.set_process_noise((q + q.transpose()) * 0.5)?;
         Ok(next)
+    }
+
+    /// The pieces of the dual filter's per-step process noise ([`Self::prepared`]).
+    fn dual_noise(&self) -> DualNoise {
+        DualNoise {
+            model: self.model,
+            dt: self.dt,
+            q: self.q,
+            propagate: self.propagate,
+            input_variance: self.input_variance,
+        }
     }
 
     /// Tells the IMM the follower's own separation-bearing controller (gains and current
@@ -760,15 +771,9 @@ impl FormationFilter {
     ) -> Result<(), FilterError> {
         let u: Vector2<f64> = u.into();
         let failure = Cell::new(None);
+        let noise = self.dual_noise();
         match &mut self.engine {
             Engine::Dual(dual) => {
-                let noise = DualNoise {
-                    model: &self.model,
-                    dt: self.dt,
-                    q: &self.q,
-                    propagate: self.propagate,
-                    input_variance: &self.input_variance,
-                };
                 let mut next = Self::prepared(&noise, dual, &u)?;
                 let result = next.step(
                     process(&self.model, &u, self.dt, &failure),
@@ -854,15 +859,9 @@ impl FormationFilter {
     pub fn predict_only(&mut self, u: Inputs) -> Result<(), FilterError> {
         let u: Vector2<f64> = u.into();
         let failure = Cell::new(None);
+        let noise = self.dual_noise();
         match &mut self.engine {
             Engine::Dual(dual) => {
-                let noise = DualNoise {
-                    model: &self.model,
-                    dt: self.dt,
-                    q: &self.q,
-                    propagate: self.propagate,
-                    input_variance: &self.input_variance,
-                };
                 let mut next = Self::prepared(&noise, dual, &u)?;
                 let result = next.predict_only(process(&self.model, &u, self.dt, &failure));
                 outcome(result, &failure)?;
