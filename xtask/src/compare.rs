@@ -1377,9 +1377,9 @@ fn photo_section(photos: &[PathBuf], ours: &[Vec<Reads>], peers: &Value) -> crat
         let within = |markers: &[(usize, [Point2<f64>; 4])]| {
             refs.iter()
                 .filter(|(id, want)| {
-                    markers
-                        .iter()
-                        .any(|(i, got)| i == id && crate::photos::corner_error(got, want) <= 1.0)
+                    markers.iter().any(|(i, got)| {
+                        i == id && marker_testkit::reference::corner_error(got, want) <= 1.0
+                    })
                 })
                 .count()
         };

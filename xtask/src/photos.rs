@@ -11,7 +11,8 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use fiducial::{Corners, Detector, DetectorConfig, GrayView, dictionary_by_name};
+use fiducial::{Detector, DetectorConfig, GrayView, dictionary_by_name};
+use marker_testkit::reference::{RefTag, corner_error};
 
 const USAGE: &str =
     "usage: cargo xtask photos [--reps N] [--dictionary NAME] [--clutter] [--list] [PHOTO|FOLDER]...
@@ -83,54 +84,17 @@ pub(crate) fn load_gray(path: &Path) -> crate::Result<(Vec<u8>, usize, usize)> {
     Ok((img.into_raw(), w, h))
 }
 
-/// A reference tag: its id and four corners.
-pub(crate) type RefTag = (usize, [[f64; 2]; 4]);
-
-/// The reference corners of a photo (`<photo>.txt` beside it, one tag a line: `id, (x y)`
-/// four times, in AprilTag's pixel convention, pixel centres at half-integers), in ours
-/// (integer pixel centres).
+/// The reference corners of a photo (`<photo>.txt` beside it, AprilTag's reading; see
+/// `marker_testkit::reference`), in our pixel convention.
 pub(crate) fn reference(photo: &Path) -> crate::Result<Option<Vec<RefTag>>> {
     let txt = photo.with_extension("txt");
     if !txt.is_file() {
         return Ok(None);
     }
     let text = std::fs::read_to_string(&txt)?;
-    let mut out = Vec::new();
-    for (n, line) in text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty())
-    {
-        let bad = || format!("{}:{}: not `id, (x y) x4`: {line}", txt.display(), n + 1);
-        let (id, rest) = line.split_once(',').ok_or_else(bad)?;
-        let id: usize = id.trim().parse().map_err(|_| bad())?;
-        let v: Vec<f64> = rest
-            .split(|c: char| c == '(' || c == ')' || c == ',' || c.is_whitespace())
-            .filter(|t| !t.is_empty())
-            .map(str::parse)
-            .collect::<Result<_, _>>()
-            .map_err(|_| bad())?;
-        if v.len() != 8 {
-            return Err(bad().into());
-        }
-        out.push((
-            id,
-            core::array::from_fn(|i| [v[2 * i] - 0.5, v[2 * i + 1] - 0.5]),
-        ));
-    }
-    Ok(Some(out))
-}
-
-/// The largest distance from a corner of `want` to the nearest corner of `got` (any start:
-/// AprilTag's corner order differs from ours).
-pub(crate) fn corner_error(got: &Corners, want: &[[f64; 2]; 4]) -> f64 {
-    want.iter()
-        .map(|w| {
-            got.iter()
-                .map(|g| (g.x - w[0]).hypot(g.y - w[1]))
-                .fold(f64::INFINITY, f64::min)
-        })
-        .fold(0.0, f64::max)
+    let tags =
+        marker_testkit::reference::parse(&text).map_err(|e| format!("{}: {e}", txt.display()))?;
+    Ok(Some(tags))
 }
 
 pub fn run(args: &[String]) -> crate::Result {

@@ -12,42 +12,17 @@
 
 use std::path::PathBuf;
 
-use fiducial::{Decoded, Detector, DetectorConfig, GrayView, dictionary_by_name};
+use fiducial::{Detector, DetectorConfig, GrayView, dictionary_by_name};
+use marker_testkit::reference::{RefTag, corner_error};
 
 fn dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/realdata/nasa")
 }
 
-/// The reference corners in our pixel convention (integer pixel centres).
-fn reference() -> Vec<[[f64; 2]; 4]> {
-    std::fs::read_to_string(dir().join("34139872896_defdb2f8d9_c.txt"))
-        .unwrap()
-        .lines()
-        .filter(|l| !l.trim().is_empty())
-        .map(|l| {
-            let v: Vec<f64> = l
-                .split_once(',')
-                .unwrap()
-                .1
-                .split(|c: char| c == '(' || c == ')' || c == ',' || c.is_whitespace())
-                .filter(|t| !t.is_empty())
-                .map(|t| t.parse().unwrap())
-                .collect();
-            core::array::from_fn(|i| [v[2 * i] - 0.5, v[2 * i + 1] - 0.5])
-        })
-        .collect()
-}
-
-/// The largest distance from a reference corner to the nearest corner read.
-fn corner_error(d: &Decoded, want: &[[f64; 2]; 4]) -> f64 {
-    want.iter()
-        .map(|w| {
-            d.corners
-                .iter()
-                .map(|c| (c.x - w[0]).hypot(c.y - w[1]))
-                .fold(f64::INFINITY, f64::min)
-        })
-        .fold(0.0, f64::max)
+/// The reference tags (AprilTag 3's corners, in our pixel convention).
+fn reference() -> Vec<RefTag> {
+    let text = std::fs::read_to_string(dir().join("34139872896_defdb2f8d9_c.txt")).unwrap();
+    marker_testkit::reference::parse(&text).unwrap()
 }
 
 #[test]
@@ -70,7 +45,10 @@ fn reads_seven_of_the_ten_reference_tags_within_a_pixel_and_nothing_false() {
     // Every tag in the photo is id 0.
     assert!(out.iter().all(|d| d.index == 0), "{out:?}");
     let read: Vec<usize> = (0..refs.len())
-        .filter(|&i| out.iter().any(|d| corner_error(d, &refs[i]) <= 1.0))
+        .filter(|&i| {
+            out.iter()
+                .any(|d| corner_error(&d.corners, &refs[i].1) <= 1.0)
+        })
         .collect();
     // The oblique tag the side check dropped before (the reference's seventh).
     assert!(read.contains(&6), "reference tags read: {read:?}");
@@ -83,9 +61,9 @@ fn reads_seven_of_the_ten_reference_tags_within_a_pixel_and_nothing_false() {
         [380.0, 272.0],
     ];
     for d in &out {
-        let known = refs.iter().any(|r| corner_error(d, r) <= 1.0);
+        let known = refs.iter().any(|r| corner_error(&d.corners, &r.1) <= 1.0);
         assert!(
-            known || corner_error(d, &extra) <= 2.0,
+            known || corner_error(&d.corners, &extra) <= 2.0,
             "a read at no known tag: {:?}",
             d.corners
         );

@@ -17,6 +17,7 @@
 #![deny(missing_docs)]
 
 pub mod edits;
+pub mod reference;
 
 use std::sync::Arc;
 
