@@ -73,9 +73,11 @@ pub struct SideCheck {
     /// marker that passes are within about 0.45 px + 0.07 cell of the truth...
     pub tolerance_cells: f64,
     /// ...plus this fraction of the marker's motion blur (default 0.5): the smear measured
-    /// from how slowly the border's inner edges rise (25 % to 75 % of the step, slowest
-    /// side) beyond an edge under the optical blur alone: the refined corners of a smeared
-    /// marker are off by a fraction of the smear.
+    /// from how slowly the border's edges rise (25 % to 75 % of the step, slowest side)
+    /// beyond an edge under the optical blur alone, the smaller of the inner edges' and the
+    /// outer edges' figure (a grid read one corner round makes the inner profiles rise
+    /// slowly with no smear at all; the outer edges are the quad's own sides): the refined
+    /// corners of a smeared marker are off by a fraction of the smear.
     pub tolerance_motion: f64,
     /// A profile counts only when its two ends differ by at least this fraction of the
     /// marker's contrast (default 0.4).
@@ -283,14 +285,24 @@ pub fn side_offsets(
     // `m / 2`, an edge under the optical blur alone over about 1.5 px. The slowest side
     // tells the motion; the corners (hence the grid) of a smeared marker are off by a
     // fraction of it on every side.
-    let motion = 2.0 * (rise.iter().copied().fold(0.0, f64::max) - SHARP_RISE).max(0.0);
+    let (length, outer_rise) = outer_edges(img, &frame, wc, hc, d.contrast, check, &mut out);
+    let inner_rise = rise.iter().copied().fold(0.0, f64::max);
+    // The outer edges are the quad's own sides, whatever grid is read inside: a smear
+    // widens them as much as the inner edges, while a grid read across the wrong aspect
+    // (a cut quad decoded one corner round) makes the inner profiles rise slowly with no
+    // smear at all. The smear is the smaller of the two.
+    let slowest = if outer_rise.is_nan() {
+        inner_rise
+    } else {
+        inner_rise.min(outer_rise)
+    };
+    let motion = 2.0 * (slowest - SHARP_RISE).max(0.0);
     for ((tol, &n), &c) in out.tolerance_px.iter_mut().zip(&out.cells).zip(&cell) {
         if n > 0 {
             *tol = check.tolerance_px + check.tolerance_cells * c + check.tolerance_motion * motion;
         }
     }
     let leak = corner_levels(img, &frame, wc, hc, d.contrast, motion, check, &mut out);
-    let length = outer_edges(img, &frame, wc, hc, d.contrast, check, &mut out);
     for (side, tol) in out.outer_tolerance_px.iter_mut().enumerate() {
         *tol = check.outer_tolerance_px
             + leak[side].max(leak[(side + 1) % 4])
@@ -405,7 +417,8 @@ fn corner_levels(
     leaks
 }
 
-/// Fills [`SideOffsets::outer_inset_px`] and returns the sides' lengths in pixels. Per
+/// Fills [`SideOffsets::outer_inset_px`] and returns the sides' lengths in pixels and the
+/// slowest side's median rise of the outer edge (25 % to 75 %, pixels; NaN without one). Per
 /// side, at the centre of the two border cells at each end (the corner cell and the next),
 /// the grey profile across the side from 0.6 cell outside to 0.6 cell inside (three
 /// parallel lines, averaged) gives the outer edge: the last crossing of the mean of its light outside and its dark
@@ -428,8 +441,10 @@ fn outer_edges(
     contrast: f64,
     check: &SideCheck,
     out: &mut SideOffsets,
-) -> [f64; 4] {
+) -> ([f64; 4], f64) {
     let mut length = [0.0f64; 4];
+    // The slowest side's median rise (NaN until a side has one).
+    let mut slowest = f64::NAN;
     const N: usize = 13;
     const UO: f64 = -0.6;
     const UI: f64 = 0.6;
@@ -437,7 +452,8 @@ fn outer_edges(
         let along = if side % 2 == 0 { wc } else { hc };
         let to_ab = |u: f64, v: f64| side_to_ab(side, wc, hc, u, v);
         let mut offs = [0.0f64; 4];
-        let mut n = 0;
+        let mut rises = [0.0f64; 4];
+        let (mut n, mut m) = (0, 0);
         let (end0, end1) = {
             let (a0, b0) = to_ab(0.0, 0.0);
             let (a1, b1) = to_ab(0.0, along);
@@ -486,29 +502,36 @@ fn outer_edges(
             if step.is_nan() || step < check.min_step * contrast.max(1.0) {
                 continue;
             }
-            let level = 0.5 * (hi + lo);
-            // Last light-to-dark crossing before the darkest sample.
-            let Some(j) = (0..jlo)
-                .rev()
-                .find(|&j| prof[j] >= level && prof[j + 1] < level)
-            else {
-                continue;
+            // Last light-to-dark crossing of `hi - t (hi - lo)` before the darkest sample,
+            // in the image.
+            let cross = |t: f64| {
+                let level = hi - t * step;
+                let j = (0..jlo)
+                    .rev()
+                    .find(|&j| prof[j] >= level && prof[j + 1] < level)?;
+                let f = (prof[j] - level) / (prof[j] - prof[j + 1]);
+                let (a, b) = to_ab(UO + (UI - UO) * (j as f64 + f) / (N - 1) as f64, v);
+                frame.map(a, b)
             };
-            let f = (prof[j] - level) / (prof[j] - prof[j + 1]);
-            let u = UO + (UI - UO) * (j as f64 + f) / (N - 1) as f64;
-            let (a, b) = to_ab(u, v);
-            let (Some(q), Some(e0)) = (frame.map(a, b), end0) else {
+            let (Some(q), Some(e0)) = (cross(0.5), end0) else {
                 continue;
             };
             // Signed distance from the side's line, positive into the quad.
             offs[n] = (q - e0).dot(&normal);
+            if let (Some(q25), Some(q75)) = (cross(0.25), cross(0.75)) {
+                rises[m] = (q75 - q25).dot(&normal).abs();
+                m += 1;
+            }
             n += 1;
         }
         if n > 0 {
             out.outer_inset_px[side] = offs[..n].iter().copied().fold(f64::NEG_INFINITY, f64::max);
         }
+        if m > 0 {
+            slowest = slowest.max(median(&mut rises[..m]));
+        }
     }
-    length
+    (length, slowest)
 }
 
 /// Marker coordinates (the quad's `[-1, 1]^2`) of a point `u` cells in from side `side`
