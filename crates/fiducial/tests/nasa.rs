@@ -12,7 +12,7 @@
 
 use std::path::PathBuf;
 
-use fiducial::{Detector, DetectorConfig, GrayView, dictionary_by_name};
+use fiducial::{Detector, DetectorConfig, GrayView, dictionary_by_name, dictionary_names};
 use marker_testkit::reference::{RefTag, corner_error};
 
 fn dir() -> PathBuf {
@@ -68,4 +68,34 @@ fn reads_seven_of_the_ten_reference_tags_within_a_pixel_and_nothing_false() {
             d.corners
         );
     }
+}
+
+/// No false read with any other dictionary (issue #31): every name `--dictionary` accepts
+/// but tag36h11's, boundary clustering on (`formation-tracker detect`'s search), reads
+/// nothing on a photo whose only markers are tag36h11 tags.
+#[test]
+fn no_other_dictionary_reads_anything_on_the_photo() {
+    let img = image::open(dir().join("34139872896_defdb2f8d9_c.jpg"))
+        .unwrap()
+        .to_luma8();
+    let (w, h) = img.dimensions();
+    let view = GrayView::new(img.as_raw(), w as usize, h as usize).unwrap();
+    let (mut out, mut tried) = (Vec::new(), 0);
+    for name in dictionary_names() {
+        let dict = dictionary_by_name(name).unwrap();
+        if dict == dictionary_by_name("tag36h11").unwrap() {
+            continue;
+        }
+        let mut det = Detector::with_dictionary(
+            DetectorConfig {
+                boundary_clusters: true,
+                ..DetectorConfig::default()
+            },
+            dict.clone(),
+        );
+        det.detect(&view, &mut out);
+        assert!(out.is_empty(), "{name}: {out:?}");
+        tried += 1;
+    }
+    assert!(tried >= 20, "{tried} dictionaries tried");
 }
