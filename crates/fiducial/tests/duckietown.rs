@@ -13,7 +13,9 @@
 
 use std::path::PathBuf;
 
-use fiducial::{Decoded, Detector, DetectorConfig, GrayView, dictionary_by_name, dictionary_names};
+use fiducial::{Decoded, Detector, DetectorConfig, GrayView, dictionary_by_name};
+
+mod common;
 
 /// The ids AprilTag 3 reads per frame (fixtures/realdata/duckietown/README.md).
 const APRILTAG3: &[(&str, &[usize])] = &[
@@ -79,28 +81,16 @@ fn duckietown_frames_read_every_apriltag3_id_and_no_other() {
 /// are the test above).
 #[test]
 fn no_other_dictionary_reads_anything_on_the_duckietown_frames() {
+    let detectors = common::other_dictionary_detectors("tag36h11");
+    // The paper's own dictionary and every OpenCV one but DICT_APRILTAG_36h11.
+    assert!(detectors.len() >= 20, "{} dictionaries", detectors.len());
     let mut out = Vec::new();
-    let mut tried = 0;
-    for name in dictionary_names() {
-        let dict = dictionary_by_name(name).unwrap();
-        if dict == dictionary_by_name("tag36h11").unwrap() {
-            continue;
-        }
-        let mut det = Detector::with_dictionary(
-            DetectorConfig {
-                boundary_clusters: true,
-                ..DetectorConfig::default()
-            },
-            dict.clone(),
-        );
+    for (name, mut det) in detectors {
         for (file, _) in APRILTAG3 {
             detect_frame(&mut det, file, &mut out);
             assert!(out.is_empty(), "{name} on {file}: {out:?}");
         }
-        tried += 1;
     }
-    // The paper's own dictionary and every OpenCV one but DICT_APRILTAG_36h11.
-    assert!(tried >= 20, "{tried} dictionaries tried");
 }
 
 /// Without boundary clustering (the library's default) every id read is one AprilTag 3

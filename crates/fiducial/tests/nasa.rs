@@ -12,8 +12,10 @@
 
 use std::path::PathBuf;
 
-use fiducial::{Detector, DetectorConfig, GrayView, dictionary_by_name, dictionary_names};
+use fiducial::{Detector, DetectorConfig, GrayView, dictionary_by_name};
 use marker_testkit::reference::{RefTag, corner_error};
+
+mod common;
 
 fn dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/realdata/nasa")
@@ -25,11 +27,16 @@ fn reference() -> Vec<RefTag> {
     marker_testkit::reference::parse(&text).unwrap()
 }
 
+/// The photo, as grey.
+fn photo() -> image::GrayImage {
+    image::open(dir().join("34139872896_defdb2f8d9_c.jpg"))
+        .unwrap()
+        .to_luma8()
+}
+
 #[test]
 fn reads_seven_of_the_ten_reference_tags_within_a_pixel_and_nothing_false() {
-    let img = image::open(dir().join("34139872896_defdb2f8d9_c.jpg"))
-        .unwrap()
-        .to_luma8();
+    let img = photo();
     let (w, h) = img.dimensions();
     let mut det = Detector::with_dictionary(
         DetectorConfig::default(),
@@ -75,27 +82,14 @@ fn reads_seven_of_the_ten_reference_tags_within_a_pixel_and_nothing_false() {
 /// nothing on a photo whose only markers are tag36h11 tags.
 #[test]
 fn no_other_dictionary_reads_anything_on_the_photo() {
-    let img = image::open(dir().join("34139872896_defdb2f8d9_c.jpg"))
-        .unwrap()
-        .to_luma8();
+    let img = photo();
     let (w, h) = img.dimensions();
     let view = GrayView::new(img.as_raw(), w as usize, h as usize).unwrap();
-    let (mut out, mut tried) = (Vec::new(), 0);
-    for name in dictionary_names() {
-        let dict = dictionary_by_name(name).unwrap();
-        if dict == dictionary_by_name("tag36h11").unwrap() {
-            continue;
-        }
-        let mut det = Detector::with_dictionary(
-            DetectorConfig {
-                boundary_clusters: true,
-                ..DetectorConfig::default()
-            },
-            dict.clone(),
-        );
+    let detectors = common::other_dictionary_detectors("tag36h11");
+    assert!(detectors.len() >= 20, "{} dictionaries", detectors.len());
+    let mut out = Vec::new();
+    for (name, mut det) in detectors {
         det.detect(&view, &mut out);
         assert!(out.is_empty(), "{name}: {out:?}");
-        tried += 1;
     }
-    assert!(tried >= 20, "{tried} dictionaries tried");
 }

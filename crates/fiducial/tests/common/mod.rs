@@ -29,3 +29,26 @@ pub fn not_markers() -> NotMarkers<'static> {
         is_marker: &paper_entry,
     }
 }
+
+/// A detector for every dictionary name `--dictionary` accepts, except those naming the
+/// same dictionary as `except`, with boundary clustering on (the widest search,
+/// `formation-tracker detect`'s): for the "no false read with any family" tests on real
+/// frames.
+pub fn other_dictionary_detectors(except: &str) -> Vec<(&'static str, fiducial::Detector)> {
+    let skip = fiducial::dictionary_by_name(except).ok();
+    fiducial::dictionary_names()
+        .filter_map(|name| {
+            let dict = fiducial::dictionary_by_name(name).ok()?;
+            (Some(dict) != skip).then(|| {
+                let config = fiducial::DetectorConfig {
+                    boundary_clusters: true,
+                    ..fiducial::DetectorConfig::default()
+                };
+                (
+                    name,
+                    fiducial::Detector::with_dictionary(config, dict.clone()),
+                )
+            })
+        })
+        .collect()
+}
