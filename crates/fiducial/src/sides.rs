@@ -290,13 +290,9 @@ pub fn side_offsets(
     // The outer edges are the quad's own sides, whatever grid is read inside: a smear
     // widens them as much as the inner edges, while a grid read across the wrong aspect
     // (a cut quad decoded one corner round) makes the inner profiles rise slowly with no
-    // smear at all. The smear is the smaller of the two.
-    let slowest = if outer_rise.is_nan() {
-        inner_rise
-    } else {
-        inner_rise.min(outer_rise)
-    };
-    let motion = 2.0 * (slowest - SHARP_RISE).max(0.0);
+    // smear at all. The smear is the smaller of the two (`f64::min` keeps the inner figure
+    // when no outer edge was measured, NaN).
+    let motion = 2.0 * (inner_rise.min(outer_rise) - SHARP_RISE).max(0.0);
     for ((tol, &n), &c) in out.tolerance_px.iter_mut().zip(&out.cells).zip(&cell) {
         if n > 0 {
             *tol = check.tolerance_px + check.tolerance_cells * c + check.tolerance_motion * motion;
