@@ -87,6 +87,9 @@ pub const MIN_PREDICTED_SEPARATION: f64 = 0.01;
 /// leader velocity `[v1, w1]` and integrates the accelerations into it; B moves it with the
 /// velocity of [`controlled_formation_velocity`] and stores that velocity in `[v1, w1]`
 /// (accelerations kept); C keeps A's speed but turns at the rate that holds `alpha12`.
+/// Without the controller, B's `l12` and `alpha12` (C's `alpha12`) end the step where they
+/// began: the holding velocity, held over the step, keeps them still only at its start,
+/// while a follower that holds the formation corrects that drift at every step.
 ///
 /// States outside the model's domain (drawn as sigma points from a wide covariance while
 /// coasting) are recovered, never failed: `l12` below [`MIN_PREDICTED_SEPARATION`] is
@@ -130,6 +133,20 @@ pub fn predict_leader(
     }?;
     let mut out = *z;
     out.fixed_rows_mut::<6>(0).copy_from(&next);
+    // Not told the controller, B and C hold their variables over the whole step, not only at
+    // its start: a leader velocity held over the step that keeps `l12' = alpha12' = 0` at the
+    // start still moves them as `beta12` turns (0.02 mm a step on the demo), a drift the
+    // follower's controller corrects at the next step and the formation never shows.
+    if controller.is_none() {
+        match motion {
+            LeaderMotion::HoldsFormation => {
+                out[3] = x[3];
+                out[4] = x[4];
+            }
+            LeaderMotion::HoldsBearing => out[4] = x[4],
+            _ => {}
+        }
+    }
     match motion {
         LeaderMotion::Accelerates | LeaderMotion::Jumps => {
             out[6] += z[8] * dt;
@@ -335,6 +352,48 @@ mod tests {
         let w1 = bearing_holding_turn_rate(&x, &u, 0.9, 0.5);
         let dx = model.derivative(&x, &u, &Vector2::new(0.9, w1)).unwrap();
         assert!(dx[4].abs() < 1e-12 && dx[3].abs() > 0.1, "{dx:?}");
+    }
+
+    #[test]
+    fn held_variables_end_the_step_where_they_began() {
+        // Regression (issue #30): B held l12 and alpha12 only at the start of the step; with
+        // the holding velocity held over it they drifted as beta12 turned (tens of um a step
+        // on the demo), a bias the follower's controller does not have.
+        let model = PolarModel::new(0.5).unwrap();
+        let mut z = LeaderState::zeros();
+        z.fixed_rows_mut::<6>(0)
+            .copy_from_slice(&[1.5, 0.25, 0.3, 1.03, 0.245, 0.2]);
+        z[6] = 0.8;
+        let u = Vector2::new(0.8, 0.3);
+        let dt = 1.0 / 30.0;
+        let b = predict_leader(&model, LeaderMotion::HoldsFormation, &z, &u, dt, None).unwrap();
+        assert_eq!((b[3], b[4]), (z[3], z[4]));
+        assert!((b[5] - z[5]).abs() > 1e-4, "beta12 still moves: {b:?}");
+        let w = formation_holding_velocity(&z.fixed_rows::<6>(0).into_owned(), &u, 0.5);
+        assert_eq!((b[6], b[7]), (w[0], w[1]));
+        let c = predict_leader(&model, LeaderMotion::HoldsBearing, &z, &u, dt, None).unwrap();
+        assert_eq!(c[4], z[4]);
+        assert!(
+            (c[3] - z[3]).abs() > 1e-4,
+            "l12 moves with A's speed: {c:?}"
+        );
+        // The velocity held over the step alone moves them (what B did before).
+        let x = model
+            .f(&z.fixed_rows::<6>(0).into_owned(), &u, &w, dt)
+            .unwrap();
+        assert!((x[3] - z[3]).abs() > 1e-6, "{x:?}");
+        // Told the controller, B moves the formation as the controller commands, unchanged.
+        let goal = ControllerConfig {
+            l12_desired: 1.0,
+            alpha12_desired: 0.25,
+            k_l: 1.0,
+            k_alpha: 1.0,
+            max_v: None,
+            max_w: None,
+        };
+        let told =
+            predict_leader(&model, LeaderMotion::HoldsFormation, &z, &u, dt, Some(goal)).unwrap();
+        assert!(told[3] < z[3], "{told:?}");
     }
 
     #[test]
