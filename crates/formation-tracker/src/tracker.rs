@@ -38,7 +38,9 @@
 //! 4. **Gating.** The chosen measurement is applied only if `d^2 <=`
 //!    [`TrackerConfig::gate`] (default 16.27, the 99.9 % point of a chi-square with 3
 //!    degrees of freedom). A gated measurement leaves the track coasting for this frame.
-//!    Consistent rejection therefore ends in loss and re-initialisation after
+//!    The measurement that follows a gated one is taken if it lies within the gate of one
+//!    IMM model's own prediction: a change that model predicts (a set-point step) is
+//!    followed, a single outlying frame is not. Consistent rejection otherwise ends in loss and re-initialisation after
 //!    [`TrackerConfig::lost_after`], which is how a diverged track recovers.
 //! 5. **Update or coast.** Accepted: a filter step with `R`; status `tracking`. Not seen,
 //!    gated or invalid: a predict-only step (the covariance grows); status `coasting`.
@@ -117,6 +119,8 @@ struct Hypothesis {
     /// Every filter step since the start, when the tracker records (see
     /// [`Tracker::record_history`]); empty otherwise.
     history: Vec<Recorded>,
+    /// Measurements gated in a row by the mixture's prediction (see [`Tracker::choose`]).
+    gated_run: u32,
 }
 
 impl Hypothesis {
@@ -133,6 +137,7 @@ impl Hypothesis {
             filter,
             score: 0.0,
             history,
+            gated_run: 0,
         }
     }
 }
@@ -599,10 +604,16 @@ impl Tracker {
             None => (None, MeasurementUse::Missing),
             Some(Err(_)) => (None, MeasurementUse::Invalid),
             Some(Ok(list)) => match self.choose(&h.filter, u, list) {
-                Some((m, nis)) if nis <= self.config.gate => {
-                    (Some((m, nis)), MeasurementUse::Updated)
+                Some((m, nis, model_d2)) => {
+                    let gate = self.config.gate;
+                    if nis <= gate || (model_d2 <= gate && h.gated_run > 0) {
+                        h.gated_run = 0;
+                        (Some((m, nis)), MeasurementUse::Updated)
+                    } else {
+                        h.gated_run += 1;
+                        (Some((m, nis)), MeasurementUse::Gated)
+                    }
                 }
-                Some((m, nis)) => (Some((m, nis)), MeasurementUse::Gated),
                 None => (None, MeasurementUse::Invalid),
             },
         };
@@ -628,13 +639,20 @@ impl Tracker {
         Ok(Outcome { usage, chosen })
     }
 
-    /// The candidate nearest the filter's one-step prediction, with its `d^2`.
+    /// The candidate nearest the filter's one-step prediction, with its `d^2` against that
+    /// prediction and the smallest `d^2` against one IMM model's own prediction (the mixture's
+    /// for the dual UKF). The gate tests the first; a measurement it refuses right after
+    /// another refused one is taken when some model explains it (the second within the
+    /// gate). While one model holds nearly all the probability, the mixture's prediction is
+    /// that model's, and a change another model predicts (a set-point step: the follower
+    /// slows, the separation grows) would otherwise be gated frame after frame until the
+    /// track is lost; a single outlying frame is still refused.
     fn choose(
         &self,
         filter: &FormationFilter,
         u: Inputs,
         list: &[Formed],
-    ) -> Option<(Formed, f64)> {
+    ) -> Option<(Formed, f64, f64)> {
         let mut predicted = filter.clone();
         predicted.predict_only(u).ok()?;
         let y_pred = predicted.formation().to_vector();
@@ -647,11 +665,20 @@ impl Tracker {
             let d2 = dukf::innovation_nis(&MEASUREMENT_SPACE, &m.y, &y_pred, &var, &m.r);
             *slot = d2.map(|d2| (*m, d2));
         }
-        scored
+        let (m, d2) = scored
             .iter()
             .flatten()
             .min_by(|a, b| a.1.total_cmp(&b.1))
-            .copied()
+            .copied()?;
+        let per_model = predicted.model_estimates().into_iter().flatten();
+        let gate_d2 = per_model
+            .filter_map(|(z, p)| {
+                let y = z.fixed_rows::<3>(3).into_owned();
+                let var = Matrix3::from_diagonal(&p.fixed_view::<3, 3>(3, 3).diagonal());
+                dukf::innovation_nis(&MEASUREMENT_SPACE, &m.y, &y, &var, &m.r)
+            })
+            .fold(d2, f64::min);
+        Some((m, d2, gate_d2))
     }
 }
 
