@@ -73,7 +73,7 @@ fn folder_with_a_broken_frame() {
         assert_eq!(leaders.len(), 1);
         let l = &leaders[0];
         assert_eq!(l["robot"], 1);
-        assert_eq!(l["status"], "tracking");
+        assert_eq!(l["status"], "tracking", "frame {k}: {l}");
         for key in ["l12_std", "alpha12_std", "beta12_std", "v1_std", "w1_std"] {
             assert!(l[key].as_f64().unwrap() >= 0.0);
         }

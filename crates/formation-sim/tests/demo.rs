@@ -29,9 +29,16 @@ fn open_loop_tracks_through_the_occlusion() {
     assert_eq!(s.frames_scored, s.frames_detected + s.frames_occluded);
     assert_eq!(run.traces[0].records.len(), s.frames_scored);
     assert_eq!(s.frames_occluded, 15);
-    // Seen in every frame outside the occlusion, coasting exactly through it.
+    // Seen in every frame outside the occlusion, coasting through it. `R` is the corner
+    // noise the detector measures (no floor that dwarfs it), so the gate may refuse a few
+    // frames outside the occlusion: about 0.1 % of consistent ones, more in the first
+    // second, while `R` learns the errors the fit residuals miss (`innovation_memory`).
     assert_eq!(s.frames_detected, 120 - 15);
-    assert_eq!(s.frames_coasting, 15);
+    assert!(
+        (15..=15 + 3).contains(&s.frames_coasting),
+        "{} frames coasting",
+        s.frames_coasting
+    );
     assert!(s.reacquired_same_id);
     assert_eq!(s.reacquired_after_s, Some(0.0));
     assert!(
@@ -48,8 +55,14 @@ fn open_loop_tracks_through_the_occlusion() {
             assert_eq!(r.status, Some(Status::Coasting));
             assert_eq!(r.measurement, Some(MeasurementUse::Missing));
             assert!(r.step.measured[0].is_nan());
-        } else {
-            assert_eq!(r.status, Some(Status::Tracking), "t = {}", r.step.t);
+        } else if r.status != Some(Status::Tracking) {
+            assert_eq!(r.status, Some(Status::Coasting), "t = {}", r.step.t);
+            assert_eq!(
+                r.measurement,
+                Some(MeasurementUse::Gated),
+                "t = {}",
+                r.step.t
+            );
         }
     }
     // Coasting: the standard deviation of l12 grows through the occlusion.
@@ -90,9 +103,38 @@ fn closed_loop_chain_keeps_the_formation() {
         "{}",
         s.max_formation_error_after_3s
     );
-    // Robot 3 sees robot 2 all along (robot 1 is hidden only from robot 2).
+    // Robot 3 sees robot 2 all along (robot 1 is hidden only from robot 2), and its track is
+    // never lost. Robot 2 starts from rest and is at 0.8 m/s one frame later, faster than
+    // any model of the filter allows: that frame's measurement is refused and the next one
+    // restarts the track (`TrackerConfig::restart_after_gated`). Robot 2 drives on its own
+    // noisy estimates, so a few more frames are refused later (`docs/tracking.md`).
     let third = &run.traces[1].records;
-    assert!(third.iter().all(|r| r.status == Some(Status::Tracking)));
+    assert!(third.iter().all(|r| r.status != Some(Status::Lost)));
+    assert_eq!(third[1].measurement, Some(MeasurementUse::Gated));
+    assert_eq!(third[2].measurement, Some(MeasurementUse::Initialised));
+    let coasting = third
+        .iter()
+        .filter(|r| r.status == Some(Status::Coasting))
+        .count();
+    assert!(
+        coasting * 10 <= third.len(),
+        "{coasting} of {} frames coasting",
+        third.len()
+    );
+    // The restart bounds how long the track coasts: at most ten refused measurements in a
+    // row (`restart_after_gated`, 2, five times over).
+    let longest = third
+        .iter()
+        .fold((0, 0), |(run, longest), r| {
+            let run = if r.status == Some(Status::Coasting) {
+                run + 1
+            } else {
+                0
+            };
+            (run, longest.max(run))
+        })
+        .1;
+    assert!(longest <= 10, "{longest} frames in a row coasting");
 }
 
 #[test]

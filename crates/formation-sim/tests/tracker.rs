@@ -176,7 +176,8 @@ fn filters_pose_measurements_better_than_raw() {
             updated += 1;
         }
         // The formation block is the filter's full one: alpha12 and beta12 share the
-        // bearing measurement, so they are correlated.
+        // bearing measurement, so they are correlated (not in every frame: while model B,
+        // which holds alpha12 over a step, dominates, the two are nearly independent).
         let c = l.covariance;
         if c[1][2].abs() > 0.1 * (c[1][1] * c[2][2]).sqrt() {
             correlated += 1;
@@ -194,7 +195,7 @@ fn filters_pose_measurements_better_than_raw() {
     // Honest measurements are hardly ever gated (99.9 % gate).
     assert!(updated >= frames.len() - 4, "updated {updated}");
     assert!(
-        correlated > frames.len() / 2,
+        correlated > frames.len() / 10,
         "correlated in {correlated} frames"
     );
     for i in 0..3 {
@@ -369,6 +370,62 @@ fn outlier_is_gated_and_would_hurt_without_the_gate() {
         "{}",
         open.formation.l12 - truth[0]
     );
+}
+
+/// From frame 150 the leader recedes along the line of sight at 1.5 m/s on top of the
+/// scenario (5 cm a frame), measured with a tenth of the other tests' pose noise (1 mm):
+/// a change of speed faster than any model of the filter allows, within the leader-velocity
+/// prior's 1 m/s per axis. The frame's error against that truth, 10 frames on, and the
+/// measurement uses of frames 150 and 151.
+fn runaway_run(restart_after_gated: u32) -> (f64, [MeasurementUse; 2]) {
+    let frames = frames(5);
+    let mut config = config();
+    config.restart_after_gated = restart_after_gated;
+    let mut tr = Tracker::new(config).unwrap();
+    let mut uses = [MeasurementUse::Missing; 2];
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let n = Normal::new(0.0, 0.1).unwrap();
+    for (k, f) in frames.iter().enumerate() {
+        let away = |pose: &pose::Pose| {
+            let mut pose = *pose;
+            let extra = 1.5 * (k.saturating_sub(149)) as f64 / 30.0;
+            let t = pose.translation;
+            pose.translation = t * ((t.norm() + extra) / t.norm());
+            pose
+        };
+        let mut p = away(&f.true_pose).to_params();
+        for (i, s) in POSE_STD.iter().enumerate() {
+            p[i] += s * n.sample(&mut rng);
+        }
+        let mut measurement = estimate(pose::Pose::from_params(&p));
+        measurement.covariance *= 0.01;
+        let rep = tr
+            .update(&input(f, seen(PoseMeasurement::Chosen(measurement))))
+            .unwrap();
+        let l = leader(&rep);
+        assert!(sane(l), "{l:?}");
+        if k == 150 || k == 151 {
+            uses[k - 150] = l.measurement;
+        }
+        if k == 160 {
+            let truth = measured(&away(&f.true_pose));
+            return ((l.formation.l12 - truth[0]).abs(), uses);
+        }
+    }
+    unreachable!()
+}
+
+#[test]
+fn a_leader_faster_than_every_model_is_taken_up_by_a_restart() {
+    let (error, uses) = runaway_run(TrackerConfig::reference(0.5, 1.0 / 30.0).restart_after_gated);
+    // Refused once, then the track restarts from the next measurement and follows.
+    assert_eq!(uses, [MeasurementUse::Gated, MeasurementUse::Initialised]);
+    assert!(error < 0.05, "{error}");
+    // Without the restart every measurement from then on is refused, and the track coasts
+    // on a leader that is no longer there.
+    let (error, uses) = runaway_run(0);
+    assert_eq!(uses, [MeasurementUse::Gated, MeasurementUse::Gated]);
+    assert!(error > 0.3, "{error}");
 }
 
 #[test]

@@ -36,7 +36,7 @@ struct Run {
 
 /// The leader 1.5 m ahead of the camera (rear face about 1.3 m away, some 60 px wide) with
 /// 0.5 px corner noise: the regime where IPPE's two candidates are close in reprojection error.
-fn run(seed: u64, confirm_time: f64) -> Run {
+fn run(seed: u64, confirm_time: f64, restart_after_gated: u32) -> Run {
     let mut config = ScenarioConfig::reference(1);
     config.leader0 = unicycle::PlanarPose::new(2.0, 0.3, 0.0);
     let scenario = simulate(&config).unwrap();
@@ -48,6 +48,7 @@ fn run(seed: u64, confirm_time: f64) -> Run {
     let noise = Normal::new(0.0, 0.5).unwrap();
     let mut tc = TrackerConfig::reference(0.5, 1.0 / 30.0);
     tc.confirm_time = confirm_time;
+    tc.restart_after_gated = restart_after_gated;
 
     let mut tracker = Tracker::new(tc).unwrap();
     let mut out = Run {
@@ -97,7 +98,7 @@ fn run(seed: u64, confirm_time: f64) -> Run {
 fn tracker_keeps_the_right_ippe_candidate_where_best_flips() {
     let mut best = 0;
     for seed in 11..23 {
-        let r = run(seed, 1.0);
+        let r = run(seed, 1.0, 2);
         best += r.best_flips;
         assert_eq!(
             r.tracked_flips, 0,
@@ -111,15 +112,23 @@ fn tracker_keeps_the_right_ippe_candidate_where_best_flips() {
 }
 
 /// The rival hypothesis matters: started from a flipped `best`, a lone track (no rival,
-/// `confirm_time = 0`) stays on the flip, the default track recovers.
+/// `confirm_time = 0`, no restart) stays on the flip, the default track recovers. A lone
+/// track that may restart (`restart_after_gated`, default) is refused by the gate on the
+/// flip and recovers too, later.
 #[test]
 fn rival_hypothesis_recovers_a_flipped_start() {
-    let lone = run(20, 0.0);
+    let lone = run(20, 0.0, 0);
     assert!(
         lone.tracked_flips > 20,
         "lone track: {} flipped frames",
         lone.tracked_flips
     );
-    let default = run(20, 1.0);
+    let default = run(20, 1.0, 2);
     assert_eq!(default.tracked_flips, 0);
+    let restarting = run(20, 0.0, 2);
+    assert!(
+        restarting.tracked_flips < lone.tracked_flips,
+        "restarting lone track: {} flipped frames",
+        restarting.tracked_flips
+    );
 }

@@ -40,8 +40,13 @@
 //!    degrees of freedom). A gated measurement leaves the track coasting for this frame.
 //!    The measurement that follows a gated one is taken if it lies within the gate of one
 //!    IMM model's own prediction: a change that model predicts (a set-point step) is
-//!    followed, a single outlying frame is not. Consistent rejection otherwise ends in loss and re-initialisation after
-//!    [`TrackerConfig::lost_after`], which is how a diverged track recovers.
+//!    followed, a single outlying frame is not. When [`TrackerConfig::restart_after_gated`]
+//!    measurements (default 2) in a row lie beyond four times the gate of every model's
+//!    prediction, or five times as many lie beyond the gate at all, the track restarts from the latest one (`initialised`, keeping its
+//!    velocity estimate with the prior's spread): a leader that changes its
+//!    speed faster than any model allows (a robot at rest reaching 0.8 m/s within one frame,
+//!    as the closed-loop chain's second robot does) is taken up again one frame later
+//!    instead of coasting until it is lost.
 //! 5. **Update or coast.** Accepted: a filter step with `R`; status `tracking`. Not seen,
 //!    gated or invalid: a predict-only step (the covariance grows); status `coasting`.
 //!    When the time since the last accepted measurement exceeds `lost_after` (default 2 s)
@@ -110,6 +115,30 @@ use smooth::{NO_INPUTS, Recorded, Segment};
 /// while the evidence is still even.
 const SWITCH_MARGIN: f64 = 8.0;
 
+/// How far beyond the gate (as a factor on it) a refused measurement must lie, against
+/// every model's prediction, to count towards a restart
+/// ([`TrackerConfig::restart_after_gated`]): a measurement just outside the gate is more
+/// likely an unlucky one than a leader that every model has lost.
+const RESTART_GATE_FACTOR: f64 = 4.0;
+
+/// Refused measurements in a row, as a factor on [`TrackerConfig::restart_after_gated`],
+/// after which the track restarts however near the gate they lay: a track that drifts just
+/// outside the gate of every model is not followed back by any of them.
+const PERSISTENT_GATING_FACTOR: u32 = 5;
+
+/// The factor on a robot's `R` before its innovations have been seen: a new track does not
+/// yet know the errors its fit residuals miss (on the tests' 2 x 2-sampled frames they
+/// double the NIS), and its first frames are where the IMM is most confident (model B's
+/// leader velocity is inferred, not measured). It falls to what the innovations call for
+/// within about `innovation_memory` frames.
+const INITIAL_INNOVATION_SCALE: f64 = 2.0;
+
+/// The smallest factor the innovations may put on `R`.
+const MIN_INNOVATION_SCALE: f64 = 0.5;
+
+/// The largest factor the innovations may put on `R` ([`TrackerConfig::innovation_memory`]).
+const MAX_INNOVATION_SCALE: f64 = 100.0;
+
 /// One filter and how well it has explained the measurements so far.
 #[derive(Debug, Clone)]
 struct Hypothesis {
@@ -121,6 +150,9 @@ struct Hypothesis {
     history: Vec<Recorded>,
     /// Measurements gated in a row by the mixture's prediction (see [`Tracker::choose`]).
     gated_run: u32,
+    /// Measurements in a row refused by far more than the gate ([`RESTART_GATE_FACTOR`]):
+    /// the count [`TrackerConfig::restart_after_gated`] tests.
+    wild_run: u32,
 }
 
 impl Hypothesis {
@@ -138,6 +170,7 @@ impl Hypothesis {
             score: 0.0,
             history,
             gated_run: 0,
+            wild_run: 0,
         }
     }
 }
@@ -179,6 +212,9 @@ pub struct Tracker {
     /// Per robot, the pooled corner noise of its recent pose solves (see
     /// [`TrackerConfig::corner_noise_memory_dof`]).
     corner_noise: BTreeMap<u32, pose::ResidualPool>,
+    /// Per robot, the factor on `R` that the innovations call for (see
+    /// [`TrackerConfig::innovation_memory`]); absent until a measurement was tested.
+    innovation_scale: BTreeMap<u32, f64>,
     /// Per leader, the follower's own controller towards it, if told
     /// ([`set_follower_controller`](Self::set_follower_controller)).
     controllers: BTreeMap<u32, ControllerConfig>,
@@ -199,6 +235,7 @@ impl Tracker {
             finished: Vec::new(),
             corner_noise: BTreeMap::new(),
             controllers: BTreeMap::new(),
+            innovation_scale: BTreeMap::new(),
         })
     }
 
@@ -337,7 +374,7 @@ impl Tracker {
             let formed = seen.get(&robot).map(|m| self.measurements(m, &frame.mount));
             let report = match self.tracks.remove(&robot) {
                 None => match formed {
-                    Some(Ok(list)) => self.start(robot, t, &list),
+                    Some(Ok(list)) => self.start(robot, t, &list, None),
                     Some(Err(_)) | None => None,
                 },
                 Some(track) => Some(self.advance(robot, track, t, steps, u, formed)),
@@ -399,7 +436,7 @@ impl Tracker {
             };
             let covariance = e.covariance * self.noise_scale(&fit, points, obs.robot);
             let (y, r) = formation_of_pose(&e.pose.to_params(), &covariance, mount)?;
-            let r = r + floor + self.distance_floor(y[0]);
+            let r = (r + floor + self.distance_floor(y[0])) * self.innovation_scale(obs.robot);
 
             if !r.iter().all(|v| v.is_finite()) {
                 return Err(MeasurementError::NonFinite {
@@ -424,7 +461,8 @@ impl Tracker {
                 (None, Some(fit)) => self.noise_scale(&fit, points, obs.robot),
                 _ => 1.0,
             };
-            let r = (f.r + f.r.transpose()) * (0.5 * scale) + floor + self.distance_floor(y[0]);
+            let r = ((f.r + f.r.transpose()) * (0.5 * scale) + floor + self.distance_floor(y[0]))
+                * self.innovation_scale(obs.robot);
             Ok(Formed { y, r, candidate })
         };
         let pair = |first: Result<Formed, MeasurementError>,
@@ -455,6 +493,37 @@ impl Tracker {
         m
     }
 
+    /// The factor on `robot`'s `R` from its recent innovations ([`INITIAL_INNOVATION_SCALE`]
+    /// before any).
+    fn innovation_scale(&self, robot: u32) -> f64 {
+        if self.config.innovation_memory <= 0.0 {
+            return 1.0;
+        }
+        self.innovation_scale
+            .get(&robot)
+            .copied()
+            .unwrap_or(INITIAL_INNOVATION_SCALE)
+    }
+
+    /// Moves `robot`'s factor on `R` towards what the latest tested measurement's `d^2`
+    /// (capped at the gate) calls for: up when the innovations are larger than the
+    /// prediction and `R` together say (errors the fit residuals cannot see, such as corner
+    /// errors shared by a face's corners), down again to 1 when they are not. A normalised
+    /// innovation squared of 3 degrees of freedom averages 3.
+    fn learn_innovation_scale(&mut self, robot: u32, d2: f64) {
+        let memory = self.config.innovation_memory;
+        if memory <= 0.0 || !d2.is_finite() {
+            return;
+        }
+        let ratio = d2.min(self.config.gate) / 3.0;
+        let s = self.innovation_scale(robot);
+        let next = s * (1.0 + (ratio - 1.0) / memory);
+        self.innovation_scale.insert(
+            robot,
+            next.clamp(MIN_INNOVATION_SCALE, MAX_INNOVATION_SCALE),
+        );
+    }
+
     /// The factor that takes a covariance scaled by `pose`'s one-solve noise estimate (from
     /// `fit` over `points` correspondences) to the corner noise of
     /// [`TrackerConfig::corner_sigma_px`], or when that is `None` to the pooled corner noise
@@ -475,14 +544,20 @@ impl Tracker {
     /// A new track from the measurement: the first candidate (`best`) as the main
     /// hypothesis and, for a single face, the other candidate as a rival until
     /// `confirm_time` has passed (see the module documentation).
-    fn start(&mut self, robot: u32, t: f64, list: &[Formed]) -> Option<LeaderReport> {
+    fn start(
+        &mut self,
+        robot: u32,
+        t: f64,
+        list: &[Formed],
+        velocity: Option<Inputs>,
+    ) -> Option<LeaderReport> {
         let m = list.first()?;
         let recording = self.recording;
-        let main = Hypothesis::new(self.filter_from(m)?, t, recording);
+        let main = Hypothesis::new(self.filter_from(m, velocity)?, t, recording);
         let rival = list
             .get(1)
             .filter(|_| self.config.confirm_time > 0.0)
-            .and_then(|r| self.filter_from(r))
+            .and_then(|r| self.filter_from(r, velocity))
             .map(|f| Hypothesis::new(f, t, recording));
         let track = Track {
             main,
@@ -502,10 +577,15 @@ impl Tracker {
         Some(report)
     }
 
-    /// A filter initialised from one measurement.
-    fn filter_from(&self, m: &Formed) -> Option<FormationFilter> {
+    /// A filter initialised from one measurement, with the leader-velocity prior's mean
+    /// `velocity` (a restarted track keeps its last estimate, with the prior's spread) or
+    /// the template's `w0`.
+    fn filter_from(&self, m: &Formed, velocity: Option<Inputs>) -> Option<FormationFilter> {
         let s = self.config.world_pose_prior_std;
-        let config = self.config.filter.started_at(&m.y, &m.r, s).ok()?;
+        let mut config = self.config.filter.started_at(&m.y, &m.r, s).ok()?;
+        if let Some(w) = velocity {
+            config.tuning.w0 = w.into();
+        }
         FormationFilter::new(&config).ok()
     }
 
@@ -526,7 +606,7 @@ impl Tracker {
                 .lost(LostReason::Timeout);
             self.finish(robot, track);
             if let Some(Ok(list)) = &formed
-                && let Some(r) = self.start(robot, t, list)
+                && let Some(r) = self.start(robot, t, list, None)
             {
                 return r;
             }
@@ -561,6 +641,29 @@ impl Tracker {
                 return lost;
             }
         };
+        // A measurement refused once is most likely an outlier and does not teach `R`; one
+        // refused again right after it does (capped at the gate).
+        if let Some((_, d2)) = outcome.chosen
+            && (outcome.usage == MeasurementUse::Updated
+                || (outcome.usage == MeasurementUse::Gated && track.main.gated_run > 1))
+        {
+            self.learn_innovation_scale(robot, d2);
+        }
+        if outcome.usage == MeasurementUse::Gated
+            && self.config.restart_after_gated > 0
+            && (track.main.wild_run >= self.config.restart_after_gated
+                || track.main.gated_run
+                    >= PERSISTENT_GATING_FACTOR * self.config.restart_after_gated)
+            && let Some(Ok(list)) = formed
+            && let Some(restarted) =
+                self.start(robot, t, list, Some(track.main.filter.leader_velocity()))
+        {
+            // Refused again and again: no model of the filter follows what the leader did.
+            // The track restarts from this measurement; the old one's steps are kept as a
+            // finished segment.
+            self.finish(robot, track);
+            return restarted;
+        }
         if t >= track.confirm_until {
             track.rival = None;
         }
@@ -608,9 +711,15 @@ impl Tracker {
                     let gate = self.config.gate;
                     if nis <= gate || (model_d2 <= gate && h.gated_run > 0) {
                         h.gated_run = 0;
+                        h.wild_run = 0;
                         (Some((m, nis)), MeasurementUse::Updated)
                     } else {
                         h.gated_run += 1;
+                        if model_d2 > RESTART_GATE_FACTOR * gate {
+                            h.wild_run += 1;
+                        } else {
+                            h.wild_run = 0;
+                        }
                         (Some((m, nis)), MeasurementUse::Gated)
                     }
                 }
