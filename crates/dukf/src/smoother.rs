@@ -84,6 +84,11 @@ pub struct Smoothed<const N: usize> {
     pub estimates: Vec<Gaussian<N>>,
     /// The largest diagonal jitter any covariance of the pass needed (absolute; 0 if none).
     pub max_jitter: f64,
+    /// The log-likelihood of the measurements under the forward pass: the sum over its
+    /// updates of `log N(nu; 0, S)` (nats), how well the smoother's model predicted the
+    /// recording. [`filter_and_smooth`] fills it in; `None` from [`RtsSmoother::smooth`], which
+    /// sees no measurements. Comparable between models run on the same measurements.
+    pub log_likelihood: Option<f64>,
 }
 
 /// The unscented Rauch-Tung-Striebel smoother over a vector of dimension `N` in the space
@@ -192,6 +197,7 @@ impl<const N: usize, S: Space<N>> RtsSmoother<N, S> {
         Ok(Smoothed {
             estimates: out,
             max_jitter,
+            log_likelihood: None,
         })
     }
 
@@ -295,14 +301,35 @@ where
     let mut filtered = Vec::with_capacity(len);
     let mut noises: Vec<SMatrix<f64, N, N>> = Vec::with_capacity(len);
     filtered.push(Gaussian::new(*ukf.state(), *ukf.covariance()));
+    let mut log_likelihood = 0.0;
     for k in 1..len {
         let q = noise(k - 1, ukf.state());
         noises.push(q);
         ukf.predict(|x| f(k - 1, x), &q)?;
         if let Some((y, r)) = measurement(k) {
-            ukf.update(&y, &mut h, &r, measurement_space)?;
+            let report = ukf.update(&y, &mut h, &r, measurement_space)?;
+            log_likelihood += gaussian_log_density(&report);
         }
         filtered.push(Gaussian::new(*ukf.state(), *ukf.covariance()));
     }
-    smoother.smooth(&filtered, f, |k| noises[k])
+    let mut smoothed = smoother.smooth(&filtered, f, |k| noises[k])?;
+    smoothed.log_likelihood = Some(log_likelihood);
+    Ok(smoothed)
+}
+
+/// `log N(nu; 0, S)` of one update: `-(nis + ln det S + M ln 2 pi) / 2`, `ln det S` from the
+/// Cholesky factor. `S` is positive definite after the update's repair; were it not, the
+/// density is taken as zero (`-inf`), never NaN.
+fn gaussian_log_density<const M: usize>(report: &crate::UpdateReport<M>) -> f64 {
+    let Some(chol) = report.innovation_covariance.cholesky() else {
+        return f64::NEG_INFINITY;
+    };
+    let log_det = 2.0
+        * chol
+            .l_dirty()
+            .diagonal()
+            .iter()
+            .map(|d| d.ln())
+            .sum::<f64>();
+    -0.5 * (report.nis + log_det + M as f64 * (2.0 * std::f64::consts::PI).ln())
 }

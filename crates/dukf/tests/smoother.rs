@@ -136,6 +136,8 @@ proptest! {
         let smoother = RtsSmoother::new(Euclidean, c.params).unwrap();
         let got = smoother.smooth(&history, |_, x| c.a * x, |_| c.q).unwrap();
         prop_assert_eq!(got.estimates.len(), want.len());
+        // The backward pass alone sees no measurement: no likelihood to report.
+        prop_assert_eq!(got.log_likelihood, None);
         // Two different computations (sigma points against Cholesky solves) agree to rounding:
         // the worst of 100,000 draws (covariance condition numbers up to 1e5) differed by
         // 1.7e-11, so 1e-9; a wrong gain or mean errs by 1e-2. (With an explicit inverse in
@@ -324,6 +326,28 @@ fn filter_and_smooth_equals_the_linear_filter_and_smoother() {
                 // To 1e-9, as in `linear_gaussian_equals_linear_rts` (the reason is there).
                 prop_assert!((g.covariance - p).amax() / scale <= 1e-9, "step {}", k);
             }
+            // The forward pass's log-likelihood is the linear filter's: the sum over the
+            // updates of log N(y - H x-; 0, H P- H^T + R).
+            let want_ll: f64 =
+                c.ys.iter()
+                    .zip(&predicted)
+                    .filter_map(|(y, (x, p))| y.map(|y| (y, x, p)))
+                    .map(|(y, x, p)| {
+                        let s = c.h * p * c.h.transpose() + c.r;
+                        let nu = y - c.h * x;
+                        let chol = s.cholesky().unwrap();
+                        let nis = nu.dot(&chol.solve(&nu));
+                        let log_det = 2.0 * chol.l().diagonal().iter().map(|d| d.ln()).sum::<f64>();
+                        -0.5 * (nis + log_det + M as f64 * (2.0 * std::f64::consts::PI).ln())
+                    })
+                    .sum();
+            let got_ll = got.log_likelihood.unwrap();
+            prop_assert!(
+                (got_ll - want_ll).abs() <= 1e-6 * (1.0 + want_ll.abs()),
+                "log-likelihood {} vs {}",
+                got_ll,
+                want_ll
+            );
             // One noise per transition, asked at the filtered mean of the step it leaves.
             let asked = asked.into_inner();
             prop_assert_eq!(asked.len(), c.ys.len());
