@@ -143,12 +143,17 @@ pub fn run(args: &[String]) -> Result {
         [] => {}
         [flag, file] if flag == "--scenario" => return run_scenario(std::path::Path::new(file)),
         [flag] if flag == "--held-out" => {
-            let md = held_out::document()?;
+            let (md, smoothing) = held_out::document()?;
             let path = workspace_root()?.join("docs").join("dukf-held-out.md");
-            let tmp = path.with_extension("md.tmp");
-            std::fs::write(&tmp, md)?;
-            std::fs::rename(&tmp, &path)?;
+            write_atomically(&path, &md)?;
             println!("dukf-table: wrote {}", path.display());
+            let smoothing_path = workspace_root()?.join("docs").join("smoothing.md");
+            let doc = std::fs::read_to_string(&smoothing_path)?;
+            write_atomically(&smoothing_path, &splice_held_out(&doc, &smoothing))?;
+            println!(
+                "dukf-table: wrote the held-out section of {}",
+                smoothing_path.display()
+            );
             return Ok(());
         }
         _ => {
@@ -171,7 +176,7 @@ pub fn run(args: &[String]) -> Result {
     let _ = writeln!(md, "\n{}", include_str!("dukf_table_notes.md").trim_end());
 
     let path = workspace_root()?.join("docs").join("dukf-reproduction.md");
-    std::fs::write(&path, md)?;
+    write_atomically(&path, &md)?;
     let smoothing = smoothing::document(
         &runs.dual_runs,
         &runs.check_dual_runs,
@@ -179,7 +184,12 @@ pub fn run(args: &[String]) -> Result {
         &runs.check,
     )?;
     let smoothing_path = workspace_root()?.join("docs").join("smoothing.md");
-    std::fs::write(&smoothing_path, smoothing)?;
+    // The held-out section is `--held-out`'s: kept as it is.
+    let held = std::fs::read_to_string(&smoothing_path)
+        .ok()
+        .and_then(|doc| held_out_section(&doc).map(str::to_string))
+        .unwrap_or_default();
+    write_atomically(&smoothing_path, &splice_held_out(&smoothing, &held))?;
     println!("dukf-table: wrote {}", smoothing_path.display());
     println!(
         "dukf-table: wrote {} (median MSE l12 {:.3e}, alpha12 {:.3e}; RMS v1 {:.4}, w1 {:.4})",
@@ -189,6 +199,42 @@ pub fn run(args: &[String]) -> Result {
         c.v1,
         c.w1
     );
+    Ok(())
+}
+
+/// The markers around the section of `docs/smoothing.md` that `--held-out` writes.
+const HELD_OUT_BEGIN: &str = "<!-- held-out:begin -->";
+const HELD_OUT_END: &str = "<!-- held-out:end -->";
+
+/// The held-out section of a `docs/smoothing.md` (between the markers), if it has one.
+fn held_out_section(doc: &str) -> Option<&str> {
+    let start = doc.find(HELD_OUT_BEGIN)? + HELD_OUT_BEGIN.len();
+    let end = start + doc[start..].find(HELD_OUT_END)?;
+    Some(doc[start..end].trim_matches('\n'))
+}
+
+/// `doc` with its held-out section replaced by `section` (appended at the end when it has
+/// none; nothing when `section` is empty and it has none).
+fn splice_held_out(doc: &str, section: &str) -> String {
+    let block = format!(
+        "{HELD_OUT_BEGIN}\n{}\n{HELD_OUT_END}",
+        section.trim_matches('\n')
+    );
+    match (doc.find(HELD_OUT_BEGIN), doc.find(HELD_OUT_END)) {
+        (Some(a), Some(b)) if a < b => {
+            format!("{}{block}{}", &doc[..a], &doc[b + HELD_OUT_END.len()..])
+        }
+        _ if section.is_empty() => doc.to_string(),
+        _ => format!("{}\n\n{block}\n", doc.trim_end()),
+    }
+}
+
+/// Writes `text` to a temporary file beside `path` and renames it over `path`, so that an
+/// interrupted run leaves the old file whole.
+fn write_atomically(path: &std::path::Path, text: &str) -> Result {
+    let tmp = path.with_extension("md.tmp");
+    std::fs::write(&tmp, text)?;
+    std::fs::rename(&tmp, path)?;
     Ok(())
 }
 
@@ -690,4 +736,32 @@ fn scenario_table(path: &std::path::Path) -> Result<String> {
     }
     md.push_str(&notes);
     Ok(md)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{HELD_OUT_BEGIN, HELD_OUT_END, held_out_section, splice_held_out};
+
+    #[test]
+    fn the_held_out_section_is_appended_then_replaced_and_kept() {
+        let doc = "# Smoothing\n\nold tables\n";
+        let first = splice_held_out(doc, "## held-out A\n");
+        assert!(
+            first.starts_with("# Smoothing\n\nold tables\n\n"),
+            "{first}"
+        );
+        assert_eq!(held_out_section(&first), Some("## held-out A"));
+        // `--held-out` again: replaced in place, the rest untouched.
+        let second = splice_held_out(&first, "## held-out B");
+        assert_eq!(second.matches(HELD_OUT_BEGIN).count(), 1);
+        assert_eq!(second.matches(HELD_OUT_END).count(), 1);
+        assert_eq!(held_out_section(&second), Some("## held-out B"));
+        assert!(second.contains("old tables"));
+        // The plain run rewrites the rest and carries the section over.
+        let regenerated = splice_held_out("# Smoothing\n\nnew tables\n", "## held-out B");
+        assert!(regenerated.contains("new tables") && !regenerated.contains("old tables"));
+        assert_eq!(held_out_section(&regenerated), Some("## held-out B"));
+        // Nothing to carry: the document stays as generated.
+        assert_eq!(splice_held_out(doc, ""), doc);
+    }
 }
