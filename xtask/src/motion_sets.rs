@@ -327,34 +327,67 @@ fn pooled(tallies: &[Vec<Tally>], motion: f64) -> Vec<Tally> {
     out
 }
 
-/// Whether ours reaches [`TARGET`] times the best peer's recall (met when the peers read
-/// nothing and ours reads something; not met when neither reads anything), and the
-/// verdict's wording.
+/// Fewer reads than this by the best peer and the ratio's standard error means nothing (its
+/// denominator is a handful of markers): the verdict then asks for a clear separation.
+const FEW: usize = 10;
+
+/// Whether ours reaches [`TARGET`] times the best peer's recall, and the verdict's wording.
+/// When the best peer reads fewer than [`FEW`] markers, met only if ours's recall less two
+/// standard errors exceeds the target times the peer's plus two (otherwise undecided,
+/// counted as not met).
 fn verdict(set_motion: f64, ours: &Tally, best: &Tally) -> (bool, String) {
     let (r, r_se) = ratio(ours, best);
-    let met = if best.found == 0 {
-        ours.found > 0
-    } else {
-        r >= TARGET
-    };
-    let mut text = if met { "**met**" } else { "**not met**" }.to_string();
-    if best.found == 0 {
-        text.push_str(if met {
-            " (the peers read none)"
+    let (met, note) = if best.found < FEW {
+        let clear = ours.recall() - 2.0 * se(ours) > TARGET * (best.recall() + 2.0 * se(best));
+        let note = format!(
+            "the best peer reads {} of {}, ours {}",
+            best.found, best.total, ours.found
+        );
+        if clear {
+            (true, format!("clear of {TARGET}x by two SE; {note}"))
         } else {
-            " (neither reads a marker)"
-        });
-    } else if !met && best.recall() * TARGET > 100.0 {
-        text.push_str(&format!(
-            " (out of reach: the best peer reads over {:.1} %)",
-            100.0 / TARGET
-        ));
-    } else if ((r - TARGET) / r_se).abs() < 1.0 {
-        text.push_str(&format!(" (within one SE of {TARGET}x)"));
-    }
-    if set_motion != 9.0 {
-        text = format!("(no target at {set_motion:.0} px; {text} by the 9 px rule)");
-    }
+            (false, format!("undecided: {note}"))
+        }
+    } else if r >= TARGET {
+        let within = ((r - TARGET) / r_se).abs() < 1.0;
+        (
+            true,
+            if within {
+                "within one SE".into()
+            } else {
+                String::new()
+            },
+        )
+    } else if best.recall() * TARGET > 100.0 {
+        (
+            false,
+            format!(
+                "out of reach: the best peer reads over {:.1} %",
+                100.0 / TARGET
+            ),
+        )
+    } else {
+        let within = ((r - TARGET) / r_se).abs() < 1.0;
+        (
+            false,
+            if within {
+                "within one SE".into()
+            } else {
+                String::new()
+            },
+        )
+    };
+    let word = if met { "met" } else { "not met" };
+    let note = if note.is_empty() {
+        String::new()
+    } else {
+        format!(" ({note})")
+    };
+    let text = if set_motion == 9.0 {
+        format!("**{word}**{note}")
+    } else {
+        format!("no target at {set_motion:.0} px; against {TARGET}x: {word}{note}")
+    };
     (met, text)
 }
 
@@ -364,6 +397,9 @@ fn ratio_cell(ours: &Tally, best: &Tally) -> String {
         return "- (best peer 0 %)".into();
     }
     let (r, r_se) = ratio(ours, best);
+    if best.found < FEW {
+        return format!("{r:.1} (best peer {} reads)", best.found);
+    }
     format!("{r:.2} ± {r_se:.2}")
 }
 
@@ -473,8 +509,9 @@ fn document(run: &Run<'_>) -> crate::Result<String> {
          the ratio). The item's target is ours / best >= {TARGET} on the 9 px sets (all but \
          *length 7* and *length 11*, which are reported for the trend); *within one SE* marks \
          a verdict that one standard error of the ratio would turn over. Where the best peer \
-         reads none there is no ratio: the set counts as met if ours reads any marker, as not \
-         met if neither does. Where the best peer reads more than {:.1} % the target cannot \
+         reads fewer than {FEW} markers the ratio and its error mean little: the set counts as \
+         met only if ours's recall less two standard errors exceeds {TARGET} times the \
+         peer's plus two, and is otherwise *undecided* (counted as not met). Where the best peer reads more than {:.1} % the target cannot \
          be reached (a recall cannot exceed 100 %); such a set counts as not met.\n",
         100.0 / TARGET
     )?;
@@ -684,12 +721,13 @@ mod tests {
             "**not met**"
         );
         assert!(verdict(7.0, &ours, &peer).1.contains("no target"));
-        // No ratio when the peers read nothing; out of reach above 1 / 1.2.
-        assert!(verdict(9.0, &t(40, 3), &t(40, 0)).0);
-        assert!(!verdict(9.0, &t(40, 0), &t(40, 0)).0);
+        // Few peer reads: a clear separation or undecided; out of reach above 1 / 1.2.
+        assert!(verdict(9.0, &t(320, 49), &t(320, 1)).0);
+        assert!(!verdict(9.0, &t(320, 3), &t(320, 0)).0);
+        assert!(verdict(9.0, &t(320, 3), &t(320, 0)).1.contains("undecided"));
         assert!(ratio_cell(&t(40, 3), &t(40, 0)).contains("0 %"));
         assert!(
-            verdict(9.0, &t(40, 40), &t(40, 40))
+            verdict(9.0, &t(40, 40), &t(40, 38))
                 .1
                 .contains("out of reach")
         );
