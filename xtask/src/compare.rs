@@ -949,7 +949,9 @@ fn detection_section(
          and clutter together; *motion 5* and *motion 9* (issue #16's scene set) markers \
          of 20-70 px only, base blur and noise, then a box motion blur of 5 or 9 px in a \
          random direction per scene (the same for every family; centred, so the true \
-         corners do not move). The larger frames are of the combined condition (24, 32 and \
+         corners do not move); these rows were tuned on, and held-out sets varying the \
+         marker size (14-70 px), blur length and direction are in \
+         [motion-blur-sets.md](motion-blur-sets.md) (`cargo xtask motion-sets`). The larger frames are of the combined condition (24, 32 and \
          32 markers at 1280x720, 1920x1080, 3840x2160, with clutter in proportion to the \
          area; 3 x 3 samples per pixel).\n"
     )?;
