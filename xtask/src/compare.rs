@@ -49,9 +49,9 @@ const RESOLUTIONS: [(usize, usize); 4] = [(640, 480), (1280, 720), (1920, 1080),
 /// Corner noise levels of the pose cases, pixels (standard deviation per coordinate).
 const POSE_NOISE: [f64; 4] = [0.0, 0.5, 1.0, 2.0];
 /// Marker side of the pose cases, metres.
-const POSE_SIDE: f64 = 0.1;
+pub(crate) const POSE_SIDE: f64 = 0.1;
 /// Camera of the pose cases: 640x480, 60 degrees horizontal field of view.
-const POSE_K: [f64; 9] = [554.256, 0.0, 319.5, 0.0, 554.256, 239.5, 0.0, 0.0, 1.0];
+pub(crate) const POSE_K: [f64; 9] = [554.256, 0.0, 319.5, 0.0, 554.256, 239.5, 0.0, 0.0, 1.0];
 
 /// Settings of one run.
 struct Settings {
@@ -202,7 +202,7 @@ pub fn run(args: &[String]) -> crate::Result {
 
 /// A marker family drawn into the scenes, and which detectors read it.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
-enum Family {
+pub(crate) enum Family {
     /// Our own dictionary (`Dictionary::paper()`, 4 x 5 data cells).
     Own,
     /// AprilTag tag36h11 (`DICT_APRILTAG_36h11`).
@@ -214,7 +214,7 @@ enum Family {
 impl Family {
     const ALL: [Family; 3] = [Family::Own, Family::Tag36h11, Family::Aruco4x4];
 
-    fn key(self) -> &'static str {
+    pub(crate) fn key(self) -> &'static str {
         match self {
             Family::Own => "own",
             Family::Tag36h11 => "tag36h11",
@@ -222,7 +222,7 @@ impl Family {
         }
     }
 
-    fn dictionary(self) -> crate::Result<&'static Dictionary> {
+    pub(crate) fn dictionary(self) -> crate::Result<&'static Dictionary> {
         Ok(match self {
             Family::Own => Dictionary::paper(),
             Family::Tag36h11 => dictionary_by_name("DICT_APRILTAG_36h11")?,
@@ -231,7 +231,7 @@ impl Family {
     }
 
     /// Every entry as a cell pattern (one-cell border, one-cell quiet zone).
-    fn patterns(self) -> crate::Result<Vec<CellPattern>> {
+    pub(crate) fn patterns(self) -> crate::Result<Vec<CellPattern>> {
         let d = self.dictionary()?;
         let f = d.family();
         Ok(CellPattern::from_codes(
@@ -244,17 +244,24 @@ impl Family {
 
 /// One imaging condition of the synthetic scenes.
 #[derive(Clone, Copy)]
-struct Condition {
-    name: &'static str,
-    blur: f64,
-    noise: f64,
-    lighting: f64,
-    clutter: bool,
-    /// Longest marker side, px (the shortest is 20 px).
-    max_side: f64,
+pub(crate) struct Condition {
+    pub(crate) name: &'static str,
+    pub(crate) blur: f64,
+    pub(crate) noise: f64,
+    pub(crate) lighting: f64,
+    pub(crate) clutter: bool,
+    /// Shortest marker side, px (20 in every condition of `compare`; `motion-sets` goes
+    /// down to 14).
+    pub(crate) min_side: f64,
+    /// Longest marker side, px.
+    pub(crate) max_side: f64,
     /// Length of a box motion blur applied after rendering, px (0: none), in a random
     /// direction per scene, the same for every family.
-    motion: f64,
+    pub(crate) motion: f64,
+    /// The motion blur's direction, radians from the x axis, instead of the random one
+    /// (`None` in every condition of `compare`; the random direction is drawn either way,
+    /// so a scene's other draws do not depend on it).
+    pub(crate) motion_angle: Option<f64>,
 }
 
 /// The conditions at 640x480; "combined" ([`COMBINED`]) is also the one timed at every
@@ -304,14 +311,16 @@ const CONDITIONS: [Condition; 8] = [
 
 /// The base condition, from which the others differ: blur sigma 1, noise sigma 3, uniform
 /// light, white background, markers of 20-120 px.
-const BASE: Condition = Condition {
+pub(crate) const BASE: Condition = Condition {
     name: "base",
     blur: 1.0,
     noise: 3.0,
     lighting: 1.0,
     clutter: false,
+    min_side: 20.0,
     max_side: 120.0,
     motion: 0.0,
+    motion_angle: None,
 };
 
 /// Scenes of each motion-blur condition per scene of the others: recall there is far from
@@ -362,15 +371,22 @@ impl Warp {
     }
 }
 
-/// `n` non-overlapping warps of sides 20 to `max_side` px in a `w x h` frame.
-fn warps(w: usize, h: usize, n: usize, max_side: f64, rng: &mut ChaCha8Rng) -> Vec<Warp> {
+/// `n` non-overlapping warps of sides `min_side` to `max_side` px in a `w x h` frame (fewer
+/// when 20,000 tries do not place them all).
+fn warps(
+    w: usize,
+    h: usize,
+    n: usize,
+    (min_side, max_side): (f64, f64),
+    rng: &mut ChaCha8Rng,
+) -> Vec<Warp> {
     let mut out: Vec<Warp> = Vec::new();
     let (wf, hf) = (w as f64, h as f64);
     for _ in 0..20_000 {
         if out.len() == n {
             break;
         }
-        let side = rng.random_range(20.0..=max_side);
+        let side = rng.random_range(min_side..=max_side);
         let mut warp = Warp {
             centre: [0.0, 0.0],
             side,
@@ -462,18 +478,18 @@ fn draw_clutter(
 }
 
 /// A rendered frame on disk and its truth.
-struct Frame {
-    path: PathBuf,
-    family: Family,
-    condition: &'static str,
-    width: usize,
-    height: usize,
+pub(crate) struct Frame {
+    pub(crate) path: PathBuf,
+    pub(crate) family: Family,
+    pub(crate) condition: &'static str,
+    pub(crate) width: usize,
+    pub(crate) height: usize,
     /// `(id, corners NW NE SE SW)`, pixel centres at integer coordinates.
-    truth: Vec<(usize, [Point2<f64>; 4])>,
+    pub(crate) truth: Vec<(usize, [Point2<f64>; 4])>,
 }
 
 impl Frame {
-    fn to_json(&self) -> Value {
+    pub(crate) fn to_json(&self) -> Value {
         json!({
             "path": self.path,
             "family": self.family.key(),
@@ -523,8 +539,8 @@ fn render_frames(s: &Settings, work: &Path) -> crate::Result<Vec<Frame>> {
     Ok(frames)
 }
 
-/// One scene, drawn once per family.
-fn render_job(
+/// One scene, drawn once per family, written under `work/frames`.
+pub(crate) fn render_job(
     w: usize,
     h: usize,
     cond: Condition,
@@ -534,10 +550,11 @@ fn render_job(
 ) -> crate::Result<Vec<Frame>> {
     let mut rng = ChaCha8Rng::seed_from_u64(1_000_000 + seed);
     let markers = 8 * (w * h / (640 * 480)).clamp(1, 4);
-    let ws = warps(w, h, markers, cond.max_side, &mut rng);
+    let ws = warps(w, h, markers, (cond.min_side, cond.max_side), &mut rng);
     let clutter_seed: u64 = rng.random();
     let noise_seed: u64 = rng.random();
-    let motion_angle = rng.random_range(0.0..std::f64::consts::PI);
+    let random_angle = rng.random_range(0.0..std::f64::consts::PI);
+    let motion_angle = cond.motion_angle.unwrap_or(random_angle);
     let mut out = Vec::new();
     for (family, all) in patterns {
         let mut pick = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed ^ family.key().len() as u64);
@@ -597,9 +614,9 @@ fn render_job(
 }
 
 /// One detector's reads of one frame and its median time.
-struct Reads {
+pub(crate) struct Reads {
     /// `(id, corners in the detector's order)`.
-    markers: Vec<(usize, [Point2<f64>; 4])>,
+    pub(crate) markers: Vec<(usize, [Point2<f64>; 4])>,
     /// Median time over the repetitions, seconds.
     seconds: f64,
     /// Median thread CPU time over the repetitions, seconds (not stretched when other
@@ -647,7 +664,7 @@ fn thread_cpu() -> f64 {
 }
 
 /// Our detector on every frame of its families: ours with the frame's own dictionary.
-fn run_ours(frames: &[Frame], reps: usize) -> crate::Result<Vec<Reads>> {
+pub(crate) fn run_ours(frames: &[Frame], reps: usize) -> crate::Result<Vec<Reads>> {
     let mut dets: Vec<(Family, Detector)> = Vec::new();
     for f in Family::ALL {
         dets.push((
@@ -674,7 +691,7 @@ fn run_ours(frames: &[Frame], reps: usize) -> crate::Result<Vec<Reads>> {
 
 /// Corner ordering and pixel convention of a detector's output.
 #[derive(Clone, Copy)]
-struct Convention {
+pub(crate) struct Convention {
     /// Added to every reported coordinate to bring it to pixel centres at integers.
     shift: f64,
     /// Whether the corners come in some other cyclic order or direction (matched to the
@@ -695,17 +712,17 @@ const APRILTAG_CONVENTION: Convention = Convention {
 
 /// Running totals of one detector over frames.
 #[derive(Default, Clone)]
-struct Tally {
-    total: usize,
-    found: usize,
-    wrong: usize,
+pub(crate) struct Tally {
+    pub(crate) total: usize,
+    pub(crate) found: usize,
+    pub(crate) wrong: usize,
     sq: f64,
     corners: usize,
     bias: [f64; 2],
 }
 
 impl Tally {
-    fn add(
+    pub(crate) fn add(
         &mut self,
         truth: &[(usize, [Point2<f64>; 4])],
         reads: &[(usize, [Point2<f64>; 4])],
@@ -760,7 +777,7 @@ impl Tally {
         }
     }
 
-    fn recall(&self) -> f64 {
+    pub(crate) fn recall(&self) -> f64 {
         100.0 * self.found as f64 / self.total.max(1) as f64
     }
 
@@ -776,14 +793,14 @@ impl Tally {
 
 /// The detectors compared: label, family read, where the reads come from (`None`: ours),
 /// convention.
-struct DetectorRow {
-    label: &'static str,
-    family: Family,
-    peer: Option<&'static str>,
-    conv: Convention,
+pub(crate) struct DetectorRow {
+    pub(crate) label: &'static str,
+    pub(crate) family: Family,
+    pub(crate) peer: Option<&'static str>,
+    pub(crate) conv: Convention,
 }
 
-const DETECTORS: [DetectorRow; 8] = [
+pub(crate) const DETECTORS: [DetectorRow; 8] = [
     DetectorRow {
         label: "ours, own dictionary",
         family: Family::Own,
@@ -836,7 +853,7 @@ const DETECTORS: [DetectorRow; 8] = [
 
 /// A peer's reads of one frame from the results JSON (`{"markers": [[id, [[x, y] x4]]],
 /// "seconds": s}`).
-fn peer_reads(v: &Value) -> crate::Result<Reads> {
+pub(crate) fn peer_reads(v: &Value) -> crate::Result<Reads> {
     let mut markers = Vec::new();
     for m in v["markers"].as_array().ok_or("peer reads: no markers")? {
         let id = m[0].as_u64().ok_or("peer reads: bad id")? as usize;
@@ -932,7 +949,9 @@ fn detection_section(
          and clutter together; *motion 5* and *motion 9* (issue #16's scene set) markers \
          of 20-70 px only, base blur and noise, then a box motion blur of 5 or 9 px in a \
          random direction per scene (the same for every family; centred, so the true \
-         corners do not move). The larger frames are of the combined condition (24, 32 and \
+         corners do not move); these rows were tuned on, and held-out sets varying the \
+         marker size (14-70 px), blur length and direction are in \
+         [motion-blur-sets.md](motion-blur-sets.md) (`cargo xtask motion-sets`). The larger frames are of the combined condition (24, 32 and \
          32 markers at 1280x720, 1920x1080, 3840x2160, with clutter in proportion to the \
          area; 3 x 3 samples per pixel).\n"
     )?;
@@ -1869,15 +1888,15 @@ fn filter_section(ours: &[(FilterFigures, Vec<[f64; 5]>)], peers: &Value) -> cra
 // ---------------------------------------------------------------------------------------
 // Document
 
-struct Machine {
-    cpu: String,
-    cores: usize,
-    rustc: String,
-    python: String,
-    libs: Vec<(String, String)>,
+pub(crate) struct Machine {
+    pub(crate) cpu: String,
+    pub(crate) cores: usize,
+    pub(crate) rustc: String,
+    pub(crate) python: String,
+    pub(crate) libs: Vec<(String, String)>,
 }
 
-fn machine(peers: &Value) -> crate::Result<Machine> {
+pub(crate) fn machine(peers: &Value) -> crate::Result<Machine> {
     let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
     let cpu = cpuinfo
         .lines()
@@ -1912,7 +1931,7 @@ fn machine(peers: &Value) -> crate::Result<Machine> {
 }
 
 /// The one-minute load average (`/proc/loadavg`), if readable.
-fn loadavg() -> Option<f64> {
+pub(crate) fn loadavg() -> Option<f64> {
     std::fs::read_to_string("/proc/loadavg")
         .ok()?
         .split_whitespace()
@@ -2225,7 +2244,7 @@ mod tests {
     fn warps_fit_the_frame_without_overlap() {
         for max_side in [70.0, 120.0] {
             let mut rng = ChaCha8Rng::seed_from_u64(3);
-            let ws = warps(640, 480, 8, max_side, &mut rng);
+            let ws = warps(640, 480, 8, (20.0, max_side), &mut rng);
             check_warps(&ws, max_side);
         }
     }

@@ -15,6 +15,7 @@ mod dictionary;
 mod dukf_table;
 mod figures;
 mod fingerprint;
+mod motion_sets;
 mod photos;
 mod pyenv;
 mod random_scenes;
@@ -68,6 +69,10 @@ commands:
                    solvePnP and a filterpy UKF on identical inputs, in a Python venv under
                    target/py-venv; writes docs/comparison.md and docs/img/comparison-*.svg
                    (--quick: few scenes; --scenes N: scenes per condition at 640x480)
+  motion-sets      issue #31's motion-blur item: ours against OpenCV ArUco and AprilTag 3
+                   (compare's renderer, peers and scoring) on nine held-out 640x480 scene
+                   sets varying marker size, blur length and direction; writes
+                   docs/motion-blur-sets.md (--scenes N per set, default 40; --quick: 5)
   photos           time our detector on the real photographs of shared/realdata (no markers,
                    the NASA robots, OpenCV's ArUco photo, Duckietown) and print, per photo,
                    the median time, the reads and where the work went (--reps N, default 20;
@@ -106,6 +111,7 @@ fn main() -> ExitCode {
         Some("bags") => bags::run(&args[1..]),
         Some("photos") => photos::run(&args[1..]),
         Some("compare") => compare::run(&args[1..]),
+        Some("motion-sets") => motion_sets::run(&args[1..]),
         Some("ros2-interop") => ros2_interop::run(&args[1..]),
         _ => {
             eprint!("{USAGE}");
