@@ -28,7 +28,8 @@ pub struct DetectorConfig {
     /// Read a quad whose sampled cells are not an entry once more as a motion-blurred
     /// marker (blur estimated from its edges, cell levels solved by least squares; issue
     /// #16). Default on: only quads whose plain reading had a marker's contrast and dark
-    /// border, and whose edges show a motion of at least 1.5 cells, are re-read (counted by
+    /// border, and whose edges show a motion of at least 1.5 cells that smears the outline
+    /// outwards, are re-read (counted by
     /// [`crate::Detector::blurred_reads`]); its systems are solved in scratch the detector owns (no
     /// allocation in steady state), and a marker it reads passes the side check like any
     /// other. With it on, the boxes of dark components that gave no quad (up to 160 px)

@@ -106,14 +106,11 @@ impl Labeller {
             }
             let start = x;
             x += first_where(&pixels[x..], false).unwrap_or(width - x);
-            let idx = self.runs.len() as u32;
             self.runs.push(Run {
                 y,
                 x0: x0 + start as u32,
                 x1: x0 + x as u32,
             });
-            self.parent.push(idx);
-            self.cycles.push(0);
         }
     }
 
@@ -125,6 +122,9 @@ impl Labeller {
             return;
         };
         let row_end = self.runs.len();
+        // The row's runs, each its own component so far, with no cycle yet.
+        self.parent.extend(row_start as u32..row_end as u32);
+        self.cycles.resize(row_end, 0);
         if let Some((py, prev_start, prev_end)) = self.prev
             && py + 1 == y
         {
@@ -215,7 +215,11 @@ impl Labeller {
         self.slot.resize(self.runs.len(), u32::MAX);
         self.run_component.clear();
         for i in 0..self.runs.len() {
-            let root = self.find(i as u32) as usize;
+            // A run's parent is never after it (a root is its component's first run), so
+            // in run order the parent's parent is already the root.
+            let p = self.parent[i] as usize;
+            let root = self.parent[p] as usize;
+            self.parent[i] = root as u32;
             let run = self.runs[i];
             let len = run.x1 - run.x0;
             let s = self.slot[root];

@@ -82,8 +82,9 @@
 //!    plainly or blurred); markers one of whose sides runs along an occluder (a border
 //!    thinner than its grid says, a light corner cell, an outline inside the quad) with the
 //!    plain corners and with the pattern step's; the
-//!    blurred reading of a quad whose motion is under 1.5 cells or whose levels at the
-//!    estimated motion do not read as a marker. The pattern step rejects nothing: corners
+//!    blurred reading of a quad whose motion is under 1.5 cells or whose outline is not
+//!    smeared outwards on any side (by 2 px and a fifth of the motion), before its cell
+//!    levels are solved. The pattern step rejects nothing: corners
 //!    the model cannot fit keep the plain refinement's.
 //! 6. **Reconcile**: two readings of one marker (same dictionary and id, centres within
 //!    half a side) are reported once, the one with fewer corrected bits, then the higher

@@ -357,10 +357,27 @@ impl Splitter {
             let (ox, oy) = (x0 as f64 - 1.0, y0 as f64 - 1.0);
             found(coarse.map(|p| nalgebra::Point2::new(p.x + ox, p.y + oy)));
         }
-        // Light again: every dark pixel is in a run of the labelling.
-        for (_, y, a, b) in labeller.runs() {
+        // Light again: every dark pixel is in a run of the labelling. The runs come in
+        // raster order; each row is cleared once, from its first run's start to its last
+        // run's end (what lies between is light already).
+        let mut clear = |(y, a, b): (u32, u32, u32)| {
             let row = y as usize * bw;
             sbin[row + a as usize..row + b as usize].fill(0);
+        };
+        let mut span: Option<(u32, u32, u32)> = None;
+        for (_, y, a, b) in labeller.runs() {
+            match span {
+                Some((sy, sa, _)) if sy == y => span = Some((sy, sa, b)),
+                _ => {
+                    if let Some(s) = span {
+                        clear(s);
+                    }
+                    span = Some((y, a, b));
+                }
+            }
+        }
+        if let Some(s) = span {
+            clear(s);
         }
     }
 
@@ -393,7 +410,7 @@ impl Splitter {
             }
             let row = &img.row(y0 + y)[x0..=x1];
             let out = &mut self.bin[(y + 1) * bw + 1..(y + 1) * bw + 1 + cw];
-            let mut cut_piece = |a: usize, b: usize| {
+            let cut_piece = |out: &mut [u8], a: usize, b: usize| {
                 for ((o, &v), &t) in out[a..b]
                     .iter_mut()
                     .zip(&row[a..b])
@@ -401,16 +418,28 @@ impl Splitter {
                 {
                     *o = u8::from(v < t) * DARK;
                 }
-                self.labeller
-                    .add_row((y + 1) as u32, (a + 1) as u32, &out[a..b]);
             };
+            // The pixels of the row cut, then handed to the labeller in one piece from the
+            // first cut pixel to the last: the pixels between the runs are light (the
+            // buffer is light between calls), and no run spans two runs of the first cut,
+            // which light pixels separate, so the runs are those of each piece, in order.
+            let (mut first, mut end) = (usize::MAX, 0);
             match runs.as_mut() {
                 Some(runs) => {
                     while let Some((_, a, b)) = runs.next_if(|r| r.0 == y) {
-                        cut_piece(a, b);
+                        cut_piece(out, a, b);
+                        first = first.min(a);
+                        end = b;
                     }
                 }
-                None => cut_piece(0, cw),
+                None => {
+                    cut_piece(out, 0, cw);
+                    (first, end) = (0, cw);
+                }
+            }
+            if first < end {
+                self.labeller
+                    .add_row((y + 1) as u32, (first + 1) as u32, &out[first..end]);
             }
         }
     }
