@@ -68,6 +68,29 @@ struct Settings {
     seeds: u64,
 }
 
+/// The workspace root, a fresh `target/NAME` folder with a `frames` folder in it, and the
+/// venv's python with the peers installed (`compare` and `motion-sets` share the venv).
+pub(crate) fn fresh_work(name: &str) -> crate::Result<(PathBuf, PathBuf, PathBuf)> {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let work = root.join("target").join(name);
+    if work.exists() {
+        std::fs::remove_dir_all(&work)?;
+    }
+    std::fs::create_dir_all(work.join("frames"))?;
+    let python = crate::pyenv::python(
+        &root,
+        name,
+        &[
+            crate::pyenv::OPENCV,
+            crate::pyenv::NUMPY,
+            crate::pyenv::APRILTAGS,
+            crate::pyenv::FILTERPY,
+        ],
+        "import cv2, pupil_apriltags, filterpy",
+    )?;
+    Ok((root, work, python))
+}
+
 pub fn run(args: &[String]) -> crate::Result {
     let mut quick = false;
     let mut keep_frames = false;
@@ -94,23 +117,7 @@ pub fn run(args: &[String]) -> crate::Result {
     };
     let started = Instant::now();
     let load_before = loadavg();
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let work = root.join("target/compare");
-    if work.exists() {
-        std::fs::remove_dir_all(&work)?;
-    }
-    std::fs::create_dir_all(work.join("frames"))?;
-    let python = crate::pyenv::python(
-        &root,
-        "compare",
-        &[
-            crate::pyenv::OPENCV,
-            crate::pyenv::NUMPY,
-            crate::pyenv::APRILTAGS,
-            crate::pyenv::FILTERPY,
-        ],
-        "import cv2, pupil_apriltags, filterpy",
-    )?;
+    let (root, work, python) = fresh_work("compare")?;
 
     eprintln!("compare: rendering scenes");
     let frames = render_frames(&s, &work)?;

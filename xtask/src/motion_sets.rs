@@ -14,7 +14,7 @@
 //! against OpenCV ArUco (no refinement, SUBPIX, ArUco3 mode).
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
 
@@ -133,23 +133,7 @@ pub fn run(args: &[String]) -> crate::Result {
         .clamp(1, SEED_STRIDE as usize);
     let started = Instant::now();
     let load_before = crate::compare::loadavg();
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let work = root.join("target/motion-sets");
-    if work.exists() {
-        std::fs::remove_dir_all(&work)?;
-    }
-    std::fs::create_dir_all(work.join("frames"))?;
-    let python = crate::pyenv::python(
-        &root,
-        "motion-sets",
-        &[
-            crate::pyenv::OPENCV,
-            crate::pyenv::NUMPY,
-            crate::pyenv::APRILTAGS,
-            crate::pyenv::FILTERPY,
-        ],
-        "import cv2, pupil_apriltags, filterpy",
-    )?;
+    let (root, work, python) = crate::compare::fresh_work("motion-sets")?;
 
     eprintln!(
         "motion-sets: rendering {} sets x {scenes} scenes x {} families",
