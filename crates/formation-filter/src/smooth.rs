@@ -273,9 +273,6 @@ impl FormationFilter {
         // The transition from step k to k + 1 mixes the models with the probabilities after
         // step k + 1, and the controller that step was predicted with, as recorded.
         let weights = |k: usize| -> [f64; 3] {
-            if accelerating_only {
-                return [1.0, 0.0, 0.0];
-            }
             history
                 .get(k + 1)
                 .and_then(|s| s.model_probabilities)
@@ -284,22 +281,34 @@ impl FormationFilter {
         let controller = |k: usize| history.get(k + 1).and_then(|s| s.controller);
         let failure: Cell<Option<UnicycleError>> = Cell::new(None);
         let (model, dt) = (&self.model, self.dt);
-        let predictions = |k: usize, o: &Observable| -> [Observable; 3] {
+        // Model j's prediction; the hidden pose is zero (the observable block's prediction
+        // does not read it).
+        let predict = |k: usize, o: &Observable, j: usize| -> Observable {
             let u = inputs_after(history, k);
             let mut f = imm_process(model, engine.motions, &u, dt, controller(k), &failure);
-            // The hidden pose is zero: the observable block's prediction does not read it.
-            let z = embed(o);
-            [0, 1, 2].map(|j| observable(&f(j, &z)))
+            observable(&f(j, &embed(o)))
         };
+        let predictions = |k: usize, o: &Observable| [0, 1, 2].map(|j| predict(k, o, j));
+        let block = |k: usize, j: usize| -> Matrix7 {
+            engine.noise(controller(k).is_some())[j]
+                .fixed_view::<7, 7>(HIDDEN, HIDDEN)
+                .into_owned()
+        };
+        // Model A alone predicts only itself: its weight-0 partners would cost two more
+        // predictions per sigma point, and a failure of theirs would fail the pass.
         let process = |k: usize, o: &Observable| -> Observable {
+            if accelerating_only {
+                return predict(k, o, 0);
+            }
             dukf::mixture_mean(&space, &predictions(k, o), &weights(k))
         };
         let noise = |k: usize, m: &Observable| -> Matrix7 {
+            if accelerating_only {
+                return block(k, 0);
+            }
             let outs = predictions(k, m);
             let mean = dukf::mixture_mean(&space, &outs, &weights(k));
-            let q = engine.noise(controller(k).is_some());
-            let block = |j: usize| q[j].fixed_view::<7, 7>(HIDDEN, HIDDEN).into_owned();
-            dukf::mixture_noise(&space, &outs, &mean, block, &weights(k))
+            dukf::mixture_noise(&space, &outs, &mean, |j| block(k, j), &weights(k))
         };
         let smoothed = dukf::filter_and_smooth(
             space,
