@@ -1903,6 +1903,28 @@ pub(crate) struct Machine {
     pub(crate) libs: Vec<(String, String)>,
 }
 
+impl Machine {
+    /// The document's "Machine and versions" section: its heading and table, with `cores_note`
+    /// after the core count.
+    pub(crate) fn write_table(&self, doc: &mut String, cores_note: &str) -> std::fmt::Result {
+        writeln!(doc, "## Machine and versions\n")?;
+        writeln!(doc, "| item | value |\n| --- | --- |")?;
+        writeln!(doc, "| CPU (`/proc/cpuinfo`) | {} |", self.cpu)?;
+        writeln!(doc, "| cores available | {}{cores_note} |", self.cores)?;
+        writeln!(
+            doc,
+            "| formation-tracker | {} ({}, release profile) |",
+            env!("CARGO_PKG_VERSION"),
+            self.rustc
+        )?;
+        writeln!(doc, "| Python | {} |", self.python)?;
+        for (k, v) in &self.libs {
+            writeln!(doc, "| {k} | {v} |")?;
+        }
+        Ok(())
+    }
+}
+
 pub(crate) fn machine(peers: &Value) -> crate::Result<Machine> {
     let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
     let cpu = cpuinfo
@@ -1981,24 +2003,7 @@ fn header(
         h.apriltag_640,
         h.apriltag_640_cpu
     )?;
-    writeln!(doc, "## Machine and versions\n")?;
-    writeln!(doc, "| item | value |\n| --- | --- |")?;
-    writeln!(doc, "| CPU (`/proc/cpuinfo`) | {} |", m.cpu)?;
-    writeln!(
-        doc,
-        "| cores available | {} (every timing here uses one thread) |",
-        m.cores
-    )?;
-    writeln!(
-        doc,
-        "| formation-tracker | {} ({}, release profile) |",
-        env!("CARGO_PKG_VERSION"),
-        m.rustc
-    )?;
-    writeln!(doc, "| Python | {} |", m.python)?;
-    for (k, v) in &m.libs {
-        writeln!(doc, "| {k} | {v} |")?;
-    }
+    m.write_table(doc, " (every timing here uses one thread)")?;
     writeln!(
         doc,
         "\nScene counts: {} scenes per condition at 640x480 ({} of each motion-blur \

@@ -332,17 +332,7 @@ fn verdict(set_motion: f64, ours: &Tally, best: &Tally) -> (bool, String) {
         } else {
             (false, format!("undecided: {note}"))
         }
-    } else if r >= TARGET {
-        let within = ((r - TARGET) / r_se).abs() < 1.0;
-        (
-            true,
-            if within {
-                "within one SE".into()
-            } else {
-                String::new()
-            },
-        )
-    } else if best.recall() * TARGET > 100.0 {
+    } else if r < TARGET && best.recall() * TARGET > 100.0 {
         (
             false,
             format!(
@@ -353,7 +343,7 @@ fn verdict(set_motion: f64, ours: &Tally, best: &Tally) -> (bool, String) {
     } else {
         let within = ((r - TARGET) / r_se).abs() < 1.0;
         (
-            false,
+            r >= TARGET,
             if within {
                 "within one SE".into()
             } else {
@@ -611,21 +601,8 @@ fn document(run: &Run<'_>) -> crate::Result<String> {
             pooled9[b].recall()
         )?;
     }
-    let m = run.machine;
-    writeln!(doc, "\n## Machine and versions\n")?;
-    writeln!(doc, "| item | value |\n| --- | --- |")?;
-    writeln!(doc, "| CPU (`/proc/cpuinfo`) | {} |", m.cpu)?;
-    writeln!(doc, "| cores available | {} |", m.cores)?;
-    writeln!(
-        doc,
-        "| formation-tracker | {} ({}, release profile) |",
-        env!("CARGO_PKG_VERSION"),
-        m.rustc
-    )?;
-    writeln!(doc, "| Python | {} |", m.python)?;
-    for (k, v) in &m.libs {
-        writeln!(doc, "| {k} | {v} |")?;
-    }
+    writeln!(doc)?;
+    run.machine.write_table(&mut doc, "")?;
     writeln!(
         doc,
         "\nNothing here is timed (recall does not depend on load); the run took {:.0} s \
