@@ -145,11 +145,11 @@ pub fn run(args: &[String]) -> Result {
         [flag] if flag == "--held-out" => {
             let (md, smoothing) = held_out::document()?;
             let path = workspace_root()?.join("docs").join("dukf-held-out.md");
-            write_atomically(&path, &md)?;
+            crate::write_atomically(&path, &md)?;
             println!("dukf-table: wrote {}", path.display());
             let smoothing_path = workspace_root()?.join("docs").join("smoothing.md");
             let doc = std::fs::read_to_string(&smoothing_path)?;
-            write_atomically(&smoothing_path, &splice_held_out(&doc, &smoothing))?;
+            crate::write_atomically(&smoothing_path, &splice_held_out(&doc, &smoothing))?;
             println!(
                 "dukf-table: wrote the held-out section of {}",
                 smoothing_path.display()
@@ -176,7 +176,7 @@ pub fn run(args: &[String]) -> Result {
     let _ = writeln!(md, "\n{}", include_str!("dukf_table_notes.md").trim_end());
 
     let path = workspace_root()?.join("docs").join("dukf-reproduction.md");
-    write_atomically(&path, &md)?;
+    crate::write_atomically(&path, &md)?;
     let smoothing = smoothing::document(
         &runs.dual_runs,
         &runs.check_dual_runs,
@@ -189,7 +189,7 @@ pub fn run(args: &[String]) -> Result {
         .ok()
         .and_then(|doc| held_out_section(&doc).map(str::to_string))
         .unwrap_or_default();
-    write_atomically(&smoothing_path, &splice_held_out(&smoothing, &held))?;
+    crate::write_atomically(&smoothing_path, &splice_held_out(&smoothing, &held))?;
     println!("dukf-table: wrote {}", smoothing_path.display());
     println!(
         "dukf-table: wrote {} (median MSE l12 {:.3e}, alpha12 {:.3e}; RMS v1 {:.4}, w1 {:.4})",
@@ -227,15 +227,6 @@ fn splice_held_out(doc: &str, section: &str) -> String {
         _ if section.is_empty() => doc.to_string(),
         _ => format!("{}\n\n{block}\n", doc.trim_end()),
     }
-}
-
-/// Writes `text` to a temporary file beside `path` and renames it over `path`, so that an
-/// interrupted run leaves the old file whole.
-fn write_atomically(path: &std::path::Path, text: &str) -> Result {
-    let tmp = path.with_extension("md.tmp");
-    std::fs::write(&tmp, text)?;
-    std::fs::rename(&tmp, path)?;
-    Ok(())
 }
 
 /// Every run of the reference scenario the document reports: the IMM with and without

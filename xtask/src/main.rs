@@ -43,6 +43,17 @@ fn realdata(root: &std::path::Path, sub: &str) -> Result<std::path::PathBuf> {
 
 type Result<T = ()> = std::result::Result<T, Box<dyn std::error::Error>>;
 
+/// Writes `text` to a temporary file beside `path` (its name and `.tmp`), then renames it
+/// over `path`, so that an interrupted run leaves the old file whole.
+fn write_atomically(path: &std::path::Path, text: &str) -> Result {
+    let mut name = path.file_name().ok_or("no file name")?.to_os_string();
+    name.push(".tmp");
+    let tmp = path.with_file_name(name);
+    std::fs::write(&tmp, text)?;
+    std::fs::rename(&tmp, path)?;
+    Ok(())
+}
+
 const USAGE: &str = "usage: cargo xtask <command>
 
 commands:

@@ -156,9 +156,7 @@ pub fn run(args: &[String]) -> crate::Result {
         load: (load_before, crate::compare::loadavg()),
     })?;
     let path = root.join("docs/motion-blur-sets.md");
-    let tmp = root.join("docs/.motion-blur-sets.md.tmp");
-    std::fs::write(&tmp, doc)?;
-    std::fs::rename(&tmp, &path)?;
+    crate::write_atomically(&path, &doc)?;
     std::fs::remove_dir_all(work.join("frames"))?;
     println!("motion-sets: wrote {} in {elapsed:.0} s", path.display());
     for line in summary(&tallies) {
