@@ -68,6 +68,33 @@ struct Settings {
     seeds: u64,
 }
 
+/// The peers (`xtask/py/compare.py` under `python`) on `manifest`, written to
+/// `work/manifest.json`; their results, read back from `work/peers.json`. `who` names the
+/// command in the progress line.
+pub(crate) fn run_peers(
+    python: &Path,
+    root: &Path,
+    work: &Path,
+    manifest: &Value,
+    who: &str,
+) -> crate::Result<Value> {
+    let manifest_path = work.join("manifest.json");
+    std::fs::write(&manifest_path, serde_json::to_string(manifest)?)?;
+    let results_path = work.join("peers.json");
+    eprintln!("{who}: the peers (xtask/py/compare.py)");
+    let status = Command::new(python)
+        .arg(root.join("xtask/py/compare.py"))
+        .arg(&manifest_path)
+        .arg(&results_path)
+        .status()?;
+    if !status.success() {
+        return Err(format!("{} xtask/py/compare.py failed ({status})", python.display()).into());
+    }
+    Ok(serde_json::from_str(&std::fs::read_to_string(
+        &results_path,
+    )?)?)
+}
+
 /// The workspace root, a fresh `target/NAME` folder with a `frames` folder in it, and the
 /// venv's python with the peers installed (`compare` and `motion-sets` share the venv).
 pub(crate) fn fresh_work(name: &str) -> crate::Result<(PathBuf, PathBuf, PathBuf)> {
@@ -153,19 +180,7 @@ pub fn run(args: &[String]) -> crate::Result {
                  "cases": cases.iter().map(|c| json!({"corners": c.corners.iter().map(|p| [p.x, p.y]).collect::<Vec<_>>()})).collect::<Vec<_>>()},
         "filter": filter_runs,
     });
-    let manifest_path = work.join("manifest.json");
-    std::fs::write(&manifest_path, serde_json::to_string(&manifest)?)?;
-    let results_path = work.join("peers.json");
-    eprintln!("compare: the peers (xtask/py/compare.py)");
-    let status = Command::new(&python)
-        .arg(root.join("xtask/py/compare.py"))
-        .arg(&manifest_path)
-        .arg(&results_path)
-        .status()?;
-    if !status.success() {
-        return Err(format!("{} xtask/py/compare.py failed ({status})", python.display()).into());
-    }
-    let peers: Value = serde_json::from_str(&std::fs::read_to_string(&results_path)?)?;
+    let peers = run_peers(&python, &root, &work, &manifest, "compare")?;
 
     let mut doc = String::new();
     let machine = machine(&peers)?;
@@ -511,10 +526,6 @@ impl Frame {
 /// condition at each larger resolution; each scene once per family (same warps, same
 /// background, same noise seed).
 fn render_frames(s: &Settings, work: &Path) -> crate::Result<Vec<Frame>> {
-    let patterns: Vec<(Family, Vec<CellPattern>)> = Family::ALL
-        .iter()
-        .map(|&f| Ok((f, f.patterns()?)))
-        .collect::<crate::Result<_>>()?;
     let mut jobs = Vec::new();
     for (ci, cond) in CONDITIONS.iter().enumerate() {
         let scenes = if cond.motion > 0.0 {
@@ -531,7 +542,21 @@ fn render_frames(s: &Settings, work: &Path) -> crate::Result<Vec<Frame>> {
             jobs.push((w, h, COMBINED, (10_000 * w + k) as u64));
         }
     }
-    // Scenes in parallel (rendering only; nothing is timed here).
+    render_jobs(&jobs, &Family::ALL, work)
+}
+
+/// The scenes `jobs` (`w`, `h`, condition, seed), each drawn once per family of `families`
+/// and written under `work/frames`, in parallel (rendering only; nothing is timed here), in
+/// job order.
+pub(crate) fn render_jobs(
+    jobs: &[(usize, usize, Condition, u64)],
+    families: &[Family],
+    work: &Path,
+) -> crate::Result<Vec<Frame>> {
+    let patterns: Vec<(Family, Vec<CellPattern>)> = families
+        .iter()
+        .map(|&f| Ok((f, f.patterns()?)))
+        .collect::<crate::Result<_>>()?;
     use rayon::prelude::*;
     let rendered: Vec<Result<Vec<Frame>, String>> = jobs
         .par_iter()
@@ -547,7 +572,7 @@ fn render_frames(s: &Settings, work: &Path) -> crate::Result<Vec<Frame>> {
 }
 
 /// One scene, drawn once per family, written under `work/frames`.
-pub(crate) fn render_job(
+fn render_job(
     w: usize,
     h: usize,
     cond: Condition,

@@ -15,13 +15,12 @@
 
 use std::fmt::Write as _;
 use std::path::Path;
-use std::process::Command;
 use std::time::Instant;
 
 use serde_json::{Value, json};
 
 use crate::compare::{
-    BASE, Condition, DETECTORS, Family, Frame, Reads, Tally, peer_reads, render_job, run_ours,
+    BASE, Condition, DETECTORS, Family, Frame, Reads, Tally, peer_reads, run_ours,
 };
 
 const USAGE: &str = "usage: cargo xtask motion-sets [--scenes N] [--quick]
@@ -167,27 +166,12 @@ pub fn run(args: &[String]) -> crate::Result {
 
 /// Every set's scenes, each drawn once per family, in set order.
 fn render(scenes: usize, work: &Path) -> crate::Result<Vec<Frame>> {
-    let patterns: Vec<(Family, Vec<_>)> = FAMILIES
-        .iter()
-        .map(|&f| Ok((f, f.patterns()?)))
-        .collect::<crate::Result<_>>()?;
-    let jobs: Vec<(Condition, u64)> = SETS
+    let jobs: Vec<(usize, usize, Condition, u64)> = SETS
         .iter()
         .enumerate()
-        .flat_map(|(i, set)| (0..scenes).map(move |k| (set.condition(), seed(i, k))))
+        .flat_map(|(i, set)| (0..scenes).map(move |k| (640, 480, set.condition(), seed(i, k))))
         .collect();
-    use rayon::prelude::*;
-    let rendered: Vec<Result<Vec<Frame>, String>> = jobs
-        .par_iter()
-        .map(|&(cond, seed)| {
-            render_job(640, 480, cond, seed, &patterns, work).map_err(|e| e.to_string())
-        })
-        .collect();
-    let mut frames = Vec::new();
-    for r in rendered {
-        frames.extend(r.map_err(|e| format!("rendering a scene: {e}"))?);
-    }
-    Ok(frames)
+    crate::compare::render_jobs(&jobs, &FAMILIES, work)
 }
 
 /// The peers on every frame through compare's script (one untimed-for-the-report read per
@@ -202,21 +186,7 @@ fn run_peers(python: &Path, root: &Path, work: &Path, frames: &[Frame]) -> crate
                  "cases": []},
         "filter": [],
     });
-    let manifest_path = work.join("manifest.json");
-    std::fs::write(&manifest_path, serde_json::to_string(&manifest)?)?;
-    let results_path = work.join("peers.json");
-    eprintln!("motion-sets: the peers (xtask/py/compare.py)");
-    let status = Command::new(python)
-        .arg(root.join("xtask/py/compare.py"))
-        .arg(&manifest_path)
-        .arg(&results_path)
-        .status()?;
-    if !status.success() {
-        return Err(format!("{} xtask/py/compare.py failed ({status})", python.display()).into());
-    }
-    Ok(serde_json::from_str(&std::fs::read_to_string(
-        &results_path,
-    )?)?)
+    crate::compare::run_peers(python, root, work, &manifest, "motion-sets")
 }
 
 /// `tallies[set][detector]`: each of compare's detectors (`DETECTORS`) on its family's frames
