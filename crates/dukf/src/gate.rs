@@ -22,6 +22,116 @@ pub fn innovation_nis<const M: usize, S: Space<M>>(
     d2.is_finite().then_some(d2)
 }
 
+/// A gate on the innovation test, with the rule that gives up on a track: each candidate
+/// measurement is judged by its `d^2` against the filter's prediction and by the smallest
+/// `d^2` against any one model's own prediction (for a single model, the same number).
+///
+/// - A measurement within [`threshold`](Self::threshold) of the prediction is accepted.
+/// - One refused right after a refused one is accepted when some model's prediction explains
+///   it (within the threshold): while one model holds nearly all of a mixture's probability,
+///   a change another model predicts would otherwise be refused frame after frame. A single
+///   outlying measurement is still refused.
+/// - [`restart_due`](Self::restart_due) says when the refusals call for restarting the
+///   filter from the latest measurement: [`restart_after`](Self::restart_after) in a row
+///   beyond [`far_factor`](Self::far_factor) times the threshold of every model, or
+///   [`persistent_factor`](Self::persistent_factor) times as many refused at all.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Gate {
+    /// The largest `d^2` accepted (e.g. a chi-square quantile for the measurement's
+    /// dimension); `f64::INFINITY` accepts everything.
+    pub threshold: f64,
+    /// Refusals in a row, each beyond `far_factor` thresholds of every model, that call for a
+    /// restart; 0 never restarts.
+    pub restart_after: u32,
+    /// How far beyond the threshold (as a factor on it) a refusal must lie to count towards
+    /// `restart_after`: one just outside is more likely an unlucky measurement than a target
+    /// every model has lost.
+    pub far_factor: f64,
+    /// Refusals in a row, as a factor on `restart_after`, that call for a restart however
+    /// near the threshold they lay: a filter drifting just outside its gate is not followed
+    /// back by any model.
+    pub persistent_factor: u32,
+}
+
+/// What a [`Gate`] remembers of one filter's recent refusals.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct GateRuns {
+    /// Measurements refused in a row.
+    pub refused: u32,
+    /// Measurements refused in a row beyond [`Gate::far_factor`] thresholds of every model.
+    pub far: u32,
+}
+
+impl Gate {
+    /// Judges one measurement: `d2` against the filter's prediction, `best_model_d2` the
+    /// smallest against one model's own prediction (at most `d2` when the mixture is one of
+    /// the predictions tried). Returns whether it is accepted, and updates `runs`.
+    pub fn judge(&self, runs: &mut GateRuns, d2: f64, best_model_d2: f64) -> bool {
+        if d2 <= self.threshold || (best_model_d2 <= self.threshold && runs.refused > 0) {
+            *runs = GateRuns::default();
+            return true;
+        }
+        runs.refused += 1;
+        if best_model_d2 > self.far_factor * self.threshold {
+            runs.far += 1;
+        } else {
+            runs.far = 0;
+        }
+        false
+    }
+
+    /// Whether `runs` call for restarting the filter from the latest measurement.
+    pub fn restart_due(&self, runs: &GateRuns) -> bool {
+        self.restart_after > 0
+            && (runs.far >= self.restart_after
+                || runs.refused >= self.persistent_factor * self.restart_after)
+    }
+}
+
+/// A factor on the measurement noise `R` learned from the innovations (adaptive `R`): after
+/// each tested measurement of normalised innovation squared `d^2` (capped, so that one
+/// outlier cannot blow it up), the factor `s` becomes `s (1 + (d^2 / dof - 1) / memory)`,
+/// kept within `[min, max]`. It settles where the mean `d^2` is `dof`, the mean of a
+/// chi-square with `dof` degrees of freedom: up when the innovations are larger than the
+/// prediction and `R` together say (errors the reported `R` does not know), down when they
+/// are not. `memory` is about the number of measurements it takes to follow a change.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoiseScale {
+    factor: f64,
+    memory: f64,
+    min: f64,
+    max: f64,
+}
+
+impl NoiseScale {
+    /// Starts at `initial`, kept within `[min, max]`, with `memory` (at least 1) measurements
+    /// of memory.
+    pub fn new(initial: f64, memory: f64, min: f64, max: f64) -> Self {
+        Self {
+            factor: initial,
+            memory,
+            min,
+            max,
+        }
+    }
+
+    /// The factor to put on `R`.
+    pub fn factor(&self) -> f64 {
+        self.factor
+    }
+
+    /// Learns from one measurement's `d^2`, capped at `cap`, for a measurement of `dof`
+    /// dimensions. A non-finite `d^2` teaches nothing.
+    pub fn learn(&mut self, d2: f64, cap: f64, dof: f64) {
+        if !d2.is_finite() {
+            return;
+        }
+        let ratio = d2.min(cap) / dof;
+        let next = self.factor * (1.0 + (ratio - 1.0) / self.memory);
+        self.factor = next.clamp(self.min, self.max);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -49,5 +159,60 @@ mod tests {
         // Not positive definite: no distance.
         let bad = Matrix2::new(-3.0, 0.0, 0.0, 1.0);
         assert_eq!(innovation_nis(&Euclidean, &y, &y, &bad, &r), None);
+    }
+    #[test]
+    fn the_gate_takes_what_a_model_explains_after_a_refusal_and_restarts_on_far_runs() {
+        let gate = Gate {
+            threshold: 10.0,
+            restart_after: 2,
+            far_factor: 4.0,
+            persistent_factor: 5,
+        };
+        let mut runs = GateRuns::default();
+        assert!(gate.judge(&mut runs, 3.0, 3.0));
+        // Refused once, even though a model explains it: a single outlier.
+        assert!(!gate.judge(&mut runs, 12.0, 5.0));
+        assert_eq!(runs, GateRuns { refused: 1, far: 0 });
+        // Right after a refusal, a model's explanation is enough.
+        assert!(gate.judge(&mut runs, 12.0, 5.0));
+        assert_eq!(runs, GateRuns::default());
+        // Far beyond every model twice in a row: restart.
+        assert!(!gate.judge(&mut runs, 100.0, 50.0));
+        assert!(!gate.restart_due(&runs));
+        assert!(!gate.judge(&mut runs, 100.0, 50.0));
+        assert!(gate.restart_due(&runs));
+        // Just outside the gate of every model: ten in a row before a restart.
+        let mut runs = GateRuns::default();
+        for k in 1..=10 {
+            assert!(!gate.judge(&mut runs, 12.0, 11.0));
+            assert_eq!(gate.restart_due(&runs), k == 10, "{k}");
+        }
+        let never = Gate {
+            restart_after: 0,
+            ..gate
+        };
+        assert!(!never.restart_due(&runs));
+    }
+
+    #[test]
+    fn the_noise_scale_settles_where_the_mean_nis_is_the_dimension() {
+        let mut s = NoiseScale::new(2.0, 20.0, 0.5, 100.0);
+        // Innovations 4 times what R says (d^2 = 4 dof at factor 1): d^2 falls as 1/s.
+        for _ in 0..2000 {
+            let d2 = 4.0 * 3.0 / s.factor();
+            s.learn(d2, 16.0, 3.0);
+        }
+        assert!((s.factor() - 4.0).abs() < 1e-6, "{}", s.factor());
+        // The cap bounds one outlier's effect; NaN teaches nothing; the bounds hold.
+        let before = s.factor();
+        s.learn(1e9, 16.0, 3.0);
+        assert!((s.factor() - before * (1.0 + (16.0 / 3.0 - 1.0) / 20.0)).abs() < 1e-12);
+        let before = s.factor();
+        s.learn(f64::NAN, 16.0, 3.0);
+        assert_eq!(s.factor(), before);
+        for _ in 0..1000 {
+            s.learn(0.0, 16.0, 3.0);
+        }
+        assert_eq!(s.factor(), 0.5);
     }
 }

@@ -141,7 +141,7 @@ mod ukf;
 
 pub use dual::{DualPredictReport, DualReport, DualUkf};
 pub use error::{Covariance, DualFilter, Function, Input, UkfError};
-pub use gate::innovation_nis;
+pub use gate::{Gate, GateRuns, NoiseScale, innovation_nis};
 pub use imm::{Imm, ImmReport, mixture_mean, mixture_noise, sojourn_transition};
 pub use jitter::{Factored, JitterPolicy, factor_repaired};
 pub use linearise::{central_jacobian, propagate_linearised};

@@ -941,6 +941,26 @@ impl FormationFilter {
         }
     }
 
+    /// The measurement this filter predicts for its next step with the follower's inputs
+    /// `u`, for testing candidate measurements before one is applied (gating, choosing
+    /// between planar candidates). The filter is predicted on a copy; `self` is unchanged.
+    ///
+    /// # Errors
+    /// As [`FormationFilter::predict_only`].
+    pub fn predicted(&self, u: Inputs) -> Result<Predicted, FilterError> {
+        let mut next = self.clone();
+        next.predict_only(u)?;
+        let per_model = |(z, p): (SVector<f64, 10>, SMatrix<f64, 10, 10>)| {
+            let var = Matrix3::from_diagonal(&p.fixed_view::<3, 3>(3, 3).diagonal());
+            (z.fixed_rows::<3>(3).into_owned(), var)
+        };
+        Ok(Predicted {
+            y: next.formation().to_vector(),
+            var: Matrix3::from_diagonal(&next.formation_std().map(|s| s * s)),
+            models: next.model_estimates().map(|m| m.map(per_model)),
+        })
+    }
+
     /// Which design this filter runs.
     pub fn design(&self) -> FilterDesign {
         match self.engine {
@@ -1024,6 +1044,42 @@ fn check_inputs(u: &Vector2<f64>) -> Result<(), FilterError> {
             value: u[index],
         }
         .into()),
+    }
+}
+
+/// A filter's predicted measurement `(l12, alpha12, beta12)` for its next step
+/// ([`FormationFilter::predicted`]), against which candidate measurements are tested.
+/// Only the diagonal of the predicted covariance is used: the filter reports standard
+/// deviations, and the off-diagonal terms are small next to `R` for these three variables.
+#[derive(Debug, Clone, Copy)]
+pub struct Predicted {
+    y: Vector3<f64>,
+    var: Matrix3<f64>,
+    models: Option<[(Vector3<f64>, Matrix3<f64>); 3]>,
+}
+
+impl Predicted {
+    /// The predicted measurement.
+    pub fn y(&self) -> Vector3<f64> {
+        self.y
+    }
+
+    /// The normalised innovation squared of measurement `y` with covariance `r` against the
+    /// prediction (angles wrapped; [`dukf::innovation_nis`]); `None` if not finite.
+    pub fn nis(&self, y: &Vector3<f64>, r: &Matrix3<f64>) -> Option<f64> {
+        dukf::innovation_nis(&MEASUREMENT_SPACE, y, &self.y, &self.var, r)
+    }
+
+    /// The smallest normalised innovation squared of `y` against one IMM model's own
+    /// prediction, or `nis` (the combined prediction's) if that is smaller or there are no
+    /// models (the dual UKF): a change one model predicts while another holds the
+    /// probability shows here first.
+    pub fn best_model_nis(&self, y: &Vector3<f64>, r: &Matrix3<f64>, nis: f64) -> f64 {
+        self.models
+            .iter()
+            .flatten()
+            .filter_map(|(m, var)| dukf::innovation_nis(&MEASUREMENT_SPACE, y, m, var, r))
+            .fold(nis, f64::min)
     }
 }
 

@@ -12,21 +12,19 @@
 //! # One frame, per leader
 //! 1. **Measurement.** Each pose candidate (rig frame to camera frame) goes through the
 //!    measurement transform of spec 2.5 ([`crate::mount::formation_of_pose`]); its
-//!    6x6 pose covariance is propagated to `(l12, alpha12, beta12)` with it (a formation measurement from a joint or
-//!    ground-plane fit comes with that covariance already). `pose` scales a fit's covariance
-//!    by the corner noise of that one fit's residual (2 degrees of freedom for one face, at
-//!    least 0.1 px). By default a single face's candidates are rescaled to a fixed
-//!    [`TrackerConfig::corner_sigma_px`] (0.5 px) and a floor of 5 mm / 5 mrad
-//!    ([`TrackerConfig::measurement_floor_std`]) is **added** for the errors the pose
-//!    covariance does not know (corner bias, calibration, mount). With `corner_sigma_px =
-//!    None` every fit (single faces, and joint or ground-plane fits that carry their
-//!    [`FitResidual`]) is rescaled to the corner noise **pooled** over the robot's recent
-//!    fits, `sum SSE / sum (2N - p)` ([`TrackerConfig::corner_noise_memory_dof`]): `R` is then
-//!    the detector's measured corner noise through the pose Jacobian, and
-//!    [`TrackerConfig::relative_distance_std`] adds `(s l12)^2` for the distance errors the
-//!    residuals cannot see. Not yet the default: `docs/tracking.md` has the measurements.
-//!    Adding (rather than clamping) keeps `R` positive definite even when the Jacobian is
-//!    rank-deficient.
+//!    6x6 pose covariance is propagated to `(l12, alpha12, beta12)` with it (a formation
+//!    measurement from a joint or ground-plane fit comes with that covariance already).
+//!    `pose` scales a fit's covariance by the noise of that one fit's residual (2 degrees of
+//!    freedom for one face); the tracker rescales it to the corner noise **pooled** over the
+//!    robot's recent fits, `sum SSE / sum (2N - p)`
+//!    ([`TrackerConfig::corner_noise_memory_dof`]; or to a fixed
+//!    [`TrackerConfig::corner_sigma_px`]), adds the floor
+//!    [`TrackerConfig::measurement_floor_std`] (0.03 mm / 0.03 mrad, which keeps `R`
+//!    positive definite when the Jacobian is rank-deficient) and
+//!    [`TrackerConfig::relative_distance_std`], and multiplies the whole by the robot's factor
+//!    learned from its innovations ([`TrackerConfig::innovation_memory`],
+//!    [`dukf::NoiseScale`]) for the errors the residuals cannot see. `docs/tracking.md` has
+//!    the measurements behind these defaults.
 //! 2. **Prediction.** The track's filter is predicted over the frame gap (see *Time*) on a
 //!    copy, giving the predicted measurement `y-` and its variances `diag(P-)`.
 //! 3. **Candidate choice.** With two planar candidates, the one with the smaller
@@ -115,17 +113,6 @@ use smooth::{NO_INPUTS, Recorded, Segment};
 /// while the evidence is still even.
 const SWITCH_MARGIN: f64 = 8.0;
 
-/// How far beyond the gate (as a factor on it) a refused measurement must lie, against
-/// every model's prediction, to count towards a restart
-/// ([`TrackerConfig::restart_after_gated`]): a measurement just outside the gate is more
-/// likely an unlucky one than a leader that every model has lost.
-const RESTART_GATE_FACTOR: f64 = 4.0;
-
-/// Refused measurements in a row, as a factor on [`TrackerConfig::restart_after_gated`],
-/// after which the track restarts however near the gate they lay: a track that drifts just
-/// outside the gate of every model is not followed back by any of them.
-const PERSISTENT_GATING_FACTOR: u32 = 5;
-
 /// The factor on a robot's `R` before its innovations have been seen: a new track does not
 /// yet know the errors its fit residuals miss (on the tests' 2 x 2-sampled frames they
 /// double the NIS), and its first frames are where the IMM is most confident (model B's
@@ -133,11 +120,9 @@ const PERSISTENT_GATING_FACTOR: u32 = 5;
 /// within about `innovation_memory` frames.
 const INITIAL_INNOVATION_SCALE: f64 = 2.0;
 
-/// The smallest factor the innovations may put on `R`.
-const MIN_INNOVATION_SCALE: f64 = 0.5;
-
-/// The largest factor the innovations may put on `R` ([`TrackerConfig::innovation_memory`]).
-const MAX_INNOVATION_SCALE: f64 = 100.0;
+/// The range of the factor the innovations may put on `R`
+/// ([`TrackerConfig::innovation_memory`]).
+const INNOVATION_SCALE_RANGE: [f64; 2] = [0.5, 100.0];
 
 /// One filter and how well it has explained the measurements so far.
 #[derive(Debug, Clone)]
@@ -148,11 +133,8 @@ struct Hypothesis {
     /// Every filter step since the start, when the tracker records (see
     /// [`Tracker::record_history`]); empty otherwise.
     history: Vec<Recorded>,
-    /// Measurements gated in a row by the mixture's prediction (see [`Tracker::choose`]).
-    gated_run: u32,
-    /// Measurements in a row refused by far more than the gate ([`RESTART_GATE_FACTOR`]):
-    /// the count [`TrackerConfig::restart_after_gated`] tests.
-    wild_run: u32,
+    /// The gate's count of refusals in a row ([`Tracker::gate`]).
+    runs: dukf::GateRuns,
 }
 
 impl Hypothesis {
@@ -169,8 +151,7 @@ impl Hypothesis {
             filter,
             score: 0.0,
             history,
-            gated_run: 0,
-            wild_run: 0,
+            runs: dukf::GateRuns::default(),
         }
     }
 }
@@ -214,7 +195,7 @@ pub struct Tracker {
     corner_noise: BTreeMap<u32, pose::ResidualPool>,
     /// Per robot, the factor on `R` that the innovations call for (see
     /// [`TrackerConfig::innovation_memory`]); absent until a measurement was tested.
-    innovation_scale: BTreeMap<u32, f64>,
+    innovation_scale: BTreeMap<u32, dukf::NoiseScale>,
     /// Per leader, the follower's own controller towards it, if told
     /// ([`set_follower_controller`](Self::set_follower_controller)).
     controllers: BTreeMap<u32, ControllerConfig>,
@@ -501,27 +482,38 @@ impl Tracker {
         }
         self.innovation_scale
             .get(&robot)
-            .copied()
-            .unwrap_or(INITIAL_INNOVATION_SCALE)
+            .map_or(INITIAL_INNOVATION_SCALE, dukf::NoiseScale::factor)
     }
 
     /// Moves `robot`'s factor on `R` towards what the latest tested measurement's `d^2`
-    /// (capped at the gate) calls for: up when the innovations are larger than the
-    /// prediction and `R` together say (errors the fit residuals cannot see, such as corner
-    /// errors shared by a face's corners), down again to 1 when they are not. A normalised
-    /// innovation squared of 3 degrees of freedom averages 3.
+    /// (capped at the gate, 3 degrees of freedom) calls for ([`dukf::NoiseScale`]): up when
+    /// the innovations are larger than the prediction and `R` together say (errors the fit
+    /// residuals cannot see, such as corner errors shared by a face's corners), down when
+    /// they are not.
     fn learn_innovation_scale(&mut self, robot: u32, d2: f64) {
         let memory = self.config.innovation_memory;
-        if memory <= 0.0 || !d2.is_finite() {
+        if memory <= 0.0 {
             return;
         }
-        let ratio = d2.min(self.config.gate) / 3.0;
-        let s = self.innovation_scale(robot);
-        let next = s * (1.0 + (ratio - 1.0) / memory);
-        self.innovation_scale.insert(
-            robot,
-            next.clamp(MIN_INNOVATION_SCALE, MAX_INNOVATION_SCALE),
-        );
+        let [min, max] = INNOVATION_SCALE_RANGE;
+        self.innovation_scale
+            .entry(robot)
+            .or_insert_with(|| dukf::NoiseScale::new(INITIAL_INNOVATION_SCALE, memory, min, max))
+            .learn(d2, self.config.gate, 3.0);
+    }
+
+    /// The gate of [`TrackerConfig::gate`] and [`TrackerConfig::restart_after_gated`]: a
+    /// refusal counts towards a restart when it lies beyond four times the gate of every
+    /// model (one just outside is more likely an unlucky measurement than a leader every
+    /// model has lost), and five times as many refusals in a row restart the track however
+    /// near the gate they lay.
+    fn gate(&self) -> dukf::Gate {
+        dukf::Gate {
+            threshold: self.config.gate,
+            restart_after: self.config.restart_after_gated,
+            far_factor: 4.0,
+            persistent_factor: 5,
+        }
     }
 
     /// The factor that takes a covariance scaled by `pose`'s one-solve noise estimate (from
@@ -645,15 +637,12 @@ impl Tracker {
         // refused again right after it does (capped at the gate).
         if let Some((_, d2)) = outcome.chosen
             && (outcome.usage == MeasurementUse::Updated
-                || (outcome.usage == MeasurementUse::Gated && track.main.gated_run > 1))
+                || (outcome.usage == MeasurementUse::Gated && track.main.runs.refused > 1))
         {
             self.learn_innovation_scale(robot, d2);
         }
         if outcome.usage == MeasurementUse::Gated
-            && self.config.restart_after_gated > 0
-            && (track.main.wild_run >= self.config.restart_after_gated
-                || track.main.gated_run
-                    >= PERSISTENT_GATING_FACTOR * self.config.restart_after_gated)
+            && self.gate().restart_due(&track.main.runs)
             && let Some(Ok(list)) = formed
             && let Some(restarted) =
                 self.start(robot, t, list, Some(track.main.filter.leader_velocity()))
@@ -708,18 +697,9 @@ impl Tracker {
             Some(Err(_)) => (None, MeasurementUse::Invalid),
             Some(Ok(list)) => match self.choose(&h.filter, u, list) {
                 Some((m, nis, model_d2)) => {
-                    let gate = self.config.gate;
-                    if nis <= gate || (model_d2 <= gate && h.gated_run > 0) {
-                        h.gated_run = 0;
-                        h.wild_run = 0;
+                    if self.gate().judge(&mut h.runs, nis, model_d2) {
                         (Some((m, nis)), MeasurementUse::Updated)
                     } else {
-                        h.gated_run += 1;
-                        if model_d2 > RESTART_GATE_FACTOR * gate {
-                            h.wild_run += 1;
-                        } else {
-                            h.wild_run = 0;
-                        }
                         (Some((m, nis)), MeasurementUse::Gated)
                     }
                 }
@@ -749,45 +729,21 @@ impl Tracker {
     }
 
     /// The candidate nearest the filter's one-step prediction, with its `d^2` against that
-    /// prediction and the smallest `d^2` against one IMM model's own prediction (the mixture's
-    /// for the dual UKF). The gate tests the first; a measurement it refuses right after
-    /// another refused one is taken when some model explains it (the second within the
-    /// gate). While one model holds nearly all the probability, the mixture's prediction is
-    /// that model's, and a change another model predicts (a set-point step: the follower
-    /// slows, the separation grows) would otherwise be gated frame after frame until the
-    /// track is lost; a single outlying frame is still refused.
+    /// prediction and the smallest `d^2` against one IMM model's own prediction
+    /// ([`crate::filter::Predicted`]), which the gate takes after a refusal.
     fn choose(
         &self,
         filter: &FormationFilter,
         u: Inputs,
         list: &[Formed],
     ) -> Option<(Formed, f64, f64)> {
-        let mut predicted = filter.clone();
-        predicted.predict_only(u).ok()?;
-        let y_pred = predicted.formation().to_vector();
-        // The predicted variances only: the gate has always used the diagonal (the full
-        // predicted covariance is a change of the filter's behaviour, left to #30).
-        let var = Matrix3::from_diagonal(&predicted.formation_std().map(|s| s * s));
-        // (candidate, d^2); at most two candidates.
-        let mut scored: [Option<(Formed, f64)>; 2] = [None, None];
-        for (slot, m) in scored.iter_mut().zip(list) {
-            let d2 = dukf::innovation_nis(&MEASUREMENT_SPACE, &m.y, &y_pred, &var, &m.r);
-            *slot = d2.map(|d2| (*m, d2));
-        }
-        let (m, d2) = scored
+        let predicted = filter.predicted(u).ok()?;
+        let (m, d2) = list
             .iter()
-            .flatten()
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .copied()?;
-        let per_model = predicted.model_estimates().into_iter().flatten();
-        let gate_d2 = per_model
-            .filter_map(|(z, p)| {
-                let y = z.fixed_rows::<3>(3).into_owned();
-                let var = Matrix3::from_diagonal(&p.fixed_view::<3, 3>(3, 3).diagonal());
-                dukf::innovation_nis(&MEASUREMENT_SPACE, &m.y, &y, &var, &m.r)
-            })
-            .fold(d2, f64::min);
-        Some((m, d2, gate_d2))
+            .take(2)
+            .filter_map(|m| predicted.nis(&m.y, &m.r).map(|d2| (*m, d2)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))?;
+        Some((m, d2, predicted.best_model_nis(&m.y, &m.r, d2)))
     }
 }
 

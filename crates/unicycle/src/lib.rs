@@ -1,8 +1,8 @@
 //! Unicycle robots and the polar leader-follower formation model with a camera offset.
 //!
-//! This crate is the robot model of the project (spec sections 2.2-2.4) and nothing else: it
+//! This crate is the robot model of the project (spec sections 2.2-2.5) and nothing else: it
 //! knows about poses, wheel inputs and formation geometry, but nothing about cameras' pixels,
-//! markers or filters. Three layers:
+//! markers or filters. Three layers, and the camera's place on the follower:
 //!
 //! - [`PlanarPose`] and [`Inputs`]: one unicycle `x' = v cos(theta), y' = v sin(theta),
 //!   theta' = w`, integrated either in closed form ([`PlanarPose::integrate_exact`], an arc written
@@ -23,6 +23,10 @@
 //!   the leader velocities behind the last two ([`formation_holding_velocity`],
 //!   [`bearing_holding_turn_rate`], [`controlled_formation_velocity`]): the model set a
 //!   multiple-model filter mixes.
+//!
+//! - [`camera`]: where the camera sits on the follower ([`camera::CameraMount`]) and the
+//!   measurement transform of spec 2.5 from a leader's pose in the camera frame to its
+//!   formation variables ([`camera::formation_from_camera_pose`]).
 //!
 //! [`SeparationBearingController`] closes the loop for simulations: Das et al.'s `l-psi`
 //! controller (IEEE T-RA 2002) holding a separation and a bearing in the leader's frame.
@@ -55,6 +59,7 @@ pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 mod actuation;
 mod angle;
+pub mod camera;
 mod controller;
 mod error;
 mod leader;
