@@ -15,7 +15,9 @@
 //! cell's centre line (three parallel lines, averaged), from the middle of the border cell
 //! to the middle of the data cell, and finds where it crosses the mean of its two ends: the
 //! border's inner edge, which a symmetric blur does not move. The offset of that crossing
-//! from the grid's prediction, in pixels, is taken per side as the median over its cells.
+//! from the grid's prediction, in pixels across the side (perpendicular to it, as the outer
+//! edges are measured: on a sheared quad the grid's line through a cell meets the side at a
+//! slant), is taken per side as the median over its cells.
 //! A side whose median offset (border thinner than the grid says) is larger than [`SideCheck::tolerance_px`] (plus
 //! [`SideCheck::tolerance_cells`] of a cell, plus [`SideCheck::tolerance_motion`] of the
 //! motion blur across the side) is not the marker's side, and the marker is dropped. A side
@@ -258,13 +260,21 @@ pub fn side_offsets(
             let (Some(u), Some(u25), Some(u75)) = (cross(0.5), cross(0.25), cross(0.75)) else {
                 continue;
             };
-            // Pixels per cell across the side, here.
+            // Pixels per cell across the side, here: perpendicular to the border (the
+            // direction the blur and the edge's error act in, and the outer edges' check
+            // measures), not along the grid's line through the cell, which on a sheared quad
+            // (a tag seen obliquely) meets the side at a slant and is longer by 1 / sin of
+            // the angle between them.
             let (a0, b0) = to_ab(0.5, kf);
             let (a1, b1) = to_ab(1.5, kf);
-            let (Some(p0), Some(p1)) = (frame.map(a0, b0), frame.map(a1, b1)) else {
+            let (ae, be) = to_ab(0.5, kf + 0.5);
+            let (Some(p0), Some(p1), Some(pe)) =
+                (frame.map(a0, b0), frame.map(a1, b1), frame.map(ae, be))
+            else {
                 continue;
             };
-            let px = (p1 - p0).norm();
+            let (across, along) = (p1 - p0, pe - p0);
+            let px = (across.x * along.y - across.y * along.x).abs() / along.norm();
             if px.is_nan() || px < check.min_cell_px {
                 continue;
             }

@@ -7,7 +7,14 @@
 //! were dropped as "a side along an occluder": with the plain corners the grid put their
 //! inner border edges 0.56 and 0.71 px off, against tolerances of 0.52 and 0.47 px. One of
 //! them is read now, and so is a tag the reference does not list (on the left face of a
-//! cube, almost edge-on). Two tags still give no quad.
+//! cube, almost edge-on). 8 of the 10 since the side check measures the border's cells
+//! across the side rather than along the grid's slanted lines: the reference's eighth, a tag
+//! lying almost flat (a parallelogram with 33 degree corners), was dropped because the
+//! slant made its 1.2 px border cells read as 2.1 px ones, held to a check they cannot pass.
+//! Two tags still give no quad with the default settings: the third's border touches the
+//! dark floor through a light rim of 1-2 px (boundary clustering finds its quad, which the
+//! side check then drops: its NW border cell reads 0.44 of the contrast, against 0.43
+//! allowed), and the ninth, lying flat, has corners of 21 degrees, under the quad fit's 30.
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
 use std::path::PathBuf;
@@ -35,7 +42,7 @@ fn photo() -> image::GrayImage {
 }
 
 #[test]
-fn reads_seven_of_the_ten_reference_tags_within_a_pixel_and_nothing_false() {
+fn reads_eight_of_the_ten_reference_tags_within_a_pixel_and_nothing_false() {
     let img = photo();
     let (w, h) = img.dimensions();
     let mut det = Detector::with_dictionary(
@@ -59,7 +66,9 @@ fn reads_seven_of_the_ten_reference_tags_within_a_pixel_and_nothing_false() {
         .collect();
     // The oblique tag the side check dropped before (the reference's seventh).
     assert!(read.contains(&6), "reference tags read: {read:?}");
-    assert!(read.len() >= 7, "reference tags read: {read:?}");
+    // The tag lying almost flat, which the side check dropped before (the eighth).
+    assert!(read.contains(&7), "reference tags read: {read:?}");
+    assert!(read.len() >= 8, "reference tags read: {read:?}");
     // Every read is a reference tag or the edge-on tag on the cube's left face.
     let extra = [
         [393.0, 247.0],
