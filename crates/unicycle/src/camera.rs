@@ -14,12 +14,13 @@
 //! (x right, y down, z along the optical axis).
 
 use nalgebra::{Matrix3, Rotation3, SVector, Vector3};
-use serde::{Deserialize, Serialize};
 
 use crate::angle::wrap_angle;
 
 /// Where and how the camera sits on the follower.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+/// With the `serde` feature it reads and writes as `{offset, height, pan, tilt}`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct CameraMount {
     /// Distance of the camera's optical centre ahead of the follower's reference point, in
     /// metres (the paper's `d`).
