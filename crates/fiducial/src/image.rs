@@ -200,8 +200,8 @@ impl<'a> GrayView<'a> {
 /// The mean of each `f x f` block of `img` (`f` from 1 to 4, clamped) into `out` (`width / f`
 /// by `height / f`, row major; the last partial block of a row or column is dropped), each
 /// mean rounded half up. One pass over the rows, with the block size a compile-time
-/// constant so the inner sums unroll (the coarse scan of [`crate::Detector::detect_coarse`]
-/// and of guided detection).
+/// constant so the inner sums unroll (the coarse scan of a search at a coarser scale,
+/// [`crate::Search::scale`], whole frame or regions).
 pub(crate) fn decimate(img: &GrayView<'_>, f: usize, out: &mut Vec<u8>) {
     match f.clamp(1, 4) {
         1 => decimate_by::<1>(img, out),

@@ -35,6 +35,10 @@
 //! [`Detector::detect`] takes a grey frame ([`GrayView`]) to a list of [`Decoded`] markers
 //! (spec 3.4) in six stages. Each says what it may reject; nothing is rejected anywhere
 //! else, and [`Detector::stats`] counts and times each stage's work on the last frame.
+//! [`Detector::detect_with`] runs the same stages as a [`Search`] says: in regions of the
+//! frame, at a coarser scale, on rayon's threads, adding to earlier markers; only how the
+//! work is handed out differs, and nothing but buffers is kept from one detection to the
+//! next.
 //!
 //! 1. **Binarize** (module `threshold`): local adaptive thresholds from 8 px tiles of a
 //!    lightly smoothed frame (minimum contrast 30, so flat areas stay light) by default, or
@@ -127,9 +131,9 @@
 //! Detector (the stage modules above are the crate's own; the benchmarks reach them
 //! through a hidden module):
 //! - [`detector`](mod@detector): the pipeline ([`Detector`], [`DetectorConfig`]).
-//! - [`roi`]: regions of interest for tracking-guided detection
-//!   ([`Detector::detect_in_regions`]); [`Detector::detect_coarse`] scans a whole frame at
-//!   a coarser scale for big markers and refines their corners at full resolution.
+//! - [`roi`]: regions of interest for tracking-guided detection ([`Search::regions`]);
+//!   [`Search::scale`] searches a frame or its regions at a coarser scale for big markers
+//!   and refines their corners at full resolution.
 //!
 //! # Conventions
 //!
@@ -194,7 +198,7 @@ pub use crate::decode::{
     CellReading, DecodeParams, Decoded, Rejection, WhiteReference, decode, read_cells,
     read_cells_with,
 };
-pub use crate::detector::{DetectStats, Detector, StageTimes};
+pub use crate::detector::{DetectStats, Detector, Search, StageTimes};
 pub use crate::dictionary::{Dictionary, GenerateParams, Match, PAPER_NAME, hamming};
 pub use crate::error::FiducialError;
 pub use crate::family::MarkerFamily;
@@ -219,6 +223,15 @@ pub mod stages_for_tools {
     pub use crate::refine::Refiner;
     pub use crate::sides::{SideOffsets, side_offsets};
     pub use crate::threshold::{Binarizer, DARK, otsu_level};
+
+    use crate::{Detector, GrayView, Quad};
+
+    /// Stages 1 to 4 of a detection of the whole of `img` at full resolution (binarize,
+    /// label, examine, second look): the quads, not decoded (the benchmark of the quad
+    /// phase alone). They live in the detector, as [`Detector::quads`].
+    pub fn find_quads<'d>(detector: &'d mut Detector, img: &GrayView<'_>) -> &'d [Quad] {
+        detector.find_quads(img)
+    }
 }
 
 /// `n` seeded bytes for the crate's property tests: `f(i, r)` of each index `i` and the

@@ -2,7 +2,7 @@
 //! markers will be (tracking-guided detection, `docs/tracking.md`).
 //!
 //! A [`Region`] is an axis-aligned rectangle of whole pixels. The detector runs every stage
-//! on the region alone ([`crate::Detector::detect_in_regions`]), through a strided
+//! on the region alone ([`crate::Search::regions`]), through a strided
 //! [`GrayView`](crate::GrayView) of the caller's frame (no copy), and reports corners in the
 //! frame's coordinates. A marker must lie wholly inside a region, at least the detector's
 //! `border_margin` from its edge, to be found there: the caller gives a margin.
