@@ -115,7 +115,7 @@ impl Region {
 
 /// Replaces every group of overlapping regions by its bounding rectangle, repeatedly, until
 /// no two regions overlap; empty regions are dropped. Works in place (no allocation).
-pub fn merge_overlapping(regions: &mut Vec<Region>) {
+pub(crate) fn merge_overlapping(regions: &mut Vec<Region>) {
     regions.retain(|r| r.area() > 0);
     let mut i = 0;
     while i < regions.len() {
