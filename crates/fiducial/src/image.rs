@@ -12,16 +12,6 @@ use thiserror::Error;
 /// south-west (clockwise in the image, whose v axis points down).
 pub type Corners = [nalgebra::Point2<f64>; 4];
 
-/// `c` as four points (the stages' arithmetic on `[x, y]` arrays meets [`Corners`] here).
-pub(crate) fn to_points(c: [[f64; 2]; 4]) -> Corners {
-    c.map(|[x, y]| nalgebra::Point2::new(x, y))
-}
-
-/// `c` as four `[x, y]` arrays.
-pub(crate) fn to_arrays(c: &Corners) -> [[f64; 2]; 4] {
-    c.map(|p| [p.x, p.y])
-}
-
 /// Why a buffer cannot be viewed as a grey image.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
 pub enum ImageError {
