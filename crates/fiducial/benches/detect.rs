@@ -16,8 +16,8 @@
 //! the same run so that ratios survive a loaded machine.
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Search};
 use fiducial::stages_for_tools::find_quads;
+use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Search};
 use marker_testkit::{SceneConfig, clutter_frame, marker_scene};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -135,7 +135,11 @@ fn benches(c: &mut Criterion) {
     let mut out = Vec::new();
     c.bench_function("fiducial/detect_1920x1080_rayon", |b| {
         b.iter(|| {
-            det.detect_with(black_box(&img), &Search::whole_frame().in_parallel(), &mut out);
+            det.detect_with(
+                black_box(&img),
+                &Search::whole_frame().in_parallel(),
+                &mut out,
+            );
             black_box(out.len())
         })
     });

@@ -3,8 +3,8 @@
 //! order, and arbitrary images never make it panic.
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
-use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Threshold};
 use fiducial::stages_for_tools::find_quads;
+use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Threshold};
 use marker_testkit::{Canvas, CellPattern, Effects};
 use proptest::prelude::*;
 use rand::SeedableRng;

@@ -3,8 +3,8 @@
 //! (`fiducial::split`: the component is re-cut at a darker threshold).
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
-use fiducial::{Detector, GrayView};
 use fiducial::stages_for_tools::find_quads;
+use fiducial::{Detector, GrayView};
 
 /// A 200-grey frame with a black 40 px square ring (border 6 px, white inside) at
 /// (60..100, 60..100); a grey block (`block`) right of it from x = 101, joined to the ring by

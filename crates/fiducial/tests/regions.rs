@@ -84,9 +84,17 @@ fn regions_read_what_the_full_frame_reads() {
         }
         // A region without any marker reads nothing; a region list of the whole frame
         // reads what the full scan reads.
-        det.detect_with(&img, &Search::in_regions(&[Region::new(0, 0, 8, 8)]), &mut roi);
+        det.detect_with(
+            &img,
+            &Search::in_regions(&[Region::new(0, 0, 8, 8)]),
+            &mut roi,
+        );
         assert!(roi.is_empty());
-        det.detect_with(&img, &Search::in_regions(&[Region::full(640, 480)]), &mut roi);
+        det.detect_with(
+            &img,
+            &Search::in_regions(&[Region::full(640, 480)]),
+            &mut roi,
+        );
         assert_eq!(roi.len(), full.len());
     }
 }
@@ -104,7 +112,11 @@ fn coarse_scan_finds_big_markers_with_full_resolution_corners() {
         // Regions at a coarser scale: every marker of 80 px or more at 3 and at 4.
         let everything = [Region::full(1280, 960)];
         for factor in [3, 4] {
-            det.detect_with(&img, &Search::in_regions(&everything).at_scale(factor), &mut coarse);
+            det.detect_with(
+                &img,
+                &Search::in_regions(&everything).at_scale(factor),
+                &mut coarse,
+            );
             check_coarse(seed, &full, &coarse, 20.0 * factor as f64);
         }
     }

@@ -58,7 +58,11 @@ fn benches(c: &mut Criterion) {
         });
         group.bench_function(format!("detect_coarse2_{w}x{h}"), |b| {
             b.iter(|| {
-                det.detect_with(black_box(&img), &Search::whole_frame().at_scale(2), &mut out);
+                det.detect_with(
+                    black_box(&img),
+                    &Search::whole_frame().at_scale(2),
+                    &mut out,
+                );
                 black_box(out.len())
             })
         });

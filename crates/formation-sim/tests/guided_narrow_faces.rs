@@ -43,7 +43,11 @@ fn a_grazing_face_is_read_in_guided_mode() {
     assert_eq!(full.len(), 4);
     // The coarse region alone misses the grazing face ...
     let mut guided = Vec::new();
-    det.detect_with(&img, &Search::in_regions(&[r.region]).at_scale(factor), &mut guided);
+    det.detect_with(
+        &img,
+        &Search::in_regions(&[r.region]).at_scale(factor),
+        &mut guided,
+    );
     assert_eq!(guided.len(), 3);
     // ... its box at full resolution reads it, and nothing is read twice.
     det.detect_with(&img, &Search::in_regions(&fine).appending(), &mut guided);
