@@ -86,10 +86,10 @@ const TARGETS: &[Target] = &[
     Target {
         id: "fiducial/detect_1920x1080_rayon",
         target_ns: None,
-        note: "`Detector::detect_parallel` on rayon's pool (2 cores), the frame as one job: \
-               binarization in bands (one pass each), components handed out one at a \
-               time, largest first, each quad decoded where it is found; see the ratio \
-               below (#12)",
+        note: "a parallel search (`Search::in_parallel`) on rayon's pool (2 cores), the \
+               frame as one job: binarization in bands (one pass each), components handed \
+               out one at a time, largest first, each quad decoded where it is found; see \
+               the ratio below (#12)",
     },
     Target {
         id: "formation-tracker/frame_pipeline_640x480",
@@ -163,7 +163,7 @@ const RATIOS: &[(&str, &str, f64, &str)] = &[
         "fiducial/detect_1920x1080_rayon",
         "fiducial/detect_1920x1080",
         1.0 / 1.6,
-        "rayon on 2 cores vs one core at 1920x1080 (`Detector::detect_parallel`): speed-up \
+        "rayon on 2 cores vs one core at 1920x1080 (`Search::in_parallel`): speed-up \
          >= 1.6 (#12)",
     ),
 ];

@@ -529,7 +529,7 @@ fn inspect(
         // Every required face not read: the nearest quad found and why it did not decode.
         let truth = &e.rendered.truth;
         let view = fiducial::GrayView::new(e.rendered.image.as_raw(), truth.width, truth.height)?;
-        detector.find_quads(&view);
+        detector.detect(&view, &mut Vec::new());
         for t in &truth.robots {
             let report = e.report.robots.iter().find(|b| b.robot == t.robot);
             for f in t.faces.iter().filter(|f| f.readable) {

@@ -6,8 +6,9 @@
 //! 640x480; `_no_side_check` the 640x480 scene without the occlusion checks, `_no_pattern`
 //! without the corner refinement against the decoded pattern; clutter
 //! without markers; `detect_1920x1080_rayon` the 1920x1080 scene through
-//! `Detector::detect_parallel` (binarization on rayon's threads with `--features parallel`).
-//! `fiducial/find_quads_640x480` is the quad phase alone
+//! `Detector::detect_with` and `Search::in_parallel` (binarization on rayon's threads with
+//! `--features parallel`). `fiducial/find_quads_640x480` is the quad phase alone
+//! (`stages_for_tools::find_quads`)
 //! (`binarize_640x480` and `label_640x480` its first two stages apart;
 //! `binarize_clutter_640x480` binarization of the clutter frame, where every tile has
 //! contrast) and
@@ -15,7 +16,8 @@
 //! the same run so that ratios survive a loaded machine.
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use fiducial::{Detector, DetectorConfig, Dictionary, GrayView};
+use fiducial::stages_for_tools::find_quads;
+use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Search};
 use marker_testkit::{SceneConfig, clutter_frame, marker_scene};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -133,7 +135,11 @@ fn benches(c: &mut Criterion) {
     let mut out = Vec::new();
     c.bench_function("fiducial/detect_1920x1080_rayon", |b| {
         b.iter(|| {
-            det.detect_parallel(black_box(&img), &mut out);
+            det.detect_with(
+                black_box(&img),
+                &Search::whole_frame().in_parallel(),
+                &mut out,
+            );
             black_box(out.len())
         })
     });
@@ -180,7 +186,7 @@ fn benches(c: &mut Criterion) {
     let img = GrayView::new(&vga, 640, 480).expect("valid frame");
     let mut det = Detector::new(DetectorConfig::default());
     c.bench_function("fiducial/find_quads_640x480", |b| {
-        b.iter(|| black_box(det.find_quads(black_box(&img)).len()))
+        b.iter(|| black_box(find_quads(&mut det, black_box(&img)).len()))
     });
     // The stages of the quad phase apart: binarization (3x3 box and tile threshold), then
     // run-length labelling of the binary image; the rest of find_quads is contour tracing,

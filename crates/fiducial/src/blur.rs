@@ -250,7 +250,7 @@ pub(crate) struct BlurScratch {
     /// reading (for [`least_cost_match`]).
     unmatched: Vec<(usize, u8, CellReading)>,
     /// Quads whose systems were solved since the count was last reset (diagnostics:
-    /// [`crate::Detector::blurred_reads`]).
+    /// [`crate::DetectStats::blurred`]).
     pub(crate) solved_quads: usize,
 }
 

@@ -296,7 +296,7 @@ mod tests {
         line_tolerance_rel: 0.05,
     };
 
-    fn quads_in(px: &[u8], w: usize, rect: Rect) -> Vec<[[f64; 2]; 4]> {
+    fn quads_in(px: &[u8], w: usize, rect: Rect) -> Vec<Corners> {
         let img = GrayView::new(px, w, px.len() / w).unwrap();
         let params = SplitParams {
             limits: &LIMITS,
@@ -304,9 +304,7 @@ mod tests {
             min_side: 10,
         };
         let mut found = Vec::new();
-        Clusterer::default().clusters(&img, rect, &params, |q| {
-            found.push(crate::image::to_arrays(&q))
-        });
+        Clusterer::default().clusters(&img, rect, &params, |q| found.push(q));
         found
     }
 
@@ -351,7 +349,7 @@ mod tests {
         ) {
             let rect = Rect { x0, y0, x1: x0 + dx, y1: y0 + dy };
             for q in quads_in(&px, 24, rect) {
-                for [x, y] in q {
+                for (x, y) in q.map(|p| (p.x, p.y)) {
                     prop_assert!(x.is_finite() && y.is_finite());
                     prop_assert!((-1.0..25.0).contains(&x) && (-1.0..21.0).contains(&y));
                 }

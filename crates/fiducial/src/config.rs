@@ -30,7 +30,7 @@ pub struct DetectorConfig {
     /// #16). Default on: only quads whose plain reading had a marker's contrast and dark
     /// border, and whose edges show a motion of at least 1.5 cells that smears the outline
     /// outwards, are re-read (counted by
-    /// [`crate::Detector::blurred_reads`]); its systems are solved in scratch the detector owns (no
+    /// [`crate::DetectStats::blurred`]); its systems are solved in scratch the detector owns (no
     /// allocation in steady state), and a marker it reads passes the side check like any
     /// other. With it on, the boxes of dark components that gave no quad (up to 160 px)
     /// are also cut nearer the white level, where a marker smeared by two cells or more

@@ -182,7 +182,7 @@ impl Labeller {
     /// one's): the same components, in the same order, and the same runs as
     /// [`Labeller::label`] on the whole image. Only the runs of the rows where two bands
     /// meet are joined here, and the components gathered; the scan of the pixels was the
-    /// bands' (on their own threads, [`crate::Detector::detect_parallel`]).
+    /// bands' (on their own threads, [`crate::Search::parallel`]).
     pub(crate) fn merge(&mut self, bands: &[Labeller]) -> &[Component] {
         self.begin();
         for band in bands {

@@ -173,7 +173,7 @@ fn finite(p: Vector3<f64>, scale_hint: f64) -> Option<Vector2<f64>> {
 /// Checks that four points are finite and form a strictly convex quadrilateral (either
 /// winding); returns twice its signed area (positive when clockwise in the image, whose v
 /// axis points down).
-pub fn convex_quad_area2(corners: &Corners) -> Result<f64, FiducialError> {
+pub(crate) fn convex_quad_area2(corners: &Corners) -> Result<f64, FiducialError> {
     if corners
         .iter()
         .any(|p| !(p.x.is_finite() && p.y.is_finite()))

@@ -95,7 +95,7 @@ pub enum Rejection {
     },
     /// The corners run counter-clockwise in the image (NW, NE, SE, SW must be clockwise
     /// with v pointing down); a mirrored marker is never read.
-    #[error("corners run counter-clockwise in the image (see cross_ratio::clockwise)")]
+    #[error("corners run counter-clockwise in the image (see fiducial::clockwise)")]
     CounterClockwise,
     /// A border or data cell has no sample inside the image.
     #[error("a marker cell lies outside the image")]

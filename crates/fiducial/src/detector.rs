@@ -5,11 +5,13 @@
 //! first frame of a size and are then reused, so a steady stream of frames of one size is
 //! detected without touching the heap (an integration test counts allocations to prove it).
 //!
-//! The stages, and what each may reject, are listed in the crate's documentation.
-//!
-//! The two phases are exposed separately ([`Detector::find_quads`] and
-//! [`Detector::decode_quads`]) so callers can time or visualise them apart;
-//! [`Detector::detect`] runs both.
+//! The stages, and what each may reject, are listed in the crate's documentation. There is
+//! one way through them, `Detector::run`; the entry points differ only in how they hand
+//! the work out ([`Search`]: the whole frame or regions of it, the scale of the quad
+//! search, the calling thread or rayon's), as ripgrep's `search` and `search_parallel` do.
+//! Nothing is carried from one detection to the next but the buffers: what one stage hands
+//! the next within a detection (the quads, the readings the threads made early) is cleared
+//! at its start.
 
 use std::time::Instant;
 
@@ -35,6 +37,15 @@ struct ScanSize {
     h: usize,
     factor: usize,
     bands: usize,
+}
+
+/// The quads the threads read as they found them in stage 3 of one detection (the first
+/// `quads` of the list; their markers are already in the detector's readings) and how many
+/// of those readings were blurred ones: stage 5 reads the rest.
+#[derive(Debug, Default, Clone, Copy)]
+struct Read {
+    quads: usize,
+    blurred: usize,
 }
 
 /// Lap times of the stages.
@@ -67,6 +78,131 @@ fn same_place(a: &Corners, b: &Corners) -> bool {
     dx * dx + dy * dy < 0.25 * side2
 }
 
+/// Where and how one detection searches ([`Detector::detect_with`]); the default is
+/// [`Detector::detect`]'s: the whole frame, at full resolution, on the calling thread,
+/// `out` cleared first.
+///
+/// Every combination runs the same stages; these only say where they look and how their
+/// work is handed out. Build one with [`Search::whole_frame`] or [`Search::in_regions`] and
+/// the methods below, or by its fields.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Search<'r> {
+    /// `None`: the whole frame. `Some(regions)`: only these rectangles of it
+    /// (tracking-guided detection, [`Region`]). Every stage runs on each region alone,
+    /// through a view of the frame (no copy), and corners come back in the frame's
+    /// coordinates. Regions are cut to the frame, grown to the binarization's tile grid of
+    /// the scale searched ([`Region::aligned`]: a marker well inside then gets the corners
+    /// a whole-frame search at that scale gives it) and overlapping ones merged; a marker
+    /// read in two regions is reported once. A marker is found only if it lies wholly
+    /// inside a region, the detector's `border_margin` from its edge.
+    pub regions: Option<&'r [Region]>,
+    /// The scale of the quad search, 1 to 4 (0 reads as 1, more than 4 as 4): with `s > 1`
+    /// the frame (or region) is averaged over `s x s` blocks and quads are found on that
+    /// small image, to find big markers cheaply; their corners are refined and decoded at
+    /// full resolution, so corner accuracy is that of a full-resolution search. Markers
+    /// whose side is under `s` times `min_side` are not found. A tracker that knows its
+    /// leaders are near passes 2 or more.
+    pub scale: usize,
+    /// Whether to run on the threads of the current rayon pool (crate feature `parallel`;
+    /// without it, on the calling thread with the same output): binarization cut into
+    /// horizontal bands, each labelled on the thread that cut it, and the components'
+    /// tracing, fit, refinement and decoding handed out one at a time, the largest first
+    /// (the markers, their order and every counter are those of the calling thread's
+    /// search; a test checks it). A frame or region under a megapixel is searched on the
+    /// calling thread all the same, where the threads' start-up costs more than they save.
+    /// The search may then allocate per frame (rayon's job queue).
+    pub parallel: bool,
+    /// Whether the markers already in `out` are kept: `false` clears it first; `true` adds
+    /// this search's markers to them, a marker read twice kept once (the reading with fewer
+    /// corrected bits, then higher contrast). For regions searched at different scales
+    /// (e.g. a leader's region at a coarse scale and a narrow face's box at full
+    /// resolution), one search per scale, the later ones appending.
+    pub append: bool,
+}
+
+impl Default for Search<'_> {
+    /// [`Search::whole_frame`].
+    fn default() -> Self {
+        Self {
+            regions: None,
+            scale: 1,
+            parallel: false,
+            append: false,
+        }
+    }
+}
+
+impl<'r> Search<'r> {
+    /// The whole frame, at full resolution, on the calling thread, `out` cleared first
+    /// ([`Detector::detect`]).
+    pub fn whole_frame() -> Self {
+        Self::default()
+    }
+
+    /// Only `regions` of the frame ([`Search::regions`]), at full resolution, on the
+    /// calling thread, `out` cleared first.
+    pub fn in_regions(regions: &'r [Region]) -> Self {
+        Self {
+            regions: Some(regions),
+            ..Self::default()
+        }
+    }
+
+    /// This search with the quads searched at `1 / scale` of the resolution
+    /// ([`Search::scale`]).
+    pub fn at_scale(self, scale: usize) -> Self {
+        Self { scale, ..self }
+    }
+
+    /// This search on the threads of the current rayon pool ([`Search::parallel`]).
+    pub fn in_parallel(self) -> Self {
+        Self {
+            parallel: true,
+            ..self
+        }
+    }
+
+    /// This search adding to what `out` holds ([`Search::append`]).
+    pub fn appending(self) -> Self {
+        Self {
+            append: true,
+            ..self
+        }
+    }
+}
+
+/// Frames (or regions) under this many pixels are searched on the calling thread even when
+/// [`Search::parallel`] asks for rayon's: below it the threads' start-up costs more than
+/// they save.
+#[cfg(feature = "parallel")]
+const PARALLEL_MIN_PIXELS: usize = 1 << 20;
+
+/// The workers a search of `pixels` pixels runs on: the current rayon pool's threads when
+/// `parallel` asks for them and the image is large enough, else 1 (the calling thread).
+fn threads_for(parallel: bool, pixels: usize) -> usize {
+    #[cfg(feature = "parallel")]
+    if parallel && pixels >= PARALLEL_MIN_PIXELS {
+        return rayon::current_num_threads();
+    }
+    #[cfg(not(feature = "parallel"))]
+    let _ = (parallel, pixels);
+    1
+}
+
+/// Runs `job`, for `threads > 1` as one job of the current rayon pool: the stages' parallel
+/// parts then start from one of its threads, and the calling thread (outside the pool) is
+/// woken once at the end rather than after each stage (worth about 0.05 of the frame at
+/// 1920x1080 on 2 cores).
+fn on_pool<R: Send>(threads: usize, job: impl FnOnce() -> R + Send) -> R {
+    #[cfg(feature = "parallel")]
+    if threads > 1 {
+        return rayon::scope(|_| job());
+    }
+    #[cfg(not(feature = "parallel"))]
+    let _ = threads;
+    job()
+}
+
 /// The marker detector; reuse one per stream of frames.
 ///
 /// It reads one or several dictionaries in one pass: each quad's cells are sampled once per
@@ -83,7 +219,7 @@ pub struct Detector {
     binarizer: Binarizer,
     bin: Vec<u8>,
     labeller: Labeller,
-    /// One labeller per band of [`Detector::detect_parallel`]'s binarization: each band's
+    /// One labeller per band of a parallel search's binarization: each band's
     /// rows are labelled on the thread that cut them, then merged into `labeller`.
     band_labellers: Vec<Labeller>,
     contour: Vec<[i32; 2]>,
@@ -98,24 +234,20 @@ pub struct Detector {
     splitter: Splitter,
     /// Boundary clustering of the same boxes, after the re-cut.
     clusterer: Clusterer,
-    /// The decimated frame of a coarse scan ([`Detector::detect_coarse`]).
+    /// The decimated frame of a coarse scan ([`Search::scale`]).
     small: Vec<u8>,
-    /// The merged regions of [`Detector::detect_in_regions`].
+    /// The merged regions of a search in regions ([`Search::regions`]).
     regions: Vec<Region>,
     /// One region's markers before they are moved into frame coordinates.
     region_out: Vec<Decoded>,
-    /// Per-thread scratch of [`Detector::detect_parallel`].
+    /// Per-thread scratch of a parallel search ([`Search::parallel`]).
     workers: Vec<crate::parallel::Worker>,
     /// Scratch of decoding on the calling thread.
     decoding: Decoding,
     /// Scratch of the parallel paths' index-ordered merges.
     merge: crate::parallel::Merge,
-    /// Within one detection on threads: the readings of the first `early.len()` quads,
-    /// which the threads decoded in stage 3 as they found them, and how many of those were
-    /// blurred readings (stage 5 takes them; every detection clears them first).
-    early: Vec<Option<Decoded>>,
-    early_blurred: usize,
-    /// The markers read by stage 5, in quad order, before stage 6 reconciles them.
+    /// The markers read by stages 3 (on threads) and 5 of the current detection, in quad
+    /// order, before stage 6 reconciles them.
     readings: Vec<Decoded>,
     /// The work counters of the last detection.
     stats: DetectStats,
@@ -125,7 +257,7 @@ pub struct Detector {
 /// time of a frame goes. A frame of synthetic markers has about as many components big
 /// enough to examine as markers, and no second look; a real photograph has hundreds of
 /// components, and the second look (`second_look_px`) is what costs most on it. After
-/// [`Detector::detect_in_regions`], the counters are the last region's.
+/// a search in regions ([`Search::regions`]), the counters are the last region's.
 #[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
 pub struct DetectStats {
     /// Dark components of the binary image.
@@ -237,8 +369,6 @@ impl Detector {
             config,
             decoding: Decoding::new(dictionaries.len()),
             merge: Default::default(),
-            early: Vec::new(),
-            early_blurred: 0,
             readings: Vec::new(),
             grid_of,
             dictionaries,
@@ -299,7 +429,69 @@ impl Detector {
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
     pub fn detect(&mut self, img: &GrayView<'_>, out: &mut Vec<Decoded>) -> usize {
-        self.run(img, 1, 1, out)
+        self.detect_with(img, &Search::whole_frame(), out)
+    }
+
+    /// Finds and decodes the markers in `img` as `search` says ([`Search`]): in the whole
+    /// frame or in regions of it, at full or a coarser scale, on the calling thread or on
+    /// the threads of the current rayon pool, replacing or adding to what `out` holds. Every
+    /// way runs the same stages (the crate's documentation lists them and what each may
+    /// reject); the options only say where the stages look and how their work is handed
+    /// out. Each [`Decoded`] is as in [`Detector::detect`], its corners in `img`'s
+    /// coordinates. `out` keeps its capacity; once the buffers have grown to the largest
+    /// frame or region, a steady stream allocates nothing (on the calling thread; rayon's
+    /// job queue may allocate). Returns the number of quads examined (over every region).
+    ///
+    /// ```
+    /// use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Region, RenderOptions,
+    ///     Search, render_marker};
+    ///
+    /// // Marker 7 of the paper's dictionary, 20 px a cell, with a wide white margin.
+    /// let dict = Dictionary::paper();
+    /// let options = RenderOptions { px_per_cell: 20, quiet_cells: 4 };
+    /// let marker = render_marker(dict.family(), dict.codes()[7], &options)?;
+    /// let frame = GrayView::new(marker.pixels(), marker.width(), marker.height())?;
+    /// let (w, h) = (marker.width(), marker.height());
+    ///
+    /// let mut detector = Detector::new(DetectorConfig::default());
+    /// let mut found = Vec::new();
+    /// // The whole frame, the quads searched at half resolution (big markers, cheaply);
+    /// // corners are still refined at full resolution.
+    /// detector.detect_with(&frame, &Search::whole_frame().at_scale(2), &mut found);
+    /// assert_eq!(found.len(), 1);
+    /// // Only where a tracker expects the marker: the region holds all of it.
+    /// let around = [Region::new(0, 0, w, h)];
+    /// detector.detect_with(&frame, &Search::in_regions(&around), &mut found);
+    /// assert_eq!(found[0].index, 7);
+    /// // A region without it adds nothing to what `found` holds.
+    /// let corner = [Region::new(0, 0, 40, 40)];
+    /// detector.detect_with(&frame, &Search::in_regions(&corner).appending(), &mut found);
+    /// assert_eq!(found.len(), 1);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn detect_with(
+        &mut self,
+        img: &GrayView<'_>,
+        search: &Search<'_>,
+        out: &mut Vec<Decoded>,
+    ) -> usize {
+        let factor = search.scale.clamp(1, 4);
+        match search.regions {
+            None => {
+                let threads = threads_for(search.parallel, img.width() * img.height());
+                if search.append {
+                    on_pool(threads, || self.run_into(img, factor, threads, (0, 0), out))
+                } else {
+                    on_pool(threads, || self.run(img, factor, threads, out))
+                }
+            }
+            Some(regions) => {
+                if !search.append {
+                    out.clear();
+                }
+                self.run_in_regions(img, regions, factor, search.parallel, out)
+            }
+        }
     }
 
     /// One detection, stage by stage (the crate's documentation says what each stage may
@@ -314,141 +506,74 @@ impl Detector {
         out: &mut Vec<Decoded>,
     ) -> usize {
         out.clear();
+        let mut clock = Clock(Instant::now());
+        if let Some(read) = self.find(img, factor, threads, &mut clock) {
+            self.decode(img, threads, read);
+            self.reconcile(out);
+            self.stats.time.decode = clock.lap();
+        }
+        self.quads.len()
+    }
+
+    /// Stages 1 to 4 of one detection (binarize, label, examine, second look): the quads
+    /// into `self.quads`, and the stage times into `self.stats`. Returns which of them the
+    /// threads already read (stage 5 reads the rest), or `None` when `img` is too small to
+    /// search.
+    fn find(
+        &mut self,
+        img: &GrayView<'_>,
+        factor: usize,
+        threads: usize,
+        clock: &mut Clock,
+    ) -> Option<Read> {
         self.quads.clear();
         self.stats = DetectStats::default();
-        let mut clock = Clock(Instant::now());
-        let Some(scan) = self.binarize(img, factor, threads) else {
-            return 0;
-        };
+        let scan = self.binarize(img, factor, threads)?;
         self.stats.time.binarize = clock.lap();
         self.label(scan);
         self.stats.time.label = clock.lap();
-        self.examine(img, scan, threads);
+        let read = self.examine(img, scan, threads);
         self.stats.time.examine = clock.lap();
         self.second_look(img, scan);
         self.stats.time.second_look = clock.lap();
-        self.decode(img, threads);
-        self.reconcile(out);
-        self.stats.time.decode = clock.lap();
-        self.quads.len()
+        Some(read)
     }
 
-    /// [`Detector::detect`] with binarization (the stage that reads every pixel) cut into
-    /// horizontal bands, each band's rows labelled on the thread that cut them (only the
-    /// rows where bands meet are joined afterwards), and the components' tracing, quad
-    /// fit, refinement and decoding (each quad read as soon as it is found) handed out one
-    /// at a time, the largest first (the crate's `parallel` module), run on the threads of
-    /// the current rayon pool (crate feature `parallel`; without it, this is
-    /// [`Detector::detect`]). The output is identical
-    /// to [`Detector::detect`]'s (a test checks it). Frames under a megapixel are detected on
-    /// the calling thread alone, where the threads' start-up costs more than they save;
-    /// single-threaded [`Detector::detect`] stays the default. Unlike it, this may allocate
-    /// per frame (rayon's job queue).
-    pub fn detect_parallel(&mut self, img: &GrayView<'_>, out: &mut Vec<Decoded>) -> usize {
-        #[cfg(feature = "parallel")]
-        if img.width() * img.height() >= 1 << 20 {
-            let threads = rayon::current_num_threads();
-            // The whole frame as one job of the pool: the stages' parallel parts then start
-            // from one of its threads, and the calling thread (outside the pool) is woken
-            // once at the end rather than after each stage (worth about 0.05 of the frame
-            // at 1920x1080 on 2 cores).
-            return rayon::scope(|_| self.run(img, 1, threads, out));
-        }
-        self.run(img, 1, 1, out)
-    }
-
-    /// The decoding phase alone: reads every quad of the last [`Detector::find_quads`] call
-    /// (which must have been on the same `img`) into `out` (cleared first). Quads that are
-    /// not markers are dropped; so is a second reading of a marker already read (kept: the
-    /// one with fewer bit errors, then higher contrast). Returns the number of quads examined.
-    pub fn decode_quads(&mut self, img: &GrayView<'_>, out: &mut Vec<Decoded>) -> usize {
-        out.clear();
-        self.early.clear();
-        self.early_blurred = 0;
-        self.decode(img, 1);
-        self.reconcile(out);
-        self.quads.len()
-    }
-
-    /// The work counters of the last detection ([`DetectStats`]).
-    pub fn stats(&self) -> DetectStats {
-        self.stats
-    }
-
-    /// How many quads the last decoding read once more as motion-blurred markers
-    /// ([`DetectorConfig::motion_blur`]): those whose plain reading had a marker's contrast
-    /// and dark border but no entry's code, and whose edges showed a motion of at least 1.5
-    /// cells. Each costs about as much as a whole 640x480 frame's detection, so a
-    /// scene that keeps this high (clutter with marker-like squares, heavy motion blur)
-    /// is where turning the option off saves time.
-    pub fn blurred_reads(&self) -> usize {
-        self.decoding.blur.solved_quads
-    }
-
-    /// The quads found by the last [`Detector::find_quads`] call.
-    pub fn quads(&self) -> &[Quad] {
-        &self.quads
-    }
-
-    /// The settings.
-    pub fn config(&self) -> &DetectorConfig {
-        &self.config
-    }
-
-    /// The binary image of the last frame (`width` bytes per row, 1 = dark), for debugging
-    /// and visualisation.
-    pub fn binary(&self) -> &[u8] {
-        &self.bin
-    }
-
-    /// Finds the quadrilateral outlines of dark regions in `img` with sub-pixel corners: the
-    /// quad-finding phase of detection (no decoding). The returned slice lives in the
-    /// detector and is overwritten by the next call.
-    pub fn find_quads(&mut self, img: &GrayView<'_>) -> &[Quad] {
-        self.quads.clear();
-        self.stats = DetectStats::default();
-        if let Some(scan) = self.binarize(img, 1, 1) {
-            self.label(scan);
-            self.examine(img, scan, 1);
-            self.second_look(img, scan);
-        }
-        &self.quads
-    }
-
-    /// Markers in `regions` of `img` only (tracking-guided detection): every stage runs on
-    /// each region alone, through a view of `img` (no copy), and corners come back in
-    /// `img`'s coordinates. Regions are cut to the frame, grown to the binarization's tile
-    /// grid ([`Region::aligned`]; a marker well inside then gets the corners a full-frame scan
-    /// at that scale gives it) and overlapping ones merged ([`merge_overlapping`]); a marker
-    /// read in two regions is reported once. A marker is
-    /// found only if it lies wholly inside a region, `border_margin` pixels from its edge.
-    /// `factor` (1 to 4) is the scale of the quad search in the regions, as in
-    /// [`Detector::detect_coarse`]: a caller that knows the markers will be large (a tracker
-    /// knows how far its leaders are) passes 2 or more, and corners are still refined at full
-    /// resolution. `out` is cleared first and keeps its capacity, as in
-    /// [`Detector::detect`]; once the buffers have grown to the largest region, a steady
-    /// stream allocates nothing. Returns the number of quads examined.
-    pub fn detect_in_regions(
+    /// [`Detector::run`] adding to `out`: the markers of `img`, a view whose top-left pixel
+    /// is `(x, y)` of the frame, moved into the frame's coordinates and added to those
+    /// already there, a marker read twice kept once (fewer bit errors, then higher
+    /// contrast).
+    fn run_into(
         &mut self,
         img: &GrayView<'_>,
-        regions: &[Region],
         factor: usize,
+        threads: usize,
+        (x, y): (usize, usize),
         out: &mut Vec<Decoded>,
     ) -> usize {
-        out.clear();
-        self.detect_in_more_regions(img, regions, factor, out)
+        let mut found = std::mem::take(&mut self.region_out);
+        let examined = self.run(img, factor, threads, &mut found);
+        let (dx, dy) = (x as f64, y as f64);
+        for mut d in found.drain(..) {
+            for c in &mut d.corners {
+                c.x += dx;
+                c.y += dy;
+            }
+            push_unique(out, d);
+        }
+        self.region_out = found;
+        examined
     }
 
-    /// [`Detector::detect_in_regions`] without clearing `out`: the markers of `regions`
-    /// are added to those already there, a marker read twice kept once (fewer bit errors,
-    /// then higher contrast). For regions searched at different scales (e.g. a leader's
-    /// region at a coarse scale and a narrow face's box at full resolution), one call per
-    /// scale. Returns the number of quads examined.
-    pub fn detect_in_more_regions(
+    /// Every stage on each of `regions` alone, through a view of `img` (no copy), the
+    /// markers added to `out` ([`Search::regions`] says how regions are cut, grown and
+    /// merged).
+    fn run_in_regions(
         &mut self,
         img: &GrayView<'_>,
         regions: &[Region],
         factor: usize,
+        parallel: bool,
         out: &mut Vec<Decoded>,
     ) -> usize {
         self.regions.clear();
@@ -457,7 +582,7 @@ impl Detector {
         // full-frame scan at that scale: a marker well inside a region gets the same outline,
         // hence the same corners, as in full-frame detection (only the region's edge tiles see
         // fewer neighbours).
-        let grid = self.config.threshold.tile_side() * factor.clamp(1, 4);
+        let grid = self.config.threshold.tile_side() * factor;
         let (w, h) = (img.width(), img.height());
         self.regions.extend(
             regions
@@ -467,39 +592,49 @@ impl Detector {
         );
         merge_overlapping(&mut self.regions);
         let mut examined = 0;
-        let mut found = std::mem::take(&mut self.region_out);
         for i in 0..self.regions.len() {
             let r = self.regions[i];
             let Some(sub) = img.crop(r) else {
                 continue;
             };
-            examined += self.run(&sub, factor.clamp(1, 4), 1, &mut found);
-            let (dx, dy) = (r.x as f64, r.y as f64);
-            for mut d in found.drain(..) {
-                for c in &mut d.corners {
-                    c.x += dx;
-                    c.y += dy;
-                }
-                push_unique(out, d);
-            }
+            let threads = threads_for(parallel, r.area());
+            examined += on_pool(threads, || {
+                self.run_into(&sub, factor, threads, (r.x, r.y), out)
+            });
         }
-        self.region_out = found;
         examined
     }
 
-    /// Full-frame detection at a coarser scale, to find big markers cheaply: the frame is
-    /// averaged over `factor x factor` blocks (1 to 4; 1 is [`Detector::detect`]), quads
-    /// are found on that small frame, and their corners are then refined and decoded on the
-    /// full-resolution `img`, so corner accuracy is that of a full scan. Markers whose side
-    /// is below `factor` times `min_side` are not found. `out` as in [`Detector::detect`].
-    /// Returns the number of quads examined.
-    pub fn detect_coarse(
-        &mut self,
-        img: &GrayView<'_>,
-        factor: usize,
-        out: &mut Vec<Decoded>,
-    ) -> usize {
-        self.run(img, factor.clamp(1, 4), 1, out)
+    /// The quads of stages 1 to 4 on the whole of `img` at full resolution, not decoded
+    /// (`stages_for_tools::find_quads`, for the benchmarks).
+    pub(crate) fn find_quads(&mut self, img: &GrayView<'_>) -> &[Quad] {
+        let mut clock = Clock(Instant::now());
+        self.find(img, 1, 1, &mut clock);
+        &self.quads
+    }
+
+    /// The work counters of the last detection ([`DetectStats`]).
+    pub fn stats(&self) -> DetectStats {
+        self.stats
+    }
+
+    /// The quads (candidate outlines, decoded or not) of the last detection, in the order
+    /// they were found; after a search in regions, the last region's, in its own
+    /// coordinates. For visualising and diagnosing what the decoder was given.
+    pub fn quads(&self) -> &[Quad] {
+        &self.quads
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &DetectorConfig {
+        &self.config
+    }
+
+    /// The binary image of the last detection (`width` bytes per row, 1 = dark; at a
+    /// coarser scale, of the averaged frame; after a search in regions, of the last
+    /// region), for debugging and visualisation.
+    pub fn binary(&self) -> &[u8] {
+        &self.bin
     }
 
     /// The most cells across of any dictionary: the narrowest border cell the edge
@@ -587,8 +722,8 @@ impl Detector {
     /// Stage 3, examine: each component traced, fitted and refined into `self.quads`, or
     /// its box kept in `self.retry` for the second look. With `threads > 1` this runs on
     /// the threads, which at full resolution also read each quad as soon as they find it
-    /// (into `self.early`, which stage 5 of the same detection takes).
-    fn examine(&mut self, img: &GrayView<'_>, scan: ScanSize, threads: usize) {
+    /// (into `self.readings`): the returned [`Read`] says which, for stage 5.
+    fn examine(&mut self, img: &GrayView<'_>, scan: ScanSize, threads: usize) -> Read {
         let cfg = self.config;
         let limits = self.limits(scan.factor);
         let cells_across = self.cells_across();
@@ -609,31 +744,35 @@ impl Detector {
         self.retried.clear();
         self.retried.resize(components.len(), false);
         self.stats.examined = components.iter().filter(|c| !ctx.too_small(c)).count();
-        self.early.clear();
-        self.early_blurred = 0;
+        self.readings.clear();
+        let mut read = Read::default();
         if threads > 1 {
             let dctx = DecodeContext {
                 config: &self.config,
                 dictionaries: &self.dictionaries,
                 grid_of: &self.grid_of,
             };
+            // A full-resolution scan on threads decodes its quads as it finds them
+            // (stage 5 then reads only the second look's).
+            let decode = scan.factor == 1;
             crate::parallel::examine_all(
                 &ctx,
                 components,
                 threads,
                 &mut self.workers,
                 &mut self.merge,
-                // A full-resolution scan on threads decodes its quads as it finds them
-                // (stage 5 then reads only the second look's).
-                (scan.factor == 1).then_some(&dctx),
+                decode.then_some(&dctx),
                 crate::parallel::Examined {
                     quads: &mut self.quads,
-                    readings: &mut self.early,
-                    blurred: &mut self.early_blurred,
+                    readings: &mut self.readings,
+                    blurred: &mut read.blurred,
                     retry: &mut self.retry,
                     retried: &mut self.retried,
                 },
             );
+            if decode {
+                read.quads = self.quads.len();
+            }
         } else {
             for (i, c) in components.iter().enumerate() {
                 match ctx.examine(c, &mut self.contour, &mut self.refiner) {
@@ -648,6 +787,7 @@ impl Detector {
         }
         self.stats.first_quads = self.quads.len();
         self.stats.retries = self.retry.len();
+        read
     }
 
     /// Stage 4, second look: the boxes of the components that gave no quad cut again
@@ -685,18 +825,16 @@ impl Detector {
         self.stats.second_quads = self.quads.len() - self.stats.first_quads;
     }
 
-    /// Stage 5, decode: every quad read, the markers into `self.readings` in quad order (the
-    /// quads the threads read in stage 3 of this detection are not read again).
-    fn decode(&mut self, img: &GrayView<'_>, threads: usize) {
-        self.readings.clear();
-        self.readings.extend(self.early.iter().flatten());
-        self.decoding.blur.solved_quads = self.early_blurred;
+    /// Stage 5, decode: every quad read, the markers added to `self.readings` in quad order
+    /// (the quads the threads read in stage 3 of this detection, `read`, are not read again).
+    fn decode(&mut self, img: &GrayView<'_>, threads: usize, read: Read) {
+        self.decoding.blur.solved_quads = read.blurred;
         let ctx = DecodeContext {
             config: &self.config,
             dictionaries: &self.dictionaries,
             grid_of: &self.grid_of,
         };
-        let rest = &self.quads[self.early.len()..];
+        let rest = &self.quads[read.quads..];
         if threads > 1 && rest.len() > 1 {
             crate::parallel::decode_all(
                 img,

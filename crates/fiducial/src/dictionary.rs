@@ -22,7 +22,7 @@ use crate::error::FiducialError;
 use crate::family::MarkerFamily;
 
 /// The checked-in text of the paper's dictionary (4 x 5 cells, `d_min = 6`).
-pub const PAPER_DICTIONARY_TEXT: &str = include_str!("../data/dict-4x5-d6.txt");
+pub(crate) const PAPER_DICTIONARY_TEXT: &str = include_str!("../data/dict-4x5-d6.txt");
 
 /// The name of the paper's (our own) dictionary, as [`Dictionary::name`] and the CLI give it.
 pub const PAPER_NAME: &str = "FORMATION_4X5";

@@ -12,16 +12,6 @@ use thiserror::Error;
 /// south-west (clockwise in the image, whose v axis points down).
 pub type Corners = [nalgebra::Point2<f64>; 4];
 
-/// `c` as four points (the stages' arithmetic on `[x, y]` arrays meets [`Corners`] here).
-pub(crate) fn to_points(c: [[f64; 2]; 4]) -> Corners {
-    c.map(|[x, y]| nalgebra::Point2::new(x, y))
-}
-
-/// `c` as four `[x, y]` arrays.
-pub(crate) fn to_arrays(c: &Corners) -> [[f64; 2]; 4] {
-    c.map(|p| [p.x, p.y])
-}
-
 /// Why a buffer cannot be viewed as a grey image.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
 pub enum ImageError {
@@ -200,8 +190,8 @@ impl<'a> GrayView<'a> {
 /// The mean of each `f x f` block of `img` (`f` from 1 to 4, clamped) into `out` (`width / f`
 /// by `height / f`, row major; the last partial block of a row or column is dropped), each
 /// mean rounded half up. One pass over the rows, with the block size a compile-time
-/// constant so the inner sums unroll (the coarse scan of [`crate::Detector::detect_coarse`]
-/// and of guided detection).
+/// constant so the inner sums unroll (the coarse scan of a search at a coarser scale,
+/// [`crate::Search::scale`], whole frame or regions).
 pub(crate) fn decimate(img: &GrayView<'_>, f: usize, out: &mut Vec<u8>) {
     match f.clamp(1, 4) {
         1 => decimate_by::<1>(img, out),

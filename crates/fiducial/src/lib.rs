@@ -8,7 +8,7 @@
 //!
 //! **The code must survive a bad read, and never lie.** Markers are read from a handful of
 //! pixels per cell, under blur and uneven light, so a few cells will be wrong. The codes
-//! are therefore chosen offline ([`dictionary`]) to differ in at least `d_min = 6` bits
+//! are therefore chosen offline ([`Dictionary::generate`]) to differ in at least `d_min = 6` bits
 //! from each other *and from each other's rotations*, including their own: a read within
 //! `(d_min - 1) / 2 = 2` bits is corrected, three wrong bits are always rejected rather
 //! than read as another robot, and the match also says which way up the marker is. The
@@ -18,7 +18,7 @@
 //!
 //! **Cells are found by projective geometry, not by warping.** Given the four refined
 //! corners of a marker's border, each cell centre is located with the cross-ratio
-//! construction of the paper ([`cross_ratio`], spec 3.5): exact under any perspective,
+//! construction of the paper ([`CrossRatioFrame`], spec 3.5): exact under any perspective,
 //! with vanishing points kept in homogeneous coordinates so that affine (parallel-edged)
 //! views need no special case. Only the few dozen cell centres are computed, never a
 //! rectified image.
@@ -35,6 +35,10 @@
 //! [`Detector::detect`] takes a grey frame ([`GrayView`]) to a list of [`Decoded`] markers
 //! (spec 3.4) in six stages. Each says what it may reject; nothing is rejected anywhere
 //! else, and [`Detector::stats`] counts and times each stage's work on the last frame.
+//! [`Detector::detect_with`] runs the same stages as a [`Search`] says: in regions of the
+//! frame, at a coarser scale, on rayon's threads, adding to earlier markers; only how the
+//! work is handed out differs, and nothing but buffers is kept from one detection to the
+//! next.
 //!
 //! 1. **Binarize** (module `threshold`): local adaptive thresholds from 8 px tiles of a
 //!    lightly smoothed frame (minimum contrast 30, so flat areas stay light) by default, or
@@ -98,7 +102,8 @@
 //!
 //! Besides our own 4 x 5 dictionary (the default), every predefined dictionary of OpenCV's
 //! `aruco` module reads under its OpenCV name and ids, and the AprilTag families also
-//! under AprilTag's names (`tag36h11` ...): [`dictionary_by_name`], [`standard`]. Their
+//! under AprilTag's names (`tag36h11` ...): [`dictionary_by_name`],
+//! [`standard_dictionaries`]. Their
 //! bit tables are generated from OpenCV by `cargo xtask dictionaries` and embedded; corner
 //! order and pixel convention are OpenCV's (first corner = the marker's top-left as
 //! printed, then clockwise; integer coordinates at pixel centres). Lookup is a binary
@@ -108,28 +113,34 @@
 //! several dictionaries in one pass, sampling each quad once per distinct grid. See
 //! `docs/marker-families.md`.
 //!
-//! # Modules
+//! # What is public
 //!
-//! Markers (this part of the crate):
-//! - [`family`]: the `m x n` grid of data cells, the code's bit order (spec 3.1: bit
-//!   `k = row * n + col`, black = 1) and rotations.
-//! - [`dictionary`]: Hamming dictionaries: generation, the checked-in paper dictionary
-//!   ([`Dictionary::paper`], 4 x 5, `d_min = 6`, 100 codes), lookup with correction and
-//!   orientation.
-//! - [`standard`]: the predefined OpenCV/AprilTag dictionaries by name.
-//! - [`render`]: exact grey rasters (integer pixels per cell, exact border corners) and
-//!   SVG for printing at a physical size.
-//! - [`cross_ratio`]: the image of marker coordinates `(a, b)` from the four corners.
-//! - [`decode`](mod@decode): sampling the cells of a quad, reference levels from border
-//!   and quiet zone, lookup, orientation.
-//! - [`image`]: the borrowed [`GrayView`] every stage reads, and the [`Corners`] type.
+//! The crate's modules are its own; what a user needs is re-exported here:
+//! - the detector: [`Detector`] (a frame, [`Detector::detect`], or regions of a frame with
+//!   options, [`Detector::detect_with`] and [`Search`], with [`Region`]), its settings
+//!   ([`DetectorConfig`] with [`Threshold`], [`RefineConfig`], [`DecodeParams`],
+//!   [`SideCheck`]) and its work counters ([`DetectStats`], [`StageTimes`]);
+//! - the results: [`Decoded`] with its [`Corners`], and the [`Quad`]s a detection found;
+//! - frames: the borrowed [`GrayView`] every stage reads ([`ImageError`]), and
+//!   [`rgb_to_gray`] / [`rgba_to_gray`] to make one from a colour frame;
+//! - markers: the [`MarkerFamily`] (the `m x n` grid of data cells, the code's bit order,
+//!   spec 3.1: bit `k = row * n + col`, black = 1, and rotations), Hamming
+//!   [`Dictionary`]s (generation with [`GenerateParams`], the checked-in paper dictionary
+//!   [`Dictionary::paper`], 4 x 5, `d_min = 6`, 100 codes, lookup with correction and
+//!   orientation, [`Match`], [`hamming`], [`PAPER_NAME`]) and the predefined
+//!   OpenCV/AprilTag ones by name ([`dictionary_by_name`], [`StandardDictionary`]);
+//! - reading a marker from known corners: [`decode()`] ([`Rejection`], [`WhiteReference`],
+//!   [`clockwise`] to put corners in the order it wants) and the cross-ratio construction
+//!   it samples the cells with ([`CrossRatioFrame`]: the image of marker coordinates
+//!   `(a, b)` from the four corners);
+//! - rendering: exact grey rasters (integer pixels per cell, exact border corners) and SVG
+//!   for printing at a physical size ([`render_marker`], [`render_svg`],
+//!   [`RenderOptions`], [`RenderedMarker`]);
+//! - errors: [`FiducialError`].
 //!
-//! Detector (the stage modules above are the crate's own; the benchmarks reach them
-//! through a hidden module):
-//! - [`detector`](mod@detector): the pipeline ([`Detector`], [`DetectorConfig`]).
-//! - [`roi`]: regions of interest for tracking-guided detection
-//!   ([`Detector::detect_in_regions`]); [`Detector::detect_coarse`] scans a whole frame at
-//!   a coarser scale for big markers and refines their corners at full resolution.
+//! The detector's stages (binarization, labelling, quad fit, refinement, second look,
+//! cell reading, side check) are not public; the benchmarks and the workspace's
+//! measurement tools reach them through a hidden module, and nothing else should.
 //!
 //! # Conventions
 //!
@@ -165,36 +176,35 @@
 /// This crate's version (`CARGO_PKG_VERSION`), for tools that report what they were built from.
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
+// The modules are the crate's own; what a user needs is re-exported below (the crate's
+// documentation lists it), and the stages reach the tools through `stages_for_tools`.
 mod blur;
-pub(crate) mod cluster;
-pub(crate) mod config;
-pub(crate) mod contour;
-pub mod cross_ratio;
-pub mod decode;
-pub mod detector;
-pub mod dictionary;
-pub mod error;
-pub mod family;
-pub mod image;
-pub(crate) mod parallel;
+mod cluster;
+mod config;
+mod contour;
+mod cross_ratio;
+mod decode;
+mod detector;
+mod dictionary;
+mod error;
+mod family;
+mod image;
+mod parallel;
 mod pattern;
-pub(crate) mod quad;
-pub(crate) mod refine;
-pub mod render;
-pub mod roi;
-pub(crate) mod sides;
-pub(crate) mod split;
-pub(crate) mod stages;
-pub mod standard;
-pub(crate) mod threshold;
+mod quad;
+mod refine;
+mod render;
+mod roi;
+mod sides;
+mod split;
+mod stages;
+mod standard;
+mod threshold;
 
 pub use crate::config::DetectorConfig;
-pub use crate::cross_ratio::CrossRatioFrame;
-pub use crate::decode::{
-    CellReading, DecodeParams, Decoded, Rejection, WhiteReference, decode, read_cells,
-    read_cells_with,
-};
-pub use crate::detector::{DetectStats, Detector, StageTimes};
+pub use crate::cross_ratio::{CrossRatioFrame, clockwise};
+pub use crate::decode::{DecodeParams, Decoded, Rejection, WhiteReference, decode};
+pub use crate::detector::{DetectStats, Detector, Search, StageTimes};
 pub use crate::dictionary::{Dictionary, GenerateParams, Match, PAPER_NAME, hamming};
 pub use crate::error::FiducialError;
 pub use crate::family::MarkerFamily;
@@ -215,10 +225,20 @@ pub use crate::threshold::{Threshold, rgb_to_gray, rgba_to_gray};
 #[doc(hidden)]
 pub mod stages_for_tools {
     pub use crate::contour::{Component, Labeller, trace_outer};
+    pub use crate::decode::{CellReading, read_cells, read_cells_with};
     pub use crate::quad::{QuadLimits, fit_quad};
     pub use crate::refine::Refiner;
     pub use crate::sides::{SideOffsets, side_offsets};
     pub use crate::threshold::{Binarizer, DARK, otsu_level};
+
+    use crate::{Detector, GrayView, Quad};
+
+    /// Stages 1 to 4 of a detection of the whole of `img` at full resolution (binarize,
+    /// label, examine, second look): the quads, not decoded (the benchmark of the quad
+    /// phase alone). They live in the detector, as [`Detector::quads`].
+    pub fn find_quads<'d>(detector: &'d mut Detector, img: &GrayView<'_>) -> &'d [Quad] {
+        detector.find_quads(img)
+    }
 }
 
 /// `n` seeded bytes for the crate's property tests: `f(i, r)` of each index `i` and the

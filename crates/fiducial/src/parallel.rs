@@ -1,5 +1,5 @@
-//! The threaded parts of [`Detector::detect_parallel`](crate::Detector::detect_parallel)
-//! (issue #12) beyond banded binarization and labelling (each band's rows labelled on the
+//! The threaded parts of a detection on rayon's threads ([`crate::Search::parallel`],
+//! issue #12) beyond banded binarization and labelling (each band's rows labelled on the
 //! thread that cut them, [`crate::contour::Labeller::merge`]): the components of a frame are examined (traced,
 //! fitted, refined) and the quads decoded by as many workers as there are threads, each
 //! with its own scratch. The work is handed out as it goes (an atomic counter over the
@@ -93,12 +93,12 @@ fn ready<'w>(
     workers
 }
 
-/// Where [`examine_all`] puts its results: the quads, their readings when it decodes them
-/// (aligned with the quads it appends) and the count of blurred readings among those, the
-/// re-cut boxes and the flags of their components.
+/// Where [`examine_all`] puts its results: the quads, their markers when it decodes them (in
+/// quad order) and the count of blurred readings among those, the re-cut boxes and the
+/// flags of their components.
 pub(crate) struct Examined<'a> {
     pub(crate) quads: &'a mut Vec<Quad>,
-    pub(crate) readings: &'a mut Vec<Option<Decoded>>,
+    pub(crate) readings: &'a mut Vec<Decoded>,
     pub(crate) blurred: &'a mut usize,
     pub(crate) retry: &'a mut Vec<Rect>,
     pub(crate) retried: &'a mut [bool],
@@ -114,7 +114,7 @@ fn weight(c: &Component) -> u32 {
 /// `to` (flagging the boxes' components), in the order of the single-threaded loop. With
 /// `decode`, each worker also reads each quad as soon as it has found it (one stage fewer
 /// for the threads to meet at, and the readings balance with the rest of the work); the
-/// readings are those [`crate::Detector::decode_quads`] would give. Components too small to
+/// readings are those the detector's stage 5 would give. Components too small to
 /// examine, which the loop drops first thing, are not handed out; the others go the largest
 /// first. `merged` is scratch.
 pub(crate) fn examine_all(
@@ -161,7 +161,7 @@ pub(crate) fn examine_all(
     merged.retry.sort_unstable_by_key(|e| e.0);
     to.quads.extend(merged.quads.iter().map(|e| e.1));
     if decode.is_some() {
-        to.readings.extend(merged.quads.iter().map(|e| e.2));
+        to.readings.extend(merged.quads.iter().filter_map(|e| e.2));
     }
     to.retry.extend(merged.retry.iter().map(|e| e.1));
     for e in &merged.retry {

@@ -53,12 +53,13 @@
 
 use crate::cross_ratio::CrossRatioFrame;
 use crate::family::MarkerFamily;
-use crate::image::{Corners, GrayView, to_arrays, to_points};
+use crate::image::{Corners, GrayView};
 use crate::refine::{
     Line, PROFILE, RefineConfig, STEP, SideFrame, edge_in_profile, fit_line_trimmed, intersect,
     sample_profile,
 };
 use crate::sides::normal_cdf;
+use nalgebra::Point2;
 
 /// Largest marker, border included, in cells (8 x 8 data cells).
 const MAX_CELLS: usize = 10;
@@ -239,7 +240,7 @@ impl Default for PatternRefiner {
 }
 
 /// Mean length of two opposite sides of `c`: `0` for top/bottom, `1` for left/right.
-fn mean_length(c: &[[f64; 2]; 4], pair: usize) -> f64 {
+fn mean_length(c: &Corners, pair: usize) -> f64 {
     let len = |i: usize| {
         let (p, q) = (c[i], c[(i + 1) % 4]);
         (q[0] - p[0]).hypot(q[1] - p[1])
@@ -264,7 +265,7 @@ impl PatternRefiner {
         cfg: &RefineConfig,
     ) -> Option<Corners> {
         let cells = Cells::new(family, code)?;
-        let plain = to_arrays(corners);
+        let plain = *corners;
         let cw = mean_length(&plain, 0) / cells.cols as f64;
         let ch = mean_length(&plain, 1) / cells.rows as f64;
         if !(cw >= 1.0 && ch >= 1.0) || cw.min(ch) >= MAX_CELL_PX {
@@ -341,9 +342,9 @@ impl PatternRefiner {
             *line = self.side(g, first, &cells, &model, light, cfg)?;
             first += g.count;
         }
-        let mut out = [[0.0; 2]; 4];
+        let mut out = [Point2::origin(); 4];
         for (i, corner) in out.iter_mut().enumerate() {
-            *corner = intersect(&lines[(i + 3) % 4], &lines[i])?;
+            *corner = intersect(&lines[(i + 3) % 4], &lines[i])?.into();
         }
         // The plain refinement is within a fraction of a pixel; anything further is a failed
         // model, not a correction.
@@ -354,7 +355,7 @@ impl PatternRefiner {
                 return None;
             }
         }
-        Some(to_points(out))
+        Some(out)
     }
 
     /// Samples every cell and fits the levels and the blur.
@@ -542,7 +543,7 @@ impl PatternRefiner {
 
     /// Where the edge profiles of side `side` (clockwise from the NW corner) are taken.
     fn geometry(
-        corners: &[[f64; 2]; 4],
+        corners: &Corners,
         frame: &CrossRatioFrame,
         cells: &Cells,
         side: usize,
@@ -550,8 +551,8 @@ impl PatternRefiner {
         ch: f64,
         cfg: &RefineConfig,
     ) -> Option<SideGeom> {
-        let a = corners[side];
-        let frame_of_side = SideFrame::new(a, corners[(side + 1) % 4], cfg)?;
+        let a: [f64; 2] = corners[side].into();
+        let frame_of_side = SideFrame::new(a, corners[(side + 1) % 4].into(), cfg)?;
         let SideFrame {
             len,
             t,
@@ -769,28 +770,26 @@ mod tests {
     use crate::dictionary::Dictionary;
     use proptest::prelude::*;
 
-    fn square(x0: f64, y0: f64, side: f64) -> [[f64; 2]; 4] {
+    fn square(x0: f64, y0: f64, side: f64) -> Corners {
         [
-            [x0, y0],
-            [x0 + side, y0],
-            [x0 + side, y0 + side],
-            [x0, y0 + side],
+            Point2::new(x0, y0),
+            Point2::new(x0 + side, y0),
+            Point2::new(x0 + side, y0 + side),
+            Point2::new(x0, y0 + side),
         ]
     }
 
-    fn refine_on(pixels: &[u8], w: usize, corners: &[[f64; 2]; 4]) -> Option<[[f64; 2]; 4]> {
+    fn refine_on(pixels: &[u8], w: usize, corners: &Corners) -> Option<Corners> {
         let img = GrayView::new(pixels, w, pixels.len() / w).ok()?;
         let dict = Dictionary::paper();
         let code = dict.code(0)?;
-        PatternRefiner::default()
-            .refine(
-                &img,
-                &to_points(*corners),
-                dict.family(),
-                code,
-                &RefineConfig::default(),
-            )
-            .map(|c| to_arrays(&c))
+        PatternRefiner::default().refine(
+            &img,
+            corners,
+            dict.family(),
+            code,
+            &RefineConfig::default(),
+        )
     }
 
     #[test]
@@ -803,7 +802,7 @@ mod tests {
         // Cells under a pixel.
         assert_eq!(refine_on(&flat, 80, &square(20.0, 20.0, 5.0)), None);
         // Degenerate quad (all corners on a line).
-        let line = [[10.0, 10.0], [30.0, 10.0], [50.0, 10.0], [70.0, 10.0]];
+        let line = [10.0, 30.0, 50.0, 70.0].map(|x| Point2::new(x, 10.0));
         assert_eq!(refine_on(&flat, 80, &line), None);
     }
 

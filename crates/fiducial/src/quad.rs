@@ -15,7 +15,8 @@
 //! makes them deviate from 90 degrees, so the tolerance is generous). Every step is linear
 //! in the contour length and allocates nothing.
 
-use crate::image::{Corners, to_points};
+use crate::image::Corners;
+use nalgebra::Point2;
 
 /// Limits on an acceptable quadrilateral.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -41,7 +42,7 @@ pub fn fit_quad(contour: &[[i32; 2]], limits: &QuadLimits) -> Option<Corners> {
     contour.settle_vertices(&mut v);
     let lines = contour.side_lines(&v, limits)?;
     let corners = contour.corners(&lines, &v, limits)?;
-    convex_clockwise(&corners, limits.min_angle_deg).then(|| to_points(corners))
+    convex_clockwise(&corners, limits.min_angle_deg).then_some(corners)
 }
 
 /// A closed contour (at least 8 points) and the point searches of the quad fit.
@@ -238,8 +239,8 @@ impl Contour<'_> {
         lines: &[[f64; 3]; 4],
         v: &[usize; 4],
         limits: &QuadLimits,
-    ) -> Option<[[f64; 2]; 4]> {
-        let mut corners = [[0.0; 2]; 4];
+    ) -> Option<Corners> {
+        let mut corners = [Point2::origin(); 4];
         for (i, c) in corners.iter_mut().enumerate() {
             let (l1, l2) = (lines[(i + 3) % 4], lines[i]);
             let det = l1[0] * l2[1] - l1[1] * l2[0];
@@ -253,7 +254,7 @@ impl Contour<'_> {
             if moved.is_nan() || moved > 0.25 * limits.min_side.max(4.0) + 3.0 {
                 return None;
             }
-            *c = [x, y];
+            *c = Point2::new(x, y);
         }
         Some(corners)
     }
@@ -380,7 +381,7 @@ fn fit_line(
 
 /// True when the four corners form a convex quadrilateral, clockwise in the image (v down),
 /// with every interior angle between `min_angle_deg` and `180 - min_angle_deg`.
-pub fn convex_clockwise(c: &[[f64; 2]; 4], min_angle_deg: f64) -> bool {
+pub fn convex_clockwise(c: &Corners, min_angle_deg: f64) -> bool {
     let max_cos = min_angle_deg.to_radians().cos();
     for i in 0..4 {
         let a = c[(i + 3) % 4];
@@ -406,7 +407,6 @@ pub fn convex_clockwise(c: &[[f64; 2]; 4], min_angle_deg: f64) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::image::to_arrays;
 
     const LIMITS: QuadLimits = QuadLimits {
         min_side: 5.0,
@@ -436,9 +436,13 @@ mod tests {
     #[test]
     fn rectangle_gives_its_corners_clockwise() {
         let c = rect_contour(3, 4, 20, 12);
-        let q = to_arrays(&fit_quad(&c, &LIMITS).unwrap());
-        let mut got: Vec<[f64; 2]> = q.iter().map(|c| [c[0].round(), c[1].round()]).collect();
-        assert!(q.iter().flatten().all(|v| (v - v.round()).abs() < 1e-9));
+        let q = fit_quad(&c, &LIMITS).unwrap();
+        let mut got: Vec<[f64; 2]> = q.iter().map(|c| [c.x.round(), c.y.round()]).collect();
+        assert!(
+            q.iter()
+                .flat_map(|c| [c.x, c.y])
+                .all(|v| (v - v.round()).abs() < 1e-9)
+        );
         got.sort_by(|a, b| a.partial_cmp(b).unwrap());
         assert_eq!(
             got,
@@ -509,10 +513,8 @@ mod tests {
             }
         });
         let mask: Vec<&str> = rows.iter().map(String::as_str).collect();
-        let q = to_arrays(
-            &fit_quad(&traced(&mask), &MARKER_LIMITS).expect("notched rectangle rejected"),
-        );
-        let mut got: Vec<[f64; 2]> = q.iter().map(|c| [c[0].round(), c[1].round()]).collect();
+        let q = fit_quad(&traced(&mask), &MARKER_LIMITS).expect("notched rectangle rejected");
+        let mut got: Vec<[f64; 2]> = q.iter().map(|c| [c.x.round(), c.y.round()]).collect();
         got.sort_by(|a, b| a.partial_cmp(b).unwrap());
         assert_eq!(
             got,
@@ -559,9 +561,10 @@ mod tests {
         assert!(fit_quad(&rect_contour(0, 0, 4, 4), &LIMITS).is_none());
         assert!(fit_quad(&[[1, 1]; 20], &LIMITS).is_none());
         // A counter-clockwise square is not accepted as clockwise.
-        let ccw = [[0.0, 0.0], [0.0, 10.0], [10.0, 10.0], [10.0, 0.0]];
+        let points = |c: [(f64, f64); 4]| c.map(|(x, y)| Point2::new(x, y));
+        let ccw = points([(0.0, 0.0), (0.0, 10.0), (10.0, 10.0), (10.0, 0.0)]);
         assert!(!convex_clockwise(&ccw, 30.0));
-        let sharp = [[0.0, 0.0], [100.0, 0.0], [100.0, 5.0], [0.0, 10.0]];
+        let sharp = points([(0.0, 0.0), (100.0, 0.0), (100.0, 5.0), (0.0, 10.0)]);
         assert!(convex_clockwise(&sharp, 1.0));
         assert!(!convex_clockwise(&sharp, 89.0));
     }

@@ -14,8 +14,9 @@
 //! corners are the intersections of adjacent lines. The whole is done twice, the second
 //! time with stations placed on the refined lines so the profiles are centred on the edge.
 
-use crate::image::{Corners, GrayView, to_arrays, to_points};
+use crate::image::{Corners, GrayView};
 use crate::quad::convex_clockwise;
+use nalgebra::Point2;
 
 /// Settings of the refinement.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -256,7 +257,7 @@ impl Refiner {
         min_angle_deg: f64,
         cells_across: f64,
     ) -> Option<(Corners, f64)> {
-        let mut corners = to_arrays(coarse);
+        let mut corners = *coarse;
         let mut contrast = 0.0;
         // First pass: the true edge lies about half a pixel outside the dark pixel centres.
         for pass in [0, 1] {
@@ -277,14 +278,14 @@ impl Refiner {
                     .map(|p| ((p[0] - a[0]) * dy - (p[1] - a[1]) * dx).abs() / len)
                     .fold(f64::INFINITY, f64::min);
                 let cell = depth / cells_across.max(1.0);
-                let (l, c) = self.side(img, a, b, pass, cell, cfg)?;
+                let (l, c) = self.side(img, a.into(), b.into(), pass, cell, cfg)?;
                 *line = l;
                 csum += c;
             }
             contrast = csum / 4.0;
-            let mut next = [[0.0; 2]; 4];
+            let mut next = [Point2::origin(); 4];
             for (i, corner) in next.iter_mut().enumerate() {
-                *corner = intersect(&lines[(i + 3) % 4], &lines[i])?;
+                *corner = intersect(&lines[(i + 3) % 4], &lines[i])?.into();
             }
             corners = next;
         }
@@ -313,7 +314,7 @@ impl Refiner {
                 return None;
             }
         }
-        convex_clockwise(&corners, min_angle_deg).then(|| (to_points(corners), contrast))
+        convex_clockwise(&corners, min_angle_deg).then_some((corners, contrast))
     }
 
     /// Fits the edge line of the side from `a` to `b` (clockwise, so the outside is on the

@@ -14,9 +14,9 @@ use crate::family::MarkerFamily;
 use crate::image::{Corners, GrayView};
 
 /// Grey level of black cells and the border.
-pub const BLACK: u8 = 0;
+pub(crate) const BLACK: u8 = 0;
 /// Grey level of white cells and the quiet zone.
-pub const WHITE: u8 = 255;
+pub(crate) const WHITE: u8 = 255;
 
 /// Raster layout of a rendered marker.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -2,7 +2,7 @@
 //! markers will be (tracking-guided detection, `docs/tracking.md`).
 //!
 //! A [`Region`] is an axis-aligned rectangle of whole pixels. The detector runs every stage
-//! on the region alone ([`crate::Detector::detect_in_regions`]), through a strided
+//! on the region alone ([`crate::Search::regions`]), through a strided
 //! [`GrayView`](crate::GrayView) of the caller's frame (no copy), and reports corners in the
 //! frame's coordinates. A marker must lie wholly inside a region, at least the detector's
 //! `border_margin` from its edge, to be found there: the caller gives a margin.
@@ -115,7 +115,7 @@ impl Region {
 
 /// Replaces every group of overlapping regions by its bounding rectangle, repeatedly, until
 /// no two regions overlap; empty regions are dropped. Works in place (no allocation).
-pub fn merge_overlapping(regions: &mut Vec<Region>) {
+pub(crate) fn merge_overlapping(regions: &mut Vec<Region>) {
     regions.retain(|r| r.area() > 0);
     let mut i = 0;
     while i < regions.len() {

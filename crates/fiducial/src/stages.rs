@@ -26,7 +26,7 @@ pub struct Quad {
     pub contrast: f64,
 }
 
-/// What one scan of [`Detector::find_quads_scaled`] needs to examine a component.
+/// What one scan of a detection needs to examine a component.
 pub(crate) struct Scan<'a, 'i> {
     pub(crate) img: &'a GrayView<'i>,
     pub(crate) bin: &'a [u8],
@@ -118,7 +118,7 @@ impl Scan<'_, '_> {
 }
 
 /// Scratch of decoding one quad at a time, owned by the detector (one per thread in
-/// [`Detector::detect_parallel`]).
+/// a parallel search).
 #[derive(Debug, Clone)]
 pub(crate) struct Decoding {
     /// Per dictionary, the reading of the current quad (valid where `grid_of[i] == i`).

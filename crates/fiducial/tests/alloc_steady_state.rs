@@ -3,7 +3,7 @@
 #![allow(unsafe_code)]
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
-use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Region, Threshold};
+use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Region, Search, Threshold};
 use marker_testkit::{SceneConfig, clutter_frame, marker_scene};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -92,11 +92,11 @@ fn steady_state_guided_detection_allocates_nothing() {
         let mut read = 0;
         for (f, r) in frames.iter().zip(&regions) {
             let img = GrayView::new(f, 640, 480).unwrap();
-            det.detect_in_regions(&img, r, 1, out);
+            det.detect_with(&img, &Search::in_regions(r), out);
             read += out.len();
-            det.detect_in_regions(&img, r, 2, out);
+            det.detect_with(&img, &Search::in_regions(r).at_scale(2), out);
             read += out.len();
-            det.detect_coarse(&img, 2, out);
+            det.detect_with(&img, &Search::whole_frame().at_scale(2), out);
             det.detect(&img, out);
         }
         read

@@ -3,6 +3,7 @@
 //! order, and arbitrary images never make it panic.
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
+use fiducial::stages_for_tools::find_quads;
 use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Threshold};
 use marker_testkit::{Canvas, CellPattern, Effects};
 use proptest::prelude::*;
@@ -126,7 +127,7 @@ proptest! {
         let (pixels, truth) = view(side, angle, jitter, blur, noise, seed);
         let img = GrayView::new(&pixels, W, H).unwrap();
         let mut det = Detector::new(DetectorConfig::default());
-        let quads = det.find_quads(&img);
+        let quads = find_quads(&mut det, &img);
         let (rms, max) = quads
             .iter()
             .map(|q| errors(&q.corners, &truth))
@@ -201,7 +202,7 @@ proptest! {
             cfg.threshold = Threshold::Otsu;
         }
         let mut det = Detector::new(cfg);
-        for q in det.find_quads(&img) {
+        for q in find_quads(&mut det, &img) {
             for p in q.corners {
                 prop_assert!(p.x.is_finite() && p.y.is_finite());
                 prop_assert!(p.x >= -0.5 && p.y >= -0.5 && p.x <= w as f64 - 0.5 && p.y <= h as f64 - 0.5);
@@ -225,7 +226,7 @@ proptest! {
             .collect();
         let img = GrayView::new(&pixels, w, h).unwrap();
         let mut det = Detector::new(DetectorConfig::default());
-        let n = det.find_quads(&img).len();
+        let n = find_quads(&mut det, &img).len();
         prop_assert!(n <= w * h);
     }
 }
@@ -241,8 +242,7 @@ fn a_marker_touching_the_frame_border_is_rejected() {
     let px = canvas.render(&Effects::default()).unwrap();
     let img = GrayView::new(&px, 120, 100).unwrap();
     let mut det = Detector::new(DetectorConfig::default());
-    let touching = det
-        .find_quads(&img)
+    let touching = find_quads(&mut det, &img)
         .iter()
         .filter(|q| q.corners.iter().any(|c| c.x < 2.0))
         .count();
@@ -254,8 +254,7 @@ fn a_marker_touching_the_frame_border_is_rejected() {
     canvas.draw_pattern(&p, &q, 25.0, 215.0);
     let px = canvas.render(&Effects::default()).unwrap();
     let img = GrayView::new(&px, 120, 100).unwrap();
-    let best = det
-        .find_quads(&img)
+    let best = find_quads(&mut det, &img)
         .iter()
         .map(|f| corner_error(&f.corners, &q))
         .fold(f64::MAX, f64::min);
@@ -270,8 +269,7 @@ fn otsu_finds_the_marker_under_even_light() {
         threshold: Threshold::Otsu,
         ..DetectorConfig::default()
     });
-    let best = det
-        .find_quads(&img)
+    let best = find_quads(&mut det, &img)
         .iter()
         .map(|q| corner_error(&q.corners, &truth))
         .fold(f64::MAX, f64::min);

@@ -13,8 +13,10 @@
 //! The frames: the eleven Duckietown camera frames of `fixtures/realdata/duckietown`
 //! (tag36h11, with and without boundary clustering), and synthetic 640 x 480 scenes of
 //! `marker_testkit` with fixed seeds (the paper's dictionary: plain, motion-blurred by 9 px,
-//! and marker-free clutter). The entry points: `detect`, `detect_parallel`, `detect_coarse`
-//! (factor 2), and `detect_in_regions` then `detect_in_more_regions` over two regions.
+//! and marker-free clutter). The ways of calling the detector: `detect`, and `detect_with`
+//! on the whole frame in parallel, on the whole frame at scale 2, in one region, and in a
+//! second region appending to the first's markers (the lines keep the names of the entry
+//! points they were generated with: `parallel`, `coarse2`, `regions`, `more-regions`).
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
 mod common;
@@ -23,7 +25,7 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use fiducial::{
-    Decoded, Detector, DetectorConfig, Dictionary, GrayView, Region, dictionary_by_name,
+    Decoded, Detector, DetectorConfig, Dictionary, GrayView, Region, Search, dictionary_by_name,
 };
 use marker_testkit::{SceneConfig, clutter_frame, marker_scene, motion_blur};
 use rand::SeedableRng;
@@ -86,24 +88,25 @@ fn line(name: &str, out: &[Decoded]) -> String {
     format!("{name} {} {:016x}", keys.len(), h.0)
 }
 
-/// Every entry point over one frame, one line each.
+/// Every way of calling the detector over one frame, one line each.
 fn entry_points(name: &str, det: &mut Detector, pixels: &[u8], w: usize, h: usize) -> String {
     let view = GrayView::new(pixels, w, h).unwrap();
     let mut out = Vec::new();
     let mut text = String::new();
     det.detect(&view, &mut out);
     writeln!(text, "{}", line(&format!("{name}/detect"), &out)).unwrap();
-    det.detect_parallel(&view, &mut out);
+    det.detect_with(&view, &Search::whole_frame().in_parallel(), &mut out);
     writeln!(text, "{}", line(&format!("{name}/parallel"), &out)).unwrap();
-    det.detect_coarse(&view, 2, &mut out);
+    det.detect_with(&view, &Search::whole_frame().at_scale(2), &mut out);
     writeln!(text, "{}", line(&format!("{name}/coarse2"), &out)).unwrap();
     let halves = [
         Region::new(0, 0, w / 2 + 40, h),
         Region::new(w / 2 - 40, h / 4, w / 2 + 40, h / 2),
     ];
-    det.detect_in_regions(&view, &halves[..1], 1, &mut out);
+    det.detect_with(&view, &Search::in_regions(&halves[..1]), &mut out);
     writeln!(text, "{}", line(&format!("{name}/regions"), &out)).unwrap();
-    det.detect_in_more_regions(&view, &halves[1..], 1, &mut out);
+    let more = Search::in_regions(&halves[1..]).appending();
+    det.detect_with(&view, &more, &mut out);
     writeln!(text, "{}", line(&format!("{name}/more-regions"), &out)).unwrap();
     text
 }

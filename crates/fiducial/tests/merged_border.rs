@@ -3,6 +3,7 @@
 //! (`fiducial::split`: the component is re-cut at a darker threshold).
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
+use fiducial::stages_for_tools::find_quads;
 use fiducial::{Detector, GrayView};
 
 /// A 200-grey frame with a black 40 px square ring (border 6 px, white inside) at
@@ -29,7 +30,7 @@ fn frame(bridge: u8, block: u8) -> Vec<u8> {
 fn quads_near_square(px: &[u8]) -> usize {
     let mut det = Detector::default();
     let img = GrayView::new(px, 200, 160).unwrap();
-    det.find_quads(&img)
+    find_quads(&mut det, &img)
         .iter()
         .filter(|q| {
             let truth = [[59.5, 59.5], [99.5, 59.5], [99.5, 99.5], [59.5, 99.5]];

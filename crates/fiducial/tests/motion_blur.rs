@@ -90,7 +90,7 @@ fn clutter_rarely_takes_the_blurred_reading_and_sharp_markers_never() {
         det.detect(&GrayView::new(&px, 640, 480).unwrap(), &mut out);
         assert!(out.is_empty());
         quads += det.quads().len();
-        reads += det.blurred_reads();
+        reads += det.stats().blurred;
     }
     eprintln!("clutter: {reads} blurred reads of {quads} quads");
     // At most two blurred readings a frame. (The bound was an eighth of the quads, but the
@@ -122,7 +122,7 @@ fn clutter_rarely_takes_the_blurred_reading_and_sharp_markers_never() {
             &mut out,
         );
         assert_eq!(out.len(), scene.markers.len());
-        assert_eq!(det.blurred_reads(), 0, "sharp scene {seed}");
+        assert_eq!(det.stats().blurred, 0, "sharp scene {seed}");
     }
 }
 

@@ -1,7 +1,8 @@
-//! `Detector::detect_parallel` (#12) gives exactly the binary image, quads (in order) and
-//! markers of `Detector::detect` (threaded with `--features parallel`, in turn without).
+//! A search on rayon's threads (`Search::in_parallel`, #12) gives exactly the binary image,
+//! quads (in order) and markers of the same search on the calling thread (threaded with
+//! `--features parallel`, in turn without).
 
-use fiducial::{Detector, DetectorConfig, Dictionary, GrayView};
+use fiducial::{Detector, DetectorConfig, Dictionary, GrayView, Region, Search};
 use marker_testkit::{SceneConfig, marker_scene};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -32,14 +33,33 @@ fn parallel_detection_equals_single_threaded() {
         assert!(!serial.is_empty(), "{w}x{h}: no marker read");
         let bin = det.binary().to_vec();
         let quads = det.quads().to_vec();
-        det.detect_parallel(&img, &mut parallel);
+        det.detect_with(&img, &Search::whole_frame().in_parallel(), &mut parallel);
         assert_eq!(parallel, serial, "{w}x{h}");
         assert_eq!(det.quads(), &quads[..], "{w}x{h}: quads differ");
         assert_eq!(det.binary(), &bin[..], "{w}x{h}: binary images differ");
         // A fresh detector, parallel first.
         let mut fresh = Detector::new(DetectorConfig::default());
-        fresh.detect_parallel(&img, &mut parallel);
+        fresh.detect_with(&img, &Search::whole_frame().in_parallel(), &mut parallel);
         assert_eq!(parallel, serial, "{w}x{h}, fresh detector");
+        // Every other way of searching, on the threads and on the calling thread: at a
+        // coarser scale, in regions (one of them over a megapixel at the larger sizes), and
+        // appending.
+        let regions = [
+            Region::new(0, 0, w, h * 3 / 4),
+            Region::new(w / 2, h / 2, w / 2, h / 2),
+        ];
+        for search in [
+            Search::whole_frame().at_scale(2),
+            Search::in_regions(&regions),
+            Search::in_regions(&regions).at_scale(2),
+            Search::in_regions(&regions[1..]).appending(),
+        ] {
+            let mut one = serial.clone();
+            let mut threads = serial.clone();
+            det.detect_with(&img, &search, &mut one);
+            det.detect_with(&img, &search.in_parallel(), &mut threads);
+            assert_eq!(threads, one, "{w}x{h}: {search:?}");
+        }
     }
 }
 
@@ -73,7 +93,7 @@ fn parallel_decoding_equals_single_threaded_on_clutter() {
     let (mut serial, mut parallel) = (Vec::new(), Vec::new());
     det.detect(&img, &mut serial);
     let quads = det.quads().to_vec();
-    let blurred = det.blurred_reads();
+    let blurred = det.stats().blurred;
     // (Over 20 until the re-cut stopped handing on components without holes, which the
     // clutter's solid squares are; 14 now, still several per thread.)
     assert!(quads.len() > 10, "only {} quads", quads.len());
@@ -82,9 +102,9 @@ fn parallel_decoding_equals_single_threaded_on_clutter() {
         "{} markers, {blurred} blurred",
         serial.len()
     );
-    det.detect_parallel(&img, &mut parallel);
+    det.detect_with(&img, &Search::whole_frame().in_parallel(), &mut parallel);
     assert_eq!(parallel, serial);
-    assert_eq!(det.blurred_reads(), blurred);
+    assert_eq!(det.stats().blurred, blurred);
     // Components are handed out largest first: their quads and re-cut boxes (whose quads
     // follow) are merged back in component order.
     assert_eq!(det.quads(), &quads[..], "quads differ");

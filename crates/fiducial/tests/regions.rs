@@ -2,7 +2,7 @@
 //! corners, as a full-resolution scan of the whole frame.
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
-use fiducial::{Decoded, Detector, DetectorConfig, Dictionary, GrayView, Region};
+use fiducial::{Decoded, Detector, DetectorConfig, Dictionary, GrayView, Region, Search};
 use marker_testkit::{SceneConfig, marker_scene};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -65,7 +65,7 @@ fn regions_read_what_the_full_frame_reads() {
         det.detect(&img, &mut full);
         assert!(full.len() >= 6, "seed {seed}: only {} markers", full.len());
         let regions: Vec<Region> = full.iter().map(|d| box_of(d, 10.0, 640, 480)).collect();
-        det.detect_in_regions(&img, &regions, 1, &mut roi);
+        det.detect_with(&img, &Search::in_regions(&regions), &mut roi);
         let mut a: Vec<usize> = full.iter().map(|d| d.index).collect();
         let mut b: Vec<usize> = roi.iter().map(|d| d.index).collect();
         a.sort_unstable();
@@ -84,9 +84,17 @@ fn regions_read_what_the_full_frame_reads() {
         }
         // A region without any marker reads nothing; a region list of the whole frame
         // reads what the full scan reads.
-        det.detect_in_regions(&img, &[Region::new(0, 0, 8, 8)], 1, &mut roi);
+        det.detect_with(
+            &img,
+            &Search::in_regions(&[Region::new(0, 0, 8, 8)]),
+            &mut roi,
+        );
         assert!(roi.is_empty());
-        det.detect_in_regions(&img, &[Region::full(640, 480)], 1, &mut roi);
+        det.detect_with(
+            &img,
+            &Search::in_regions(&[Region::full(640, 480)]),
+            &mut roi,
+        );
         assert_eq!(roi.len(), full.len());
     }
 }
@@ -99,12 +107,16 @@ fn coarse_scan_finds_big_markers_with_full_resolution_corners() {
         let mut det = Detector::new(DetectorConfig::default());
         let (mut full, mut coarse) = (Vec::new(), Vec::new());
         det.detect(&img, &mut full);
-        det.detect_coarse(&img, 2, &mut coarse);
+        det.detect_with(&img, &Search::whole_frame().at_scale(2), &mut coarse);
         check_coarse(seed, &full, &coarse, 40.0);
         // Regions at a coarser scale: every marker of 80 px or more at 3 and at 4.
         let everything = [Region::full(1280, 960)];
         for factor in [3, 4] {
-            det.detect_in_regions(&img, &everything, factor, &mut coarse);
+            det.detect_with(
+                &img,
+                &Search::in_regions(&everything).at_scale(factor),
+                &mut coarse,
+            );
             check_coarse(seed, &full, &coarse, 20.0 * factor as f64);
         }
     }

@@ -13,7 +13,7 @@
 //! frame's bytes: a fixed-work reference in the same run, for ratios on a loaded machine.
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use fiducial::{Detector, DetectorConfig, GrayView, Region};
+use fiducial::{Detector, DetectorConfig, GrayView, Region, Search};
 use formation_tracker::guided::GuidedConfig;
 use std::hint::black_box;
 
@@ -39,9 +39,9 @@ fn benches(c: &mut Criterion) {
         let seen = out.len();
         assert!(seen >= 2, "{w}x{h}: only {seen} markers read");
         let guided = |det: &mut Detector, out: &mut Vec<_>| {
-            det.detect_in_regions(&img, &regions, factor, out);
+            det.detect_with(&img, &Search::in_regions(&regions).at_scale(factor), out);
             if !fine.is_empty() {
-                det.detect_in_more_regions(&img, &fine, 1, out);
+                det.detect_with(&img, &Search::in_regions(&fine).appending(), out);
             }
         };
         guided(&mut det, &mut out);
@@ -58,7 +58,11 @@ fn benches(c: &mut Criterion) {
         });
         group.bench_function(format!("detect_coarse2_{w}x{h}"), |b| {
             b.iter(|| {
-                det.detect_coarse(black_box(&img), 2, &mut out);
+                det.detect_with(
+                    black_box(&img),
+                    &Search::whole_frame().at_scale(2),
+                    &mut out,
+                );
                 black_box(out.len())
             })
         });

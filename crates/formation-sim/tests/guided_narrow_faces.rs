@@ -4,7 +4,7 @@
 //! faces' boxes at full resolution as well ([`LeaderRegion::fine_regions`]).
 #![allow(clippy::unwrap_used)] // Tests may unwrap (house rules).
 
-use fiducial::{Detector, DetectorConfig, GrayView, Region};
+use fiducial::{Detector, DetectorConfig, GrayView, Region, Search};
 use formation_tracker::guided::GuidedConfig;
 
 #[path = "guided_support/mod.rs"]
@@ -43,10 +43,14 @@ fn a_grazing_face_is_read_in_guided_mode() {
     assert_eq!(full.len(), 4);
     // The coarse region alone misses the grazing face ...
     let mut guided = Vec::new();
-    det.detect_in_regions(&img, &[r.region], factor, &mut guided);
+    det.detect_with(
+        &img,
+        &Search::in_regions(&[r.region]).at_scale(factor),
+        &mut guided,
+    );
     assert_eq!(guided.len(), 3);
     // ... its box at full resolution reads it, and nothing is read twice.
-    det.detect_in_more_regions(&img, &fine, 1, &mut guided);
+    det.detect_with(&img, &Search::in_regions(&fine).appending(), &mut guided);
     let ids = |v: &[fiducial::Decoded]| {
         let mut i: Vec<usize> = v.iter().map(|d| d.index).collect();
         i.sort_unstable();

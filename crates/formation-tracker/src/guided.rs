@@ -7,7 +7,7 @@
 //! camera frame through the mount, and every marker corner of every face is projected with
 //! the camera's intrinsics. The bounding box of those points, widened by a margin, is the
 //! leader's [`Region`]; the detector then searches only the regions
-//! ([`fiducial::Detector::detect_in_regions`]).
+//! ([`fiducial::Search::regions`]).
 //!
 //! # Margin
 //! The prediction is uncertain, and the margin grows with it: `sigmas` standard deviations

@@ -23,7 +23,7 @@
 
 use std::time::Instant;
 
-use fiducial::{Decoded, Detector, GrayView, Region};
+use fiducial::{Decoded, Detector, GrayView, Region, Search};
 use nalgebra::Matrix3;
 use pose::PoseSolver;
 use serde::Serialize;
@@ -156,7 +156,7 @@ impl Guided {
             self.fine.extend(r.fine_regions(factor));
         }
         if !self.fine.is_empty() {
-            detector.detect_in_more_regions(view, &self.fine, 1, out);
+            detector.detect_with(view, &Search::in_regions(&self.fine).appending(), out);
         }
     }
 }
@@ -273,7 +273,11 @@ impl Pipeline {
                 g.config.coarse_factor_for(size.0)
             };
             if factor > 1 {
-                self.detector.detect_coarse(view, factor, &mut self.decoded);
+                self.detector.detect_with(
+                    view,
+                    &Search::whole_frame().at_scale(factor),
+                    &mut self.decoded,
+                );
                 g.search_narrow_faces(factor, &mut self.detector, view, &mut self.decoded);
             } else {
                 self.detector.detect(view, &mut self.decoded);
@@ -281,8 +285,11 @@ impl Pipeline {
             return Scan::Full { factor };
         }
         g.since_full += 1;
-        self.detector
-            .detect_in_regions(view, &g.regions, region_factor, &mut self.decoded);
+        self.detector.detect_with(
+            view,
+            &Search::in_regions(&g.regions).at_scale(region_factor),
+            &mut self.decoded,
+        );
         g.search_narrow_faces(region_factor, &mut self.detector, view, &mut self.decoded);
         Scan::Guided {
             factor: region_factor,

@@ -243,7 +243,7 @@ pub struct RigModel {
     pub markers: Option<Vec<(u32, u8, usize)>>,
     /// The dictionary the markers' ids are entries of, by its standard name
     /// ([`fiducial::PAPER_NAME`] for our own, or an OpenCV/AprilTag name such as
-    /// `DICT_APRILTAG_36h11`; see [`fiducial::standard`]).
+    /// `DICT_APRILTAG_36h11`; see [`fiducial::dictionary_by_name`]).
     pub dictionary: &'static str,
 }
 

@@ -9,12 +9,11 @@
 //! `robots` (with `--camera`: one joint pose per robot and its formation variables, see
 //! `detect_robots.rs`; empty otherwise), with `--marker-size` each marker's own `pose`
 //! (`marker_pose.rs`; `null` otherwise) and `timing.detect_ms`: the
-//! detector's own time for the image, decoding excluded (quad finding, timed around
-//! `Detector::find_quads`). Without `--json`, a short listing. An unreadable file gets one
+//! detector's own time for the image, decoding excluded (quad finding: the stage times of
+//! `Detector::stats` up to the decoding). Without `--json`, a short listing. An unreadable file gets one
 //! error line on stderr and the others are still processed; the exit code is then non-zero.
 
 use std::path::PathBuf;
-use std::time::Instant;
 
 use clap::Args as ClapArgs;
 use fiducial::{Decoded, Detector, DetectorConfig, GrayView};
@@ -293,6 +292,11 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     }
 }
 
+/// A duration in milliseconds.
+fn ms(d: std::time::Duration) -> f64 {
+    d.as_secs_f64() * 1e3
+}
+
 /// One image: its markers (in every dictionary), its robots and their rejections, and with
 /// `--marker-size` each marker's own pose; the error says why the image could not be read.
 fn detect_image(
@@ -304,11 +308,8 @@ fn detect_image(
     let grey = formation_io::frames::read_grey_with_max_side(path, c.args.max_side)?;
     let (w, h) = (grey.width, grey.height);
     let view = GrayView::new(&grey.data, w, h).map_err(|e| e.to_string())?;
-    let t0 = Instant::now();
-    detector.find_quads(&view);
-    let t1 = Instant::now();
-    detector.decode_quads(&view, found);
-    let t2 = Instant::now();
+    detector.detect(&view, found);
+    let time = detector.stats().time;
     let rig_markers: Vec<Decoded> = found
         .iter()
         .filter(|d| Some(d.dictionary) == c.rig_dict)
@@ -361,8 +362,8 @@ fn detect_image(
         robots,
         rejected,
         timing: Timing {
-            detect_ms: (t1 - t0).as_secs_f64() * 1e3,
-            decode_ms: (t2 - t1).as_secs_f64() * 1e3,
+            detect_ms: ms(time.binarize + time.label + time.examine + time.second_look),
+            decode_ms: ms(time.decode),
         },
     })
 }
