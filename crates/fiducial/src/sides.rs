@@ -54,6 +54,19 @@
 //! - on markers over about 70 px the lens allowance lets a corner sliced off along a side
 //!   pass, no further off than the cut is deep.
 //!
+//! Last, a quad none of whose sides shows a light outside is not a marker's outline
+//! ([`SideOffsets::outside_step`]): some side must show the step from the light outside to
+//! the dark border, of at least [`SideCheck::min_outside_step`] of the contrast. A marker
+//! lies on paper as light as its light cells; it may touch something as dark as its border
+//! along a side or two (the quads boundary clustering finds), not all round. Issue #31: on
+//! `board.jpg` of OpenCV's samples, a dark blob 13 px across with a highlight inside it,
+//! on grey, read as a 4 x 4 code (boundary clustering found its quad) whose light cells
+//! were the highlight, far lighter than the grey around the blob. The other checks had no
+//! evidence there (cells under [`SideCheck::min_cell_px`], no outer profile over
+//! [`SideCheck::min_step`]); its largest step was 0.37 of its contrast, where every marker
+//! read on the real frames (Duckietown, NASA, OpenCV's ArUco photo) shows 1.03 or more and
+//! every quad decoded in the crate's synthetic tests 0.8 or more.
+//!
 //! No allocation: every buffer is a fixed array.
 
 use crate::cross_ratio::CrossRatioFrame;
@@ -100,6 +113,10 @@ pub struct SideCheck {
     /// How far the border's outer edge may lie inside a side of the quad, in pixels
     /// (default 0.5), plus the allowances of [`SideOffsets::outer_tolerance_px`].
     pub outer_tolerance_px: f64,
+    /// Smallest step from the light outside a side to the dark border, as a fraction of the
+    /// marker's contrast, that some side of the marker must show (default 0.5; see
+    /// [`SideOffsets::outside_step`]).
+    pub min_outside_step: f64,
     /// The allowance for lens distortion in that check, per squared pixel of the side's
     /// length (default 2e-4): radial distortion bows a straight edge by a sagitta that grows
     /// with the square of its length, and the quad's side is its chord, so the ends of a
@@ -120,6 +137,7 @@ impl Default for SideCheck {
             corner_tolerance: 0.35,
             outer_tolerance_px: 0.5,
             outer_sag_per_px2: 2e-4,
+            min_outside_step: 0.5,
         }
     }
 }
@@ -167,13 +185,22 @@ pub struct SideOffsets {
     /// [`SideCheck::outer_sag_per_px2`] times the side's squared length, plus
     /// [`SideCheck::tolerance_motion`] of the motion blur.
     pub outer_tolerance_px: [f64; 4],
+    /// The largest step, over the outer-edge profiles of every side, from the lightest
+    /// level outside the side to the darkest of the border inside it, as a fraction of the
+    /// marker's contrast (NaN where no profile could be sampled, e.g. every side at the
+    /// frame's edge).
+    pub outside_step: f64,
+    /// The smallest `outside_step` allowed ([`SideCheck::min_outside_step`]).
+    pub min_outside_step: f64,
 }
 
 impl SideOffsets {
     /// Whether no side with evidence has a border thinner than the grid says by more than
     /// its tolerance. Only that direction counts: a cut makes the border thinner, while
     /// motion blur pulls refined corners outwards and makes it read thicker (on 5 px of
-    /// motion, inner edges up to 0.8 px outside the grid's; 9 px, 1.3 px).
+    /// motion, inner edges up to 0.8 px outside the grid's; 9 px, 1.3 px). Also that no
+    /// corner's border cell reads light, no outer edge lies inside the quad, and some side
+    /// shows a light outside ([`SideOffsets::outside_step`]).
     pub fn consistent(&self) -> bool {
         (0..4).all(|s| self.cells[s] == 0 || self.offset_px[s] <= self.tolerance_px[s])
             && self
@@ -186,6 +213,7 @@ impl SideOffsets {
                 .iter()
                 .zip(&self.outer_tolerance_px)
                 .all(|(&d, &t)| d.is_nan() || d <= t)
+            && !(self.outside_step < self.min_outside_step)
     }
 }
 
@@ -210,6 +238,8 @@ pub fn side_offsets(
         corner_tolerance: [check.corner_tolerance; 4],
         outer_inset_px: [f64::NAN; 4],
         outer_tolerance_px: [check.outer_tolerance_px; 4],
+        outside_step: f64::NAN,
+        min_outside_step: check.min_outside_step,
     };
     let mut rise = [0.0f64; 4];
     let mut cell = [0.0f64; 4];
@@ -505,6 +535,7 @@ fn outer_edges(
             let (jlo, lo) = darkest(&prof[half..]);
             let jlo = jlo + half;
             let step = hi - lo;
+            out.outside_step = out.outside_step.max(step / contrast.max(1.0));
             if step.is_nan() || step < check.min_step * contrast.max(1.0) {
                 continue;
             }
