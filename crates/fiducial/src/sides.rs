@@ -213,7 +213,8 @@ impl SideOffsets {
                 .iter()
                 .zip(&self.outer_tolerance_px)
                 .all(|(&d, &t)| d.is_nan() || d <= t)
-            && !(self.outside_step < self.min_outside_step)
+            // No outside sampled (NaN) is no evidence against.
+            && self.outside_step.partial_cmp(&self.min_outside_step) != Some(std::cmp::Ordering::Less)
     }
 }
 

@@ -90,7 +90,11 @@ fn no_dictionary_reads_anything_on_photos_without_markers() {
             }
         }
     }
-    assert!(false_reads.is_empty(), "false reads:\n{}", false_reads.join("\n"));
+    assert!(
+        false_reads.is_empty(),
+        "false reads:\n{}",
+        false_reads.join("\n")
+    );
 }
 
 /// The six `DICT_6X6_250` markers of OpenCV's ArUco photo are read, boundary clustering off
@@ -115,7 +119,9 @@ fn aruco_photo_reads_its_six_markers_and_nothing_else() {
         for (name, d) in &all {
             let c = centre(d);
             assert!(
-                markers.iter().any(|m| (m[0] - c[0]).hypot(m[1] - c[1]) < 3.0),
+                markers
+                    .iter()
+                    .any(|m| (m[0] - c[0]).hypot(m[1] - c[1]) < 3.0),
                 "clusters {clusters}: {name} id {} at {c:?}, where no marker is",
                 d.index
             );
