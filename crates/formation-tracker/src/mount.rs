@@ -55,35 +55,14 @@ mod tests {
     use super::*;
     use dukf::Space as _;
 
-    /// Pose of a planar body `(x, y, theta)` as (rotation, translation) into the world.
-    fn planar(x: f64, y: f64, theta: f64) -> (Rotation3<f64>, Vector3<f64>) {
-        (
-            Rotation3::from_axis_angle(&Vector3::z_axis(), theta),
-            Vector3::new(x, y, 0.0),
-        )
-    }
-
-    fn camera_pose_of_leader(
-        q1: (f64, f64, f64),
-        q2: (f64, f64, f64),
-        mount: &CameraMount,
-    ) -> (Rotation3<f64>, Vector3<f64>) {
-        let (r1, t1) = planar(q1.0, q1.1, q1.2);
-        let (r2, t2) = planar(q2.0, q2.1, q2.2);
-        // World pose of the camera.
-        let r_wc = r2 * mount.camera_to_body_rotation();
-        let t_wc = t2 + r2 * mount.camera_position();
-        let r_cw = r_wc.inverse();
-        (r_cw * r1, r_cw * (t1 - t_wc))
-    }
-
     /// Covariance propagation agrees with the sample covariance of transformed samples.
     #[test]
     fn covariance_propagation_matches_linearisation() {
         use rand::SeedableRng;
         use rand_distr::{Distribution, Normal};
         let mount = CameraMount::default();
-        let (r, t) = camera_pose_of_leader((1.5, 0.25, 0.1), (0.0, 0.0, 0.0), &mount);
+        // The leader seen from a follower at the origin (`unicycle::camera` tests this pose).
+        let (r, t) = mount.leader_to_camera(1.5, 0.25, 0.1);
         let rv = r.scaled_axis();
         let params = SVector::<f64, 6>::new(rv.x, rv.y, rv.z, t.x, t.y, t.z);
         let sig = [0.01, 0.01, 0.01, 0.002, 0.002, 0.005];
