@@ -18,6 +18,10 @@
 //!   backwards over a finished forward pass's filtered estimates ([`Gaussian`]), recomputing
 //!   each prediction from the filtered sigma points; see its module for the equations and
 //!   how to smooth a dual filter's state and parameters together.
+//! - Innovation tests, before a measurement is applied: [`innovation_nis`] (how far a
+//!   candidate lies from the prediction), [`Gate`] with [`GateRuns`] (accept or refuse, and
+//!   when refusals in a row call for restarting the filter) and [`NoiseScale`] (a factor on
+//!   `R` learned from the innovations, for errors the reported `R` does not know).
 //! - [`Space`]: how to subtract, add and average vectors, with [`Euclidean`] and
 //!   [`AngleMask`] ready-made; [`wrap_angle`] and [`circular_mean`] as free functions.
 //! - [`unscented_transform`]: one transform on its own; [`Weights`] and [`SigmaPoints`] for
