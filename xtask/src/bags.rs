@@ -203,11 +203,11 @@ pub fn run(args: &[String]) -> Result {
     ]});
     let manifest_path = work.join("manifest.json");
     std::fs::write(&manifest_path, serde_json::to_string_pretty(&manifest)?)?;
-    let status = Command::new(&python)
-        .arg(root.join("xtask/py/make_bags.py"))
-        .arg(&manifest_path)
-        .status()?;
-    check(status, "make_bags.py")?;
+    crate::pyenv::run_script(
+        &python,
+        &root.join("xtask/py/make_bags.py"),
+        &[&manifest_path],
+    )?;
 
     // 3. The folder path on the same frames.
     let expected = tracker(
@@ -260,11 +260,7 @@ pub fn run(args: &[String]) -> Result {
     }
     // The demo's own demo.mcap too.
     outputs.push(demo_out.join("demo.mcap"));
-    let status = Command::new(&python)
-        .arg(root.join("xtask/py/check_mcap.py"))
-        .args(&outputs)
-        .status()?;
-    check(status, "check_mcap.py")?;
+    crate::pyenv::run_script(&python, &root.join("xtask/py/check_mcap.py"), &outputs)?;
     let size: u64 = walk_size(&fixtures)?;
     println!(
         "bags: wrote {} ({:.1} MB); the Python mcap reader read our outputs back",

@@ -82,14 +82,11 @@ pub(crate) fn run_peers(
     std::fs::write(&manifest_path, serde_json::to_string(manifest)?)?;
     let results_path = work.join("peers.json");
     eprintln!("{who}: the peers (xtask/py/compare.py)");
-    let status = Command::new(python)
-        .arg(root.join("xtask/py/compare.py"))
-        .arg(&manifest_path)
-        .arg(&results_path)
-        .status()?;
-    if !status.success() {
-        return Err(format!("{} xtask/py/compare.py failed ({status})", python.display()).into());
-    }
+    crate::pyenv::run_script(
+        python,
+        &root.join("xtask/py/compare.py"),
+        &[&manifest_path, &results_path],
+    )?;
     Ok(serde_json::from_str(&std::fs::read_to_string(
         &results_path,
     )?)?)

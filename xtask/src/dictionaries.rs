@@ -15,7 +15,6 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use fiducial::{MarkerFamily, hamming};
 
@@ -317,14 +316,7 @@ pub fn run(args: &[String]) -> crate::Result {
     std::fs::write(&script, SCRIPT)?;
     let json_path = work.join("opencv.json");
     let png_dir = work.join("png");
-    let st = Command::new(&python)
-        .arg(&script)
-        .arg(&json_path)
-        .arg(&png_dir)
-        .status()?;
-    if !st.success() {
-        return Err("dictionaries.py failed (see above)".into());
-    }
+    crate::pyenv::run_script(&python, &script, &[&json_path, &png_dir])?;
     let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json_path)?)?;
     let (version, dicts) = parse(&json)?;
     let data_dir = root.join("crates/fiducial/data/families");

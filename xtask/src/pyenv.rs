@@ -62,3 +62,23 @@ pub fn python(root: &Path, who: &str, packages: &[&str], probe: &str) -> Result<
     }
     Ok(python)
 }
+
+/// Runs `python script args...` (inheriting stdout and stderr, so the script's own messages
+/// reach the terminal) and waits for it.
+///
+/// # Errors
+/// The script could not be started, or it exited unsuccessfully (the message names the
+/// interpreter, the script and the exit status).
+pub fn run_script<A: AsRef<std::ffi::OsStr>>(python: &Path, script: &Path, args: &[A]) -> Result {
+    let status = Command::new(python).arg(script).args(args).status()?;
+    if status.success() {
+        Ok(())
+    } else {
+        Err(format!(
+            "{} {} failed ({status})",
+            python.display(),
+            script.display()
+        )
+        .into())
+    }
+}

@@ -27,7 +27,6 @@
 //! `fixtures/opencv/duckietown_opencv.json`, read by `crates/fiducial/tests/duckietown.rs`.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use pose::{Distortion, Intrinsics, Pose, marker_corners};
 use rand::{RngExt, SeedableRng};
@@ -98,19 +97,7 @@ pub fn run(args: &[String]) -> crate::Result {
     )?;
     let script = root.join("target/solvepnp.py");
     write(&script, SCRIPT)?;
-    let status = Command::new(&python)
-        .arg(&script)
-        .arg(&cases)
-        .arg(&out)
-        .status()?;
-    if !status.success() {
-        return Err(format!(
-            "{} {} failed ({status})",
-            python.display(),
-            script.display()
-        )
-        .into());
-    }
+    crate::pyenv::run_script(&python, &script, &[&cases, &out])?;
     eprintln!("wrote {}", out.display());
     Ok(())
 }

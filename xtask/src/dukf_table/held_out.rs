@@ -15,7 +15,6 @@
 
 use std::fmt::Write as _;
 use std::path::Path;
-use std::process::Command;
 
 use formation_filter::{FilterConfig, FilterDesign};
 use formation_sim::reproduce::{
@@ -192,14 +191,11 @@ fn filterpy(
         "dukf-table: filterpy UKF on {name} ({} grid points)",
         ukf_grid().len()
     );
-    let status = Command::new(python)
-        .arg(root.join("xtask/py/ukf_baseline.py"))
-        .arg(&input)
-        .arg(&output)
-        .status()?;
-    if !status.success() {
-        return Err(format!("xtask/py/ukf_baseline.py failed ({status})").into());
-    }
+    crate::pyenv::run_script(
+        python,
+        &root.join("xtask/py/ukf_baseline.py"),
+        &[&input, &output],
+    )?;
     let results: Value = serde_json::from_str(&std::fs::read_to_string(&output)?)?;
     let grid = results["estimates"]
         .as_array()
