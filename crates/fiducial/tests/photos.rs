@@ -12,7 +12,9 @@
 
 use std::path::{Path, PathBuf};
 
-use fiducial::{Decoded, Detector, DetectorConfig, GrayView};
+use fiducial::{Decoded, Detector, GrayView};
+
+mod common;
 
 fn dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/realdata/photos")
@@ -26,26 +28,6 @@ fn photos(sub: &str) -> Vec<PathBuf> {
         .filter(|p| matches!(p.extension().and_then(|e| e.to_str()), Some("jpg" | "png")))
         .collect();
     v.sort();
-    v
-}
-
-/// A detector for each distinct dictionary that `--dictionary` accepts (the first of the
-/// names that give the same dictionary), boundary clustering as asked.
-fn detectors(boundary_clusters: bool) -> Vec<(&'static str, Detector)> {
-    let mut seen: Vec<&fiducial::Dictionary> = Vec::new();
-    let mut v = Vec::new();
-    for name in fiducial::dictionary_names() {
-        let dict = fiducial::dictionary_by_name(name).unwrap();
-        if seen.contains(&dict) {
-            continue;
-        }
-        seen.push(dict);
-        let config = DetectorConfig {
-            boundary_clusters,
-            ..DetectorConfig::default()
-        };
-        v.push((name, Detector::with_dictionary(config, dict.clone())));
-    }
     v
 }
 
@@ -76,7 +58,7 @@ fn no_dictionary_reads_anything_on_photos_without_markers() {
     assert!(notags.len() >= 13, "{} photos", notags.len());
     let mut false_reads = Vec::new();
     for clusters in [false, true] {
-        let mut dets = detectors(clusters);
+        let mut dets = common::dictionary_detectors(clusters, None);
         assert!(dets.len() >= 20, "{} dictionaries", dets.len());
         for photo in &notags {
             for (name, d) in reads(photo, &mut dets) {
@@ -103,7 +85,7 @@ fn no_dictionary_reads_anything_on_photos_without_markers() {
 fn aruco_photo_reads_its_six_markers_and_nothing_else() {
     let photo = dir().join("aruco/singlemarkersoriginal.jpg");
     for clusters in [false, true] {
-        let all = reads(&photo, &mut detectors(clusters));
+        let all = reads(&photo, &mut common::dictionary_detectors(clusters, None));
         let mut ids: Vec<usize> = all
             .iter()
             .filter(|(name, _)| *name == "DICT_6X6_250")

@@ -30,25 +30,40 @@ pub fn not_markers() -> NotMarkers<'static> {
     }
 }
 
-/// A detector for every dictionary name `--dictionary` accepts, except those naming the
-/// same dictionary as `except`, with boundary clustering on (the widest search,
-/// `formation-tracker detect`'s): for the "no false read with any family" tests on real
-/// frames.
+/// A detector for each distinct dictionary `--dictionary` accepts (the first of the names
+/// that give the same dictionary), leaving out the one `except` names, boundary clustering
+/// as asked: for the "no false read with any family" tests on real frames.
+pub fn dictionary_detectors(
+    boundary_clusters: bool,
+    except: Option<&str>,
+) -> Vec<(&'static str, fiducial::Detector)> {
+    let mut seen: Vec<&Dictionary> = except
+        .and_then(|name| fiducial::dictionary_by_name(name).ok())
+        .into_iter()
+        .collect();
+    let mut v = Vec::new();
+    for name in fiducial::dictionary_names() {
+        let Ok(dict) = fiducial::dictionary_by_name(name) else {
+            continue;
+        };
+        if seen.contains(&dict) {
+            continue;
+        }
+        seen.push(dict);
+        let config = fiducial::DetectorConfig {
+            boundary_clusters,
+            ..fiducial::DetectorConfig::default()
+        };
+        v.push((
+            name,
+            fiducial::Detector::with_dictionary(config, dict.clone()),
+        ));
+    }
+    v
+}
+
+/// [`dictionary_detectors`] but `except`'s, with boundary clustering on (the widest search,
+/// `formation-tracker detect`'s).
 pub fn other_dictionary_detectors(except: &str) -> Vec<(&'static str, fiducial::Detector)> {
-    let skip = fiducial::dictionary_by_name(except).ok();
-    fiducial::dictionary_names()
-        .filter_map(|name| {
-            let dict = fiducial::dictionary_by_name(name).ok()?;
-            (Some(dict) != skip).then(|| {
-                let config = fiducial::DetectorConfig {
-                    boundary_clusters: true,
-                    ..fiducial::DetectorConfig::default()
-                };
-                (
-                    name,
-                    fiducial::Detector::with_dictionary(config, dict.clone()),
-                )
-            })
-        })
-        .collect()
+    dictionary_detectors(true, Some(except))
 }
