@@ -129,7 +129,7 @@ impl FrameSegment<'_> {
 
 /// Heckbert's closed-form homography taking the unit square's `(0, 0), (1, 0), (1, 1),
 /// (0, 1)` to `p0..p3` (see [`CrossRatioFrame::h`]); `None` if it is degenerate.
-fn square_to_quad(p: [Vector2<f64>; 4]) -> Option<[f64; 8]> {
+pub(crate) fn square_to_quad(p: [Vector2<f64>; 4]) -> Option<[f64; 8]> {
     let (dx1, dy1) = (p[1].x - p[2].x, p[1].y - p[2].y);
     let (dx2, dy2) = (p[3].x - p[2].x, p[3].y - p[2].y);
     let (dx3, dy3) = (

@@ -191,6 +191,7 @@ mod family;
 mod image;
 mod parallel;
 mod pattern;
+mod photometric;
 mod quad;
 mod refine;
 mod render;

@@ -62,7 +62,7 @@ use crate::sides::normal_cdf;
 use nalgebra::Point2;
 
 /// Largest marker, border included, in cells (8 x 8 data cells).
-const MAX_CELLS: usize = 10;
+pub(crate) const MAX_CELLS: usize = 10;
 
 /// Sub-positions (cells, from the cell centre) at which every cell is sampled for the levels.
 const SUB: [f64; 3] = [-0.25, 0.0, 0.25];
@@ -134,7 +134,7 @@ fn phi_table() -> &'static [f64; PHI_STEPS + 1] {
 /// The standard normal distribution function, interpolated in a table (error under 1e-6;
 /// the level fit evaluates it a few thousand times per marker). NaN reads as 0.
 #[inline]
-fn phi(x: f64) -> f64 {
+pub(crate) fn phi(x: f64) -> f64 {
     let table = phi_table();
     let pos = (x + PHI_RANGE) * (PHI_STEPS as f64 / (2.0 * PHI_RANGE));
     if pos.is_nan() || pos <= 0.0 {
@@ -151,14 +151,14 @@ fn phi(x: f64) -> f64 {
 }
 
 /// The marker's cells, border included: `black[row][col]`.
-struct Cells {
-    rows: usize,
-    cols: usize,
-    black: [[bool; MAX_CELLS]; MAX_CELLS],
+pub(crate) struct Cells {
+    pub(crate) rows: usize,
+    pub(crate) cols: usize,
+    pub(crate) black: [[bool; MAX_CELLS]; MAX_CELLS],
 }
 
 impl Cells {
-    fn new(family: MarkerFamily, code: u64) -> Option<Self> {
+    pub(crate) fn new(family: MarkerFamily, code: u64) -> Option<Self> {
         let (rows, cols) = (family.rows() as usize + 2, family.cols() as usize + 2);
         if rows > MAX_CELLS || cols > MAX_CELLS {
             return None;

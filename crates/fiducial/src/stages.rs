@@ -124,6 +124,7 @@ pub(crate) struct Decoding {
     /// Per dictionary, the reading of the current quad (valid where `grid_of[i] == i`).
     readings: Vec<Option<(u8, CellReading)>>,
     pattern: crate::pattern::PatternRefiner,
+    photometric: crate::photometric::PhotometricFit,
     /// Scratch of the motion-blurred reading ([`DetectorConfig::motion_blur`]).
     pub(crate) blur: crate::blur::BlurScratch,
 }
@@ -134,6 +135,7 @@ impl Decoding {
         Self {
             readings: vec![None; dictionaries],
             pattern: crate::pattern::PatternRefiner::default(),
+            photometric: crate::photometric::PhotometricFit::default(),
             blur: crate::blur::BlurScratch::default(),
         }
     }
@@ -212,6 +214,18 @@ impl DecodeContext<'_> {
         } else {
             None
         };
+        // Small markers: the corners fitted to the whole modelled marker (issue #30).
+        let below = self.config.refine.photometric_below_px;
+        let refined = crate::pattern::Cells::new(family, d.code)
+            .and_then(|cells| {
+                let start = refined.unwrap_or(d.corners);
+                let (cols, rows) = (cells.cols as f64, cells.rows as f64);
+                let cell = crate::photometric::cell_pixels(&start, cols, rows);
+                (cell < below)
+                    .then(|| scratch.photometric.fit(img, &start, &cells, 1.0, cell))
+                    .flatten()
+            })
+            .or(refined);
         // A side along an occluder, not the border (issue #16). On a narrow border under a
         // wider blur than the side check allows for (a tag seen obliquely in a real photo,
         // cells of 2-3 px), the plain corners can put the grid a few tenths of a pixel off,

@@ -1,0 +1,752 @@
+//! Corners fitted to the image of the decoded marker (issue #30: the `far` bias).
+//!
+//! The edge rules of [`crate::refine`] and [`crate::pattern`] locate each side from profiles
+//! across it, against levels read near it. On a small marker with a one-cell quiet zone
+//! that fails in one known way: whatever lies beyond the quiet zone (the ground, the
+//! robot's body, the next face of a rig) is blurred into it, the white level reads low, and
+//! every edge moves inwards. Under a 1 px blur, markers of 2-3 px cells seen 3.3-3.8 m away
+//! read 0.07-0.12 px small per corner, which puts `l12` 6-16 mm too far.
+//!
+//! This step models the whole marker instead of its edges. Once a marker is decoded its
+//! cells are known; so is its one-cell white quiet zone. Beyond that lies an unknown
+//! surround, one level per side. The grey level at every pixel within half a cell beyond
+//! the quiet zone is modelled as that picture, mapped into the image by the homography of
+//! the four corners and blurred by a Gaussian of `sigma` pixels:
+//!
+//! `g(p) = lo + c W(p) (1 + gx x(p) + gy y(p)) + sum_k s_k S_k(p)`
+//!
+//! where `W` is the blurred whiteness of the pattern and its quiet zone and `S_k` the
+//! blurred share of side `k`'s surround. The blur is applied separably along the marker's
+//! axes, with each axis's width in cells taken from the homography's local scale at the
+//! pixel (exact for a straight edge, close near corners of moderate perspective). The levels
+//! (`lo`, `c`, the light gradient `gx, gy` and the four surrounds) enter linearly and are
+//! solved by least squares for each geometry; the eight corner coordinates and `ln sigma`
+//! are fitted by Levenberg-Marquardt on the remaining misfit (variable projection, forward
+//! differences). The plain or pattern corners start it; the result is kept only if it
+//! converges near them.
+
+use crate::cross_ratio::square_to_quad;
+use crate::image::{Corners, GrayView};
+use crate::pattern::{Cells, MAX_CELLS, phi};
+use nalgebra::{Matrix3, Point2, SMatrix, SVector, Vector2, Vector3};
+
+/// Linear levels: `lo`, `c`, `c gx`, `c gy`, four surrounds.
+const LIN: usize = 8;
+/// Nonlinear parameters: eight corner coordinates and `ln sigma`.
+const NL: usize = 9;
+/// Boundaries along one axis of the extended grid: surround | quiet | cells | quiet | surround.
+const MAX_BOUNDS: usize = MAX_CELLS + 3;
+/// How far beyond the quiet zone pixels are fitted, in cells.
+const REACH: f64 = 0.0;
+/// Most Levenberg-Marquardt iterations.
+const MAX_ITER: usize = 6;
+
+/// Stop when no corner moves more than this (pixels).
+const STOP_PX: f64 = 4e-3;
+/// Forward-difference step (pixels for corners, for `ln sigma` too).
+const STEP: f64 = 1e-4;
+/// Blur range accepted (pixels).
+const SIGMA_RANGE: [f64; 2] = [0.25, 4.0];
+/// Least contrast (grey levels) of a marker the model is fitted to (the edge rule's
+/// `RefineConfig::min_edge_contrast` default).
+const MIN_CONTRAST: f64 = 10.0;
+/// Most pixels fitted (a marker of 8 x 8 cells at 8 px a cell, with its quiet zone).
+const MAX_PIXELS: usize = 12_000;
+
+/// Scratch of the photometric fit (owned by the detector's decode scratch).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct PhotometricFit {
+    /// Pixel centre and grey level of each fitted pixel.
+    px: Vec<[f64; 3]>,
+    /// Design rows of the linear levels at the current geometry, and at a trial.
+    rows: Vec<[f64; LIN]>,
+    /// Residuals at the current parameters and at a trial.
+    r: Vec<f64>,
+    trial: Vec<f64>,
+}
+
+/// The linear levels: `lo`, `c`, `c gx`, `c gy`, the four surrounds (minus `lo`).
+type Levels = SVector<f64, LIN>;
+
+/// The homography from marker coordinates (cells, the border's outer corners at `(0, 0)`,
+/// `(cols, 0)`, `(cols, rows)`, `(0, rows)`) to the image, and its inverse.
+fn homographies(c: &[f64; 8], cols: f64, rows: f64) -> Option<(Matrix3<f64>, Matrix3<f64>)> {
+    let p = [
+        Vector2::new(c[0], c[1]),
+        Vector2::new(c[2], c[3]),
+        Vector2::new(c[4], c[5]),
+        Vector2::new(c[6], c[7]),
+    ];
+    let h = square_to_quad(p)?;
+    let m = Matrix3::new(
+        h[0] / cols,
+        h[1] / rows,
+        h[2],
+        h[3] / cols,
+        h[4] / rows,
+        h[5],
+        h[6] / cols,
+        h[7] / rows,
+        1.0,
+    );
+    let inv = m.try_inverse()?;
+    Some((m, inv))
+}
+
+/// What lies in one cell of the extended grid (the marker's cells, its quiet zone and the
+/// surround beyond).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Kind {
+    Black,
+    White,
+    /// Side `k`'s surround (0 top, 1 right, 2 bottom, 3 left).
+    Surround(usize),
+    /// A corner of the surround, shared by two sides.
+    Corner(usize, usize),
+}
+
+/// The extended grid: surround, quiet zone, the marker's cells, quiet zone, surround.
+struct Grid {
+    cols: usize,
+    rows: usize,
+    kind: [[Kind; MAX_BOUNDS + 1]; MAX_BOUNDS + 1],
+}
+
+impl Grid {
+    fn new(cells: &Cells) -> Self {
+        let (cn, rn) = (cells.cols, cells.rows);
+        let mut kind = [[Kind::White; MAX_BOUNDS + 1]; MAX_BOUNDS + 1];
+        for (j, row) in kind.iter_mut().enumerate().take(rn + 4) {
+            for (i, k) in row.iter_mut().enumerate().take(cn + 4) {
+                let side_v = if j == 0 {
+                    Some(0)
+                } else if j == rn + 3 {
+                    Some(2)
+                } else {
+                    None
+                };
+                let side_h = if i == 0 {
+                    Some(3)
+                } else if i == cn + 3 {
+                    Some(1)
+                } else {
+                    None
+                };
+                *k = match (side_v, side_h) {
+                    (Some(a), Some(b)) => Kind::Corner(a, b),
+                    (Some(a), None) | (None, Some(a)) => Kind::Surround(a),
+                    (None, None) => {
+                        if j == 1
+                            || j == rn + 2
+                            || i == 1
+                            || i == cn + 2
+                            || !cells.black[j - 2][i - 2]
+                        {
+                            Kind::White
+                        } else {
+                            Kind::Black
+                        }
+                    }
+                };
+            }
+        }
+        Self {
+            cols: cn,
+            rows: rn,
+            kind,
+        }
+    }
+}
+
+/// Blur weights of the extended grid's intervals along one axis, and their derivatives
+/// with respect to the position and the blur width. Only intervals `first..=last` can be
+/// non-zero: boundaries more than [`TAIL`] blur widths away are taken as fully crossed or
+/// not reached.
+struct Axis {
+    w: [f64; MAX_BOUNDS + 1],
+    dx: [f64; MAX_BOUNDS + 1],
+    ds: [f64; MAX_BOUNDS + 1],
+    first: usize,
+    last: usize,
+}
+
+/// Blur widths beyond which a boundary counts as crossed (the normal tail there is 3e-7).
+const TAIL: f64 = 5.0;
+
+/// Standard normal density.
+#[inline]
+fn pdf(z: f64) -> f64 {
+    (-0.5 * z * z).exp() * 0.398_942_280_401_432_7
+}
+
+impl Axis {
+    fn new() -> Self {
+        Self {
+            w: [0.0; MAX_BOUNDS + 1],
+            dx: [0.0; MAX_BOUNDS + 1],
+            ds: [0.0; MAX_BOUNDS + 1],
+            first: 0,
+            last: 0,
+        }
+    }
+
+    /// The weights at `x` (cells) for blur `s` (cells) over `n` cells; with `deriv` their
+    /// derivatives too. Boundary `k` lies at `k - 1`; interval `k` ends at boundary `k`.
+    #[inline]
+    fn set(&mut self, x: f64, s: f64, n: usize, deriv: bool) {
+        let inv = 1.0 / s;
+        let m = (n + 3) as f64;
+        // Boundaries kmin..kmax lie within TAIL widths of x.
+        let kmin = (x - TAIL * s + 1.0).ceil().clamp(0.0, m) as usize;
+        let kmax = ((x + TAIL * s + 1.0).floor() + 1.0).clamp(kmin as f64, m) as usize;
+        let (mut prev, mut prev_pdf, mut prev_zpdf) = (0.0, 0.0, 0.0);
+        for k in kmin..kmax {
+            let z = (k as f64 - 1.0 - x) * inv;
+            let cdf = phi(z);
+            self.w[k] = cdf - prev;
+            prev = cdf;
+            if deriv {
+                let d = pdf(z);
+                self.dx[k] = -(d - prev_pdf) * inv;
+                self.ds[k] = -(z * d - prev_zpdf) * inv;
+                prev_pdf = d;
+                prev_zpdf = z * d;
+            }
+        }
+        self.w[kmax] = 1.0 - prev;
+        if deriv {
+            self.dx[kmax] = prev_pdf * inv;
+            self.ds[kmax] = prev_zpdf * inv;
+        }
+        self.first = kmin;
+        self.last = kmax;
+    }
+}
+
+/// A pixel's place in the marker: its marker coordinates, the inverse map's Jacobian
+/// `d(x, y) / d(u, v)` and the blur widths along the marker's axes (cells).
+struct Place {
+    x: f64,
+    y: f64,
+    jac: [[f64; 2]; 2],
+    sx: f64,
+    sy: f64,
+}
+
+#[inline]
+fn place(g: &Matrix3<f64>, u: f64, v: f64, sigma: f64) -> Option<Place> {
+    let w = g[(2, 0)] * u + g[(2, 1)] * v + g[(2, 2)];
+    if w.abs().partial_cmp(&1e-12) != Some(std::cmp::Ordering::Greater) {
+        return None;
+    }
+    let x = (g[(0, 0)] * u + g[(0, 1)] * v + g[(0, 2)]) / w;
+    let y = (g[(1, 0)] * u + g[(1, 1)] * v + g[(1, 2)]) / w;
+    let jac = [
+        [
+            (g[(0, 0)] - x * g[(2, 0)]) / w,
+            (g[(0, 1)] - x * g[(2, 1)]) / w,
+        ],
+        [
+            (g[(1, 0)] - y * g[(2, 0)]) / w,
+            (g[(1, 1)] - y * g[(2, 1)]) / w,
+        ],
+    ];
+    let sx = sigma * (jac[0][0] * jac[0][0] + jac[0][1] * jac[0][1]).sqrt();
+    let sy = sigma * (jac[1][0] * jac[1][0] + jac[1][1] * jac[1][1]).sqrt();
+    (sx > 0.0 && sy > 0.0 && x.is_finite() && y.is_finite()).then_some(Place { x, y, jac, sx, sy })
+}
+
+impl PhotometricFit {
+    /// Fits the corners (the marker's own NW, NE, SE, SW) of a decoded marker with cells
+    /// `cells` to the image, starting from `corners` and a blur of `sigma0` px. `None` when
+    /// the model cannot be fitted or ends more than `limit` px from the start (the caller
+    /// keeps its corners).
+    pub(crate) fn fit(
+        &mut self,
+        img: &GrayView<'_>,
+        corners: &Corners,
+        cells: &Cells,
+        sigma0: f64,
+        limit: f64,
+    ) -> Option<Corners> {
+        let grid = Grid::new(cells);
+        let mut theta = [0.0; NL];
+        for (i, p) in corners.iter().enumerate() {
+            theta[2 * i] = p.x;
+            theta[2 * i + 1] = p.y;
+        }
+        theta[8] = sigma0.clamp(SIGMA_RANGE[0], SIGMA_RANGE[1]).ln();
+        self.select_pixels(img, &theta, &grid)?;
+        let n = self.px.len();
+        self.r.resize(n, 0.0);
+        self.trial.resize(n, 0.0);
+        self.rows.resize(n, [0.0; LIN]);
+        self.solve(&grid, &mut theta)?;
+        let mut fitted = [Point2::origin(); 4];
+        for (i, p) in fitted.iter_mut().enumerate() {
+            *p = Point2::new(theta[2 * i], theta[2 * i + 1]);
+        }
+        for (c, k) in fitted.iter().zip(corners) {
+            let moved = (k.x - c.x).hypot(k.y - c.y);
+            if moved.is_nan() || moved > limit {
+                return None;
+            }
+        }
+        let sigma = theta[8].exp();
+        (SIGMA_RANGE[0]..=SIGMA_RANGE[1])
+            .contains(&sigma)
+            .then_some(fitted)
+    }
+
+    /// Gauss-Newton with Levenberg-Marquardt damping on the corners and `ln sigma`; the
+    /// Jacobian is the model's derivative at the current levels (Kaufman's approximation
+    /// of variable projection).
+    fn solve(&mut self, grid: &Grid, theta: &mut [f64; NL]) -> Option<()> {
+        let mut r = std::mem::take(&mut self.r);
+        let mut trial = std::mem::take(&mut self.trial);
+        let out = self.iterate(grid, theta, &mut r, &mut trial);
+        self.r = r;
+        self.trial = trial;
+        out
+    }
+
+    fn iterate(
+        &mut self,
+        grid: &Grid,
+        theta: &mut [f64; NL],
+        r: &mut [f64],
+        trial: &mut [f64],
+    ) -> Option<()> {
+        let (mut cost, mut levels) = self.residuals(grid, theta, r)?;
+        let mut lambda = 1e-3;
+        for _ in 0..MAX_ITER {
+            let (jtj, jtr) = self.normal_equations(grid, theta, &levels, r)?;
+            let mut accepted = false;
+            let mut step_px = 0.0;
+            for _ in 0..6 {
+                let mut a = jtj;
+                for d in 0..NL {
+                    a[(d, d)] += lambda * jtj[(d, d)].max(1e-12);
+                }
+                let delta = a.cholesky()?.solve(&jtr);
+                let mut t = *theta;
+                for (v, d) in t.iter_mut().zip(delta.iter()) {
+                    *v += d;
+                }
+                if !(SIGMA_RANGE[0].ln() - 1.0..=SIGMA_RANGE[1].ln() + 1.0).contains(&t[8]) {
+                    lambda *= 4.0;
+                    continue;
+                }
+                if let Some((c, l)) = self.residuals(grid, &t, trial)
+                    && c < cost
+                {
+                    step_px = delta.iter().take(8).fold(0.0f64, |m, d| m.max(d.abs()));
+                    *theta = t;
+                    cost = c;
+                    levels = l;
+                    r.copy_from_slice(trial);
+                    lambda = (lambda / 3.0).max(1e-7);
+                    accepted = true;
+                    break;
+                }
+                lambda *= 4.0;
+            }
+            if !accepted || step_px < STOP_PX {
+                break;
+            }
+        }
+        cost.is_finite().then_some(())
+    }
+
+    /// Chooses the pixels fitted: centres within the quiet zone and `REACH` cells beyond.
+    fn select_pixels(&mut self, img: &GrayView<'_>, theta: &[f64; NL], grid: &Grid) -> Option<()> {
+        let (cols, rows) = (grid.cols as f64, grid.rows as f64);
+        let c: [f64; 8] = theta[..8].try_into().ok()?;
+        let (h, g) = homographies(&c, cols, rows)?;
+        let ext = 1.0 + REACH;
+        let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+        for (mx, my) in [
+            (-ext, -ext),
+            (cols + ext, -ext),
+            (cols + ext, rows + ext),
+            (-ext, rows + ext),
+        ] {
+            let p = h * Vector3::new(mx, my, 1.0);
+            if p.z.partial_cmp(&1e-9) != Some(std::cmp::Ordering::Greater) {
+                return None;
+            }
+            let (x, y) = (p.x / p.z, p.y / p.z);
+            x0 = x0.min(x);
+            y0 = y0.min(y);
+            x1 = x1.max(x);
+            y1 = y1.max(y);
+        }
+        let (w, hgt) = (img.width() as f64, img.height() as f64);
+        // Every pixel of the fitted area must be in the frame (NaN fails too).
+        if !(x0 >= 0.0 && y0 >= 0.0 && x1 <= w - 1.0 && y1 <= hgt - 1.0) {
+            return None;
+        }
+        if (x1 - x0 + 1.0) * (y1 - y0 + 1.0) > 2.0 * MAX_PIXELS as f64 {
+            return None;
+        }
+        self.px.clear();
+        for yi in y0.ceil() as usize..=y1.floor() as usize {
+            let row = img.row(yi);
+            let (xa, xb) = (x0.ceil() as usize, x1.floor() as usize);
+            for (xi, &grey) in row.iter().enumerate().take(xb + 1).skip(xa) {
+                let (u, v) = (xi as f64, yi as f64);
+                let q = g * Vector3::new(u, v, 1.0);
+                let (mx, my) = (q.x / q.z, q.y / q.z);
+                if (-ext..=cols + ext).contains(&mx) && (-ext..=rows + ext).contains(&my) {
+                    self.px.push([u, v, f64::from(grey)]);
+                }
+            }
+        }
+        (self.px.len() <= MAX_PIXELS && self.px.len() > LIN * 8).then_some(())
+    }
+
+    /// Fills the design rows at `theta`, solves the linear levels and writes the residuals;
+    /// returns their sum of squares and the levels.
+    fn residuals(
+        &mut self,
+        grid: &Grid,
+        theta: &[f64; NL],
+        out: &mut [f64],
+    ) -> Option<(f64, Levels)> {
+        let (cols, rows) = (grid.cols as f64, grid.rows as f64);
+        let c: [f64; 8] = theta[..8].try_into().ok()?;
+        let (_, g) = homographies(&c, cols, rows)?;
+        let sigma = theta[8].exp();
+        let (mut ax, mut by) = (Axis::new(), Axis::new());
+        let mut ata = SMatrix::<f64, LIN, LIN>::zeros();
+        let mut atb = Levels::zeros();
+        for (p, row) in self.px.iter().zip(self.rows.iter_mut()) {
+            let pl = place(&g, p[0], p[1], sigma)?;
+            ax.set(pl.x, pl.sx, grid.cols, false);
+            by.set(pl.y, pl.sy, grid.rows, false);
+            let mut white = 0.0;
+            let mut sur = [0.0; 4];
+            for j in by.first..=by.last {
+                let b = by.w[j];
+                for i in ax.first..=ax.last {
+                    let wgt = ax.w[i] * b;
+                    match grid.kind[j][i] {
+                        Kind::Black => {}
+                        Kind::White => white += wgt,
+                        Kind::Surround(k) => sur[k] += wgt,
+                        Kind::Corner(k, l) => {
+                            sur[k] += 0.5 * wgt;
+                            sur[l] += 0.5 * wgt;
+                        }
+                    }
+                }
+            }
+            let (dx, dy) = (pl.x / cols - 0.5, pl.y / rows - 0.5);
+            *row = [
+                1.0,
+                white,
+                white * dx,
+                white * dy,
+                sur[0],
+                sur[1],
+                sur[2],
+                sur[3],
+            ];
+            for (r0, &a0) in row.iter().enumerate() {
+                atb[r0] += a0 * p[2];
+                for (c0, &a1) in row.iter().enumerate().skip(r0) {
+                    ata[(r0, c0)] += a0 * a1;
+                }
+            }
+        }
+        for r0 in 0..LIN {
+            for c0 in 0..r0 {
+                ata[(r0, c0)] = ata[(c0, r0)];
+            }
+        }
+        // A surround no pixel sees is held near the dark level by a light ridge.
+        let scale = ata[(0, 0)].max(1.0);
+        for d in 0..LIN {
+            ata[(d, d)] += 1e-9 * scale;
+        }
+        let levels = ata.cholesky()?.solve(&atb);
+        if levels[1].partial_cmp(&MIN_CONTRAST) != Some(std::cmp::Ordering::Greater) {
+            return None;
+        }
+        let mut sse = 0.0;
+        for ((p, row), o) in self.px.iter().zip(&self.rows).zip(out.iter_mut()) {
+            let m: f64 = row.iter().zip(levels.iter()).map(|(a, l)| a * l).sum();
+            *o = p[2] - m;
+            sse += *o * *o;
+        }
+        sse.is_finite().then_some((sse, levels))
+    }
+
+    /// `J^T J` and `-J^T r` of the model at `theta` with `levels` held, `r` its residuals.
+    fn normal_equations(
+        &self,
+        grid: &Grid,
+        theta: &[f64; NL],
+        levels: &Levels,
+        r: &[f64],
+    ) -> Option<(SMatrix<f64, NL, NL>, SVector<f64, NL>)> {
+        let (cols, rows) = (grid.cols as f64, grid.rows as f64);
+        let c: [f64; 8] = theta[..8].try_into().ok()?;
+        let (h, g) = homographies(&c, cols, rows)?;
+        // The forward map with each corner coordinate moved a little: how a fixed marker
+        // point's image moves with the corners.
+        let mut moved = [Matrix3::zeros(); 8];
+        for (k, m) in moved.iter_mut().enumerate() {
+            let mut ck = c;
+            ck[k] += STEP;
+            *m = homographies(&ck, cols, rows)?.0;
+        }
+        let sigma = theta[8].exp();
+        let (mut ax, mut by) = (Axis::new(), Axis::new());
+        let mut jtj = SMatrix::<f64, NL, NL>::zeros();
+        let mut jtr = SVector::<f64, NL>::zeros();
+        let sur = |k: usize| levels[4 + k];
+        for (p, &e) in self.px.iter().zip(r) {
+            let pl = place(&g, p[0], p[1], sigma)?;
+            ax.set(pl.x, pl.sx, grid.cols, true);
+            by.set(pl.y, pl.sy, grid.rows, true);
+            let (dx, dy) = (pl.x / cols - 0.5, pl.y / rows - 0.5);
+            let c_eff = levels[1] + levels[2] * dx + levels[3] * dy;
+            // Derivatives of the model (levels held) along x, y, sx, sy, and the whiteness.
+            let (mut mx, mut my, mut msx, mut msy, mut white) = (0.0, 0.0, 0.0, 0.0, 0.0);
+            for j in by.first..=by.last {
+                let (b, bd, bs) = (by.w[j], by.dx[j], by.ds[j]);
+                for i in ax.first..=ax.last {
+                    let (a, ad, as_) = (ax.w[i], ax.dx[i], ax.ds[i]);
+                    let level = match grid.kind[j][i] {
+                        Kind::Black => 0.0,
+                        Kind::White => {
+                            white += a * b;
+                            c_eff
+                        }
+                        Kind::Surround(k) => sur(k),
+                        Kind::Corner(k, l) => 0.5 * (sur(k) + sur(l)),
+                    };
+                    mx += level * ad * b;
+                    my += level * a * bd;
+                    msx += level * as_ * b;
+                    msy += level * a * bs;
+                }
+            }
+            // The light gradient moves with the point too.
+            mx += levels[2] / cols * white;
+            my += levels[3] / rows * white;
+            let mut jrow = [0.0; NL];
+            let here = h * Vector3::new(pl.x, pl.y, 1.0);
+            let (u0, v0) = (here.x / here.z, here.y / here.z);
+            for (k, m) in moved.iter().enumerate() {
+                let q = m * Vector3::new(pl.x, pl.y, 1.0);
+                let (du, dv) = ((q.x / q.z - u0) / STEP, (q.y / q.z - v0) / STEP);
+                // The marker point seen at this pixel moves by -d(x, y)/d(u, v) (du, dv).
+                let dxk = -(pl.jac[0][0] * du + pl.jac[0][1] * dv);
+                let dyk = -(pl.jac[1][0] * du + pl.jac[1][1] * dv);
+                jrow[k] = mx * dxk + my * dyk;
+            }
+            jrow[8] = msx * pl.sx + msy * pl.sy;
+            // Residual = grey - model, so its Jacobian is -jrow; the step solves
+            // (J^T J) d = -J^T r = jrow^T r.
+            for (r0, &a0) in jrow.iter().enumerate() {
+                jtr[r0] += a0 * e;
+                for (c0, &a1) in jrow.iter().enumerate().skip(r0) {
+                    jtj[(r0, c0)] += a0 * a1;
+                }
+            }
+        }
+        for r0 in 0..NL {
+            for c0 in 0..r0 {
+                jtj[(r0, c0)] = jtj[(c0, r0)];
+            }
+        }
+        Some((jtj, jtr))
+    }
+}
+
+/// Mean cell size in pixels (the smaller of the two axes).
+pub(crate) fn cell_pixels(c: &Corners, cols: f64, rows: f64) -> f64 {
+    let len = |i: usize| (c[(i + 1) % 4] - c[i]).norm();
+    (0.5 * (len(0) + len(2)) / cols).min(0.5 * (len(1) + len(3)) / rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dictionary::Dictionary;
+
+    /// Renders a marker of `cells` whose border's outer corners are `corners`, with a one-cell
+    /// white (200) quiet zone and `surround` beyond, ink 20, 8 x 8 samples per pixel, then a
+    /// Gaussian blur of `sigma` px.
+    fn render(
+        w: usize,
+        h: usize,
+        corners: &Corners,
+        cells: &Cells,
+        surround: f64,
+        sigma: f64,
+    ) -> Vec<u8> {
+        let c: [f64; 8] = [
+            corners[0].x,
+            corners[0].y,
+            corners[1].x,
+            corners[1].y,
+            corners[2].x,
+            corners[2].y,
+            corners[3].x,
+            corners[3].y,
+        ];
+        let (cols, rows) = (cells.cols as f64, cells.rows as f64);
+        let (_, g) = homographies(&c, cols, rows).unwrap();
+        let mut img = vec![0.0f64; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let mut acc = 0.0;
+                for sy in 0..8 {
+                    for sx in 0..8 {
+                        let u = x as f64 - 0.5 + (sx as f64 + 0.5) / 8.0;
+                        let v = y as f64 - 0.5 + (sy as f64 + 0.5) / 8.0;
+                        let q = g * nalgebra::Vector3::new(u, v, 1.0);
+                        let (mx, my) = (q.x / q.z, q.y / q.z);
+                        let level =
+                            if mx < -1.0 || my < -1.0 || mx >= cols + 1.0 || my >= rows + 1.0 {
+                                surround
+                            } else if mx < 0.0 || my < 0.0 || mx >= cols || my >= rows {
+                                200.0
+                            } else if cells.black[my as usize][mx as usize] {
+                                20.0
+                            } else {
+                                200.0
+                            };
+                        acc += level;
+                    }
+                }
+                img[y * w + x] = acc / 64.0;
+            }
+        }
+        // Separable Gaussian blur.
+        let r = (4.0 * sigma).ceil() as i64;
+        let k: Vec<f64> = (-r..=r)
+            .map(|d| (-(d * d) as f64 / (2.0 * sigma * sigma)).exp())
+            .collect();
+        let ks: f64 = k.iter().sum();
+        let mut tmp = vec![0.0; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let mut a = 0.0;
+                for (i, kv) in k.iter().enumerate() {
+                    let xx = (x as i64 + i as i64 - r).clamp(0, w as i64 - 1) as usize;
+                    a += kv * img[y * w + xx];
+                }
+                tmp[y * w + x] = a / ks;
+            }
+        }
+        let mut out = vec![0u8; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let mut a = 0.0;
+                for (i, kv) in k.iter().enumerate() {
+                    let yy = (y as i64 + i as i64 - r).clamp(0, h as i64 - 1) as usize;
+                    a += kv * tmp[yy * w + x];
+                }
+                out[y * w + x] = (a / ks).round().clamp(0.0, 255.0) as u8;
+            }
+        }
+        out
+    }
+
+    fn paper_cells() -> Cells {
+        let d = Dictionary::paper();
+        Cells::new(d.family(), d.code(3).unwrap()).unwrap()
+    }
+
+    fn err(a: &Corners, b: &Corners) -> f64 {
+        a.iter()
+            .zip(b)
+            .map(|(p, q)| (p - q).norm())
+            .fold(0.0, f64::max)
+    }
+
+    #[test]
+    fn small_marker_on_a_dark_surround_is_fitted_to_its_true_corners() {
+        let cells = paper_cells();
+        let truth: Corners = [
+            Point2::new(30.3, 28.7),
+            Point2::new(50.1, 29.6),
+            Point2::new(49.4, 51.2),
+            Point2::new(29.8, 50.4),
+        ];
+        let img = render(80, 80, &truth, &cells, 40.0, 1.0);
+        let view = GrayView::new(&img, 80, 80).unwrap();
+        let mut start = truth;
+        for (i, p) in start.iter_mut().enumerate() {
+            p.x += [0.15, -0.1, 0.12, -0.2][i];
+            p.y += [-0.1, 0.2, 0.05, -0.12][i];
+        }
+        let mut fit = PhotometricFit::default();
+        let out = fit.fit(&view, &start, &cells, 1.0, 1.0).expect("fits");
+        let e = err(&out, &truth);
+        assert!(
+            e < 0.03,
+            "corner error {e} px, start {}",
+            err(&start, &truth)
+        );
+    }
+
+    #[test]
+    fn a_flat_image_or_corners_off_the_frame_are_refused_without_panicking() {
+        let cells = paper_cells();
+        let flat = vec![128u8; 80 * 80];
+        let view = GrayView::new(&flat, 80, 80).unwrap();
+        let c: Corners = [
+            Point2::new(30.0, 30.0),
+            Point2::new(50.0, 30.0),
+            Point2::new(50.0, 50.0),
+            Point2::new(30.0, 50.0),
+        ];
+        let mut fit = PhotometricFit::default();
+        assert!(fit.fit(&view, &c, &cells, 1.0, 3.0).is_none());
+        let mut off = c;
+        off[1].x = 95.0;
+        assert!(fit.fit(&view, &off, &cells, 1.0, 3.0).is_none());
+        let mut nan = c;
+        nan[2].y = f64::NAN;
+        assert!(fit.fit(&view, &nan, &cells, 1.0, 3.0).is_none());
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(48))]
+        /// Any start near a rendered marker gives corners within the limit of the start, or
+        /// none; never NaN.
+        #[test]
+        fn output_is_finite_and_within_the_limit(
+            dx in proptest::array::uniform8(-0.6f64..0.6),
+            side in 14.0f64..30.0,
+            surround in 0.0f64..220.0,
+        ) {
+            let cells = paper_cells();
+            let truth: Corners = [
+                Point2::new(20.0, 20.0),
+                Point2::new(20.0 + side, 21.0),
+                Point2::new(19.5 + side, 20.0 + side),
+                Point2::new(20.5, 19.0 + side),
+            ];
+            let img = render(64, 64, &truth, &cells, surround, 1.0);
+            let view = GrayView::new(&img, 64, 64).unwrap();
+            let mut start = truth;
+            for (i, p) in start.iter_mut().enumerate() {
+                p.x += dx[2 * i];
+                p.y += dx[2 * i + 1];
+            }
+            let mut fit = PhotometricFit::default();
+            if let Some(out) = fit.fit(&view, &start, &cells, 1.0, 1.0) {
+                for (p, q) in out.iter().zip(&start) {
+                    proptest::prop_assert!(p.x.is_finite() && p.y.is_finite());
+                    proptest::prop_assert!((p - q).norm() <= 1.0);
+                }
+            }
+        }
+    }
+}
