@@ -81,15 +81,21 @@
 //!    (module `pattern`, `RefineConfig::with_pattern`): once a marker with cells under
 //!    8 px is read, the ink and paper levels and the blur are fitted to every cell and each
 //!    edge corrected for the blur of its inner neighbours, which halves the corner error of
-//!    20-40 px markers on the accuracy scenes. Rejects quads whose contrast is under 20
+//!    20-40 px markers on the accuracy scenes; and the *photometric step* (module
+//!    `photometric`, `RefineConfig::photometric_below_px`): a marker whose cells are under
+//!    3 px has its corners fitted to its whole modelled image (cells, a one-cell white quiet
+//!    zone, one surround level per side, a light gradient and the blur), which the edge
+//!    rules cannot do when a darker surround is blurred into the quiet zone (they put every
+//!    side inwards: `l12` 12.8 mm long at 3.5 m in the `far` scenario, 0.2 mm after).
+//!    Rejects quads whose contrast is under 20
 //!    grey levels, with more than one light border cell, or whose code is no entry (read
 //!    plainly or blurred); markers one of whose sides runs along an occluder (a border
 //!    thinner than its grid says, a light corner cell, an outline inside the quad) with the
 //!    plain corners and with the pattern step's; the
 //!    blurred reading of a quad whose motion is under 1.5 cells or whose outline is not
 //!    smeared outwards on any side (by 2 px and a fifth of the motion), before its cell
-//!    levels are solved. The pattern step rejects nothing: corners
-//!    the model cannot fit keep the plain refinement's.
+//!    levels are solved. The pattern and photometric steps reject nothing: corners
+//!    their models cannot fit keep the previous step's.
 //! 6. **Reconcile**: two readings of one marker (same dictionary and id, centres within
 //!    half a side) are reported once, the one with fewer corrected bits, then the higher
 //!    contrast.
