@@ -45,8 +45,6 @@ struct Run {
 pub struct Labeller {
     runs: Vec<Run>,
     parent: Vec<u32>,
-    /// Index into `components` for each root run, or `u32::MAX`.
-    slot: Vec<u32>,
     /// The component of each run.
     run_component: Vec<u32>,
     /// Per run: its joins to runs of the row above that were in its component already
@@ -225,9 +223,9 @@ impl Labeller {
     /// The components of the runs and their joins, in order of each component's first run
     /// (`run_component` filled on the way).
     fn gather(&mut self) -> &[Component] {
-        // Gather statistics per root, in order of each component's first run.
-        self.slot.clear();
-        self.slot.resize(self.runs.len(), u32::MAX);
+        // Gather statistics per root, in order of each component's first run. A root is
+        // its component's first run, so its component is known (in `run_component`) by
+        // the time any other run of it comes.
         self.run_component.clear();
         for i in 0..self.runs.len() {
             // A run's parent is never after it (a root is its component's first run), so
@@ -237,14 +235,8 @@ impl Labeller {
             self.parent[i] = root as u32;
             let run = self.runs[i];
             let len = run.x1 - run.x0;
-            let s = self.slot[root];
-            self.run_component.push(if s == u32::MAX {
-                self.components.len() as u32
-            } else {
-                s
-            });
-            if s == u32::MAX {
-                self.slot[root] = self.components.len() as u32;
+            if root == i {
+                self.run_component.push(self.components.len() as u32);
                 self.components.push(Component {
                     pixels: len,
                     x_min: run.x0,
@@ -255,6 +247,8 @@ impl Labeller {
                     holes: self.cycles[i],
                 });
             } else {
+                let s = self.run_component[root];
+                self.run_component.push(s);
                 let c = &mut self.components[s as usize];
                 c.pixels += len;
                 c.x_min = c.x_min.min(run.x0);
