@@ -507,18 +507,42 @@ fn solve_levels(
     scratch.atb.resize(n, 0.0);
     let (ata, atb) = (&mut scratch.ata, &mut scratch.atb);
     let (first, start, last) = (&scratch.first, &scratch.start, &scratch.last);
+    // Per cell of the current sample row: where its row of `ata` starts (entry `(i, j)` at
+    // `base[i] + j`).
+    let mut base = [0usize; MAX_SEGMENT_CELLS];
     for r in rows {
         let w = row_w(r);
-        for &(i, wi) in w {
-            let i = i as usize;
-            atb[i] += wi * (r.2 - mean);
-            // Entry (i, j) of row i, for j <= i.
-            let row = start[i] - first[i];
-            for &(j, wj) in w {
-                let j = j as usize;
-                if j <= i {
-                    ata[row + j] += wi * wj;
+        let obs = r.2 - mean;
+        if w.len() > MAX_SEGMENT_CELLS {
+            for &(i, wi) in w {
+                let i = i as usize;
+                atb[i] += wi * obs;
+                let row = start[i] - first[i];
+                for &(j, wj) in w {
+                    let j = j as usize;
+                    if j <= i {
+                        ata[row + j] += wi * wj;
+                    }
                 }
+            }
+            continue;
+        }
+        // A segment crosses each cell once, so every entry takes one product per sample
+        // row whatever the order within the row: each pair of the row's cells once, into
+        // the lower triangle (the row of the larger index), without a branch.
+        for (b, &(i, _)) in base.iter_mut().zip(w) {
+            *b = start[i as usize] - first[i as usize];
+        }
+        for (p, &(i, wi)) in w.iter().enumerate() {
+            atb[i as usize] += wi * obs;
+            let bi = base[p];
+            for (&(j, wj), &bj) in w[..=p].iter().zip(&base[..=p]) {
+                let at = if j <= i {
+                    bi + j as usize
+                } else {
+                    bj + i as usize
+                };
+                ata[at] += wi * wj;
             }
         }
     }
@@ -549,6 +573,11 @@ fn solve_levels(
     }
     Some(misfit / rows.len() as f64)
 }
+
+/// Most cells of one blur segment whose normal-matrix entries [`solve_levels`] adds
+/// without a branch per pair (a longer one, which no motion of the model crosses, takes
+/// the plain loop).
+const MAX_SEGMENT_CELLS: usize = 32;
 
 /// Most border and quiet-zone cells (a 10 x 10 marker).
 const MAX_RING: usize = 4 * 12;

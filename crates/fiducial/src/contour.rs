@@ -45,8 +45,6 @@ struct Run {
 pub struct Labeller {
     runs: Vec<Run>,
     parent: Vec<u32>,
-    /// Index into `components` for each root run, or `u32::MAX`.
-    slot: Vec<u32>,
     /// The component of each run.
     run_component: Vec<u32>,
     /// Per run: its joins to runs of the row above that were in its component already
@@ -96,21 +94,36 @@ impl Labeller {
                 self.row = Some((y, self.runs.len()));
             }
         }
-        let width = pixels.len();
-        let mut x = 0usize;
-        while x < width {
-            // Skip light pixels.
-            match first_where(&pixels[x..], true) {
-                None => break,
-                Some(off) => x += off,
-            }
-            let start = x;
-            x += first_where(&pixels[x..], false).unwrap_or(width - x);
-            self.runs.push(Run {
+        // The row 64 pixels at a time as a bit mask (bit `i` set for a dark pixel), its
+        // runs read from the mask's set and clear bits: textured frames have runs of a few
+        // pixels, which a byte-by-byte or word-by-word search pays for at every boundary.
+        let runs = &mut self.runs;
+        let mut start: Option<usize> = None;
+        let mut push = |a: usize, b: usize| {
+            runs.push(Run {
                 y,
-                x0: x0 + start as u32,
-                x1: x0 + x as u32,
+                x0: x0 + a as u32,
+                x1: x0 + b as u32,
             });
+        };
+        let mut blocks = pixels.chunks_exact(64);
+        let mut base = 0usize;
+        for block in blocks.by_ref() {
+            let m = dark_mask(block);
+            // Nothing starts or ends in a block all light outside a run or all dark in one.
+            if (m == 0 && start.is_none()) || (m == u64::MAX && start.is_some()) {
+                base += 64;
+                continue;
+            }
+            runs_of_mask(m, 64, base, &mut start, &mut push);
+            base += 64;
+        }
+        let rest = blocks.remainder();
+        if !rest.is_empty() {
+            runs_of_mask(dark_mask(rest), rest.len(), base, &mut start, &mut push);
+        }
+        if let Some(a) = start {
+            push(a, pixels.len());
         }
     }
 
@@ -210,9 +223,9 @@ impl Labeller {
     /// The components of the runs and their joins, in order of each component's first run
     /// (`run_component` filled on the way).
     fn gather(&mut self) -> &[Component] {
-        // Gather statistics per root, in order of each component's first run.
-        self.slot.clear();
-        self.slot.resize(self.runs.len(), u32::MAX);
+        // Gather statistics per root, in order of each component's first run. A root is
+        // its component's first run, so its component is known (in `run_component`) by
+        // the time any other run of it comes.
         self.run_component.clear();
         for i in 0..self.runs.len() {
             // A run's parent is never after it (a root is its component's first run), so
@@ -222,14 +235,8 @@ impl Labeller {
             self.parent[i] = root as u32;
             let run = self.runs[i];
             let len = run.x1 - run.x0;
-            let s = self.slot[root];
-            self.run_component.push(if s == u32::MAX {
-                self.components.len() as u32
-            } else {
-                s
-            });
-            if s == u32::MAX {
-                self.slot[root] = self.components.len() as u32;
+            if root == i {
+                self.run_component.push(self.components.len() as u32);
                 self.components.push(Component {
                     pixels: len,
                     x_min: run.x0,
@@ -240,6 +247,8 @@ impl Labeller {
                     holes: self.cycles[i],
                 });
             } else {
+                let s = self.run_component[root];
+                self.run_component.push(s);
                 let c = &mut self.components[s as usize];
                 c.pixels += len;
                 c.x_min = c.x_min.min(run.x0);
@@ -289,40 +298,65 @@ impl Labeller {
     }
 }
 
-/// Index of the first dark (`dark == true`) or light pixel, eight bytes at a time (light
-/// stretches 64 at a time first): the first byte that differs from the skipped kind is
-/// found from the trailing zeros of a word.
+/// The dark pixels (`DARK`, 1; light is 0) of up to 64 bytes as a bit mask, bit `i` for
+/// byte `i`: eight bytes at a time, whose low bits one multiplication gathers into the
+/// top byte.
 #[inline]
-fn first_where(row: &[u8], dark: bool) -> Option<usize> {
-    let skip = if dark {
-        0u64
-    } else {
-        u64::from_le_bytes([DARK; 8])
-    };
-    let mut base = 0;
-    if dark {
-        // Most of a binary frame is light: skip 64 bytes at a time while they are all 0 (a
-        // bitwise or over fixed-size blocks, which vectorises).
-        for block in row.chunks_exact(64) {
-            if block.iter().fold(0u8, |a, &v| a | v) != 0 {
-                break;
+fn dark_mask(bytes: &[u8]) -> u64 {
+    const LOW: u64 = 0x0101_0101_0101_0101;
+    const GATHER: u64 = 0x0102_0408_1020_4080;
+    let mut m = 0u64;
+    let mut words = bytes.chunks_exact(8);
+    for (k, c) in words.by_ref().enumerate() {
+        let w = u64::from_le_bytes(c.try_into().unwrap_or([0; 8])) & LOW;
+        m |= (w.wrapping_mul(GATHER) >> 56) << (8 * k);
+    }
+    let done = bytes.len() - words.remainder().len();
+    for (i, &v) in words.remainder().iter().enumerate() {
+        m |= u64::from(v & DARK) << (done + i);
+    }
+    m
+}
+
+/// The runs of the dark bits of `m` (a block of `len <= 64` pixels from pixel `base` on;
+/// bits at or past `len` are clear) passed to `push` as `(start, end)` pixel ranges, end
+/// exclusive. `start` carries a run still open at the block's end into the next block
+/// (the caller closes the last one at the row's end).
+#[inline]
+fn runs_of_mask(
+    m: u64,
+    len: usize,
+    base: usize,
+    start: &mut Option<usize>,
+    push: &mut impl FnMut(usize, usize),
+) {
+    let mut pos = 0u32;
+    loop {
+        // The bits at or past `pos`.
+        let from = if pos >= 64 { 0 } else { u64::MAX << pos };
+        match *start {
+            Some(a) => {
+                // The first light pixel ends the run (a clear bit past `len` is no pixel).
+                let light = !m & from;
+                let e = light.trailing_zeros();
+                if light == 0 || e as usize >= len {
+                    return;
+                }
+                push(a, base + e as usize);
+                *start = None;
+                pos = e;
             }
-            base += 64;
+            None => {
+                let dark = m & from;
+                if dark == 0 {
+                    return;
+                }
+                let s = dark.trailing_zeros();
+                *start = Some(base + s as usize);
+                pos = s;
+            }
         }
     }
-    let mut chunks = row[base..].chunks_exact(8);
-    for c in chunks.by_ref() {
-        let word = u64::from_le_bytes(c.try_into().unwrap_or([0; 8])) ^ skip;
-        if word != 0 {
-            return Some(base + (word.trailing_zeros() / 8) as usize);
-        }
-        base += 8;
-    }
-    chunks
-        .remainder()
-        .iter()
-        .position(|&v| (v == DARK) == dark)
-        .map(|p| p + base)
 }
 
 /// Neighbour offsets clockwise in the image (v down), starting west.
@@ -549,19 +583,63 @@ mod tests {
         assert_eq!(comps[3].pixels, 1);
     }
 
+    /// The dark runs of `row` found byte by byte: `(start, end)`, end exclusive.
+    fn runs_by_bytes(row: &[u8]) -> Vec<(u32, u32)> {
+        let mut out = Vec::new();
+        let mut x = 0;
+        while x < row.len() {
+            if row[x] != DARK {
+                x += 1;
+                continue;
+            }
+            let a = x;
+            while x < row.len() && row[x] == DARK {
+                x += 1;
+            }
+            out.push((a as u32, x as u32));
+        }
+        out
+    }
+
+    /// The runs `add_row` found for one row given at `x0`, as `(start, end)` from `x0`.
+    fn runs_of_row(row: &[u8], x0: u32) -> Vec<(u32, u32)> {
+        let mut l = Labeller::new();
+        l.begin();
+        l.add_row(0, x0, row);
+        l.runs.iter().map(|r| (r.x0 - x0, r.x1 - x0)).collect()
+    }
+
     #[test]
-    fn first_where_finds_every_position() {
+    fn add_row_finds_every_run_boundary() {
         for len in (0..40).chain([63, 64, 65, 127, 128, 129, 200]) {
             for at in 0..len {
                 let mut row = vec![0u8; len];
                 row[at] = DARK;
-                assert_eq!(first_where(&row, true), Some(at));
+                assert_eq!(runs_of_row(&row, 3), runs_by_bytes(&row), "{len} {at}");
                 let mut row = vec![DARK; len];
                 row[at] = 0;
-                assert_eq!(first_where(&row, false), Some(at));
+                assert_eq!(runs_of_row(&row, 0), runs_by_bytes(&row), "{len} {at}");
             }
-            assert_eq!(first_where(&vec![0u8; len], true), None);
-            assert_eq!(first_where(&vec![DARK; len], false), None);
+            for fill in [0, DARK] {
+                let row = vec![fill; len];
+                assert_eq!(runs_of_row(&row, 5), runs_by_bytes(&row), "{len} {fill}");
+            }
+        }
+    }
+
+    proptest::proptest! {
+        /// The runs read from the bit masks are the runs byte by byte, for rows of any
+        /// length and texture (runs of 1 to 80 pixels).
+        #[test]
+        fn add_row_runs_are_the_byte_runs(
+            pieces in proptest::collection::vec((proptest::prelude::any::<bool>(), 1usize..80), 0..20),
+            x0 in 0u32..100,
+        ) {
+            let row: Vec<u8> = pieces
+                .iter()
+                .flat_map(|&(dark, n)| std::iter::repeat_n(if dark { DARK } else { 0 }, n))
+                .collect();
+            proptest::prop_assert_eq!(runs_of_row(&row, x0), runs_by_bytes(&row));
         }
     }
 
