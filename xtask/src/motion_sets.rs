@@ -662,6 +662,35 @@ mod tests {
         );
     }
 
+    /// Issue #31: the one false read of ours in the sets, `DICT_4X4_100` in *length 11*
+    /// (seed 36021; 11 px of motion over a 30 px marker, 2.2 of its cells). The first cut
+    /// finds no quad at marker 22; the second look's re-cut finds one over its SE half
+    /// (one smeared light cell inside it, its NW side along the other), whose plain
+    /// reading is entry 17 with no bit corrected. The side check has evidence on one side
+    /// only (entry 17 has light data cells next to one side of the border), measures 4.2
+    /// px of motion from the quad's own edges and so allows 2.9 px there; nothing it
+    /// measures is out of tolerance. Ignored until that is fixed.
+    #[test]
+    #[ignore = "known false read, issue #31"]
+    fn the_length_11_aruco_scene_21_reads_nothing_false() {
+        use crate::compare::Family;
+        let set = 5;
+        assert_eq!(SETS[set].name, "length 11");
+        let work = std::env::temp_dir().join(format!("motion-sets-{}", std::process::id()));
+        std::fs::create_dir_all(work.join("frames")).unwrap();
+        let job = (640, 480, SETS[set].condition(), seed(set, 21));
+        let frames = crate::compare::render_jobs(&[job], &[Family::Aruco4x4], &work).unwrap();
+        let ours = run_ours(&frames, 1).unwrap();
+        std::fs::remove_dir_all(&work).unwrap();
+        let det = DETECTORS
+            .iter()
+            .find(|d| d.peer.is_none() && d.family == Family::Aruco4x4)
+            .unwrap();
+        let mut t = Tally::default();
+        t.add(&frames[0].truth, &ours[0].markers, det.conv);
+        assert_eq!(t.wrong, 0, "reads {:?}", ours[0].markers);
+    }
+
     #[test]
     fn pairings_are_compares() {
         let p = pairings();
