@@ -176,6 +176,16 @@ impl Cells {
         Some(Self { rows, cols, black })
     }
 
+    /// The mean cell width and height in pixels of a marker with these cells and `corners`
+    /// (the border's outer corners): the mean length of the top and bottom sides over the
+    /// columns, of the left and right sides over the rows.
+    pub(crate) fn cell_px(&self, corners: &Corners) -> (f64, f64) {
+        (
+            mean_length(corners, 0) / self.cols as f64,
+            mean_length(corners, 1) / self.rows as f64,
+        )
+    }
+
     /// Cells along side `side` (0 top, 1 right, 2 bottom, 3 left, clockwise from the NW
     /// corner).
     fn along(&self, side: usize) -> usize {
@@ -254,32 +264,29 @@ fn mean_length(c: &Corners, pair: usize) -> f64 {
 
 impl PatternRefiner {
     /// Refines the corners (the marker's own NW, NE, SE, SW, clockwise in the image) of a
-    /// marker of `family` read as `code`. `None` when the pattern model does not fit (the
-    /// caller keeps its corners).
+    /// decoded marker with `cells`. `None` when the pattern model does not fit (the caller
+    /// keeps its corners).
     pub(crate) fn refine(
         &mut self,
         img: &GrayView<'_>,
         corners: &Corners,
-        family: MarkerFamily,
-        code: u64,
+        cells: &Cells,
         cfg: &RefineConfig,
     ) -> Option<Corners> {
-        let cells = Cells::new(family, code)?;
         let plain = *corners;
-        let cw = mean_length(&plain, 0) / cells.cols as f64;
-        let ch = mean_length(&plain, 1) / cells.rows as f64;
+        let (cw, ch) = cells.cell_px(&plain);
         if !(cw >= 1.0 && ch >= 1.0) || cw.min(ch) >= MAX_CELL_PX {
             return None;
         }
         let frame = CrossRatioFrame::new(corners).ok()?;
-        let model = self.fit_levels(img, &frame, &cells, cw, ch)?;
+        let model = self.fit_levels(img, &frame, cells, cw, ch)?;
         let mut lines = [Line {
             n: [0.0, 0.0],
             c: 0.0,
         }; 4];
         let mut geoms = [None; 4];
         for (side, g) in geoms.iter_mut().enumerate() {
-            *g = Self::geometry(&plain, &frame, &cells, side, cw, ch, cfg);
+            *g = Self::geometry(&plain, &frame, cells, side, cw, ch, cfg);
         }
         let [Some(g0), Some(g1), Some(g2), Some(g3)] = geoms else {
             return None;
@@ -339,7 +346,7 @@ impl PatternRefiner {
         let light = move |a: f64, b: f64| 1.0 + ga * a + gb * b;
         let mut first = 0;
         for (g, line) in geoms.iter().zip(lines.iter_mut()) {
-            *line = self.side(g, first, &cells, &model, light, cfg)?;
+            *line = self.side(g, first, cells, &model, light, cfg)?;
             first += g.count;
         }
         let mut out = [Point2::origin(); 4];
@@ -783,13 +790,8 @@ mod tests {
         let img = GrayView::new(pixels, w, pixels.len() / w).ok()?;
         let dict = Dictionary::paper();
         let code = dict.code(0)?;
-        PatternRefiner::default().refine(
-            &img,
-            corners,
-            dict.family(),
-            code,
-            &RefineConfig::default(),
-        )
+        let cells = Cells::new(dict.family(), code)?;
+        PatternRefiner::default().refine(&img, corners, &cells, &RefineConfig::default())
     }
 
     #[test]

@@ -9,8 +9,8 @@
 //!
 //! This step models the whole marker instead of its edges. Once a marker is decoded its
 //! cells are known; so is its one-cell white quiet zone. Beyond that lies an unknown
-//! surround, one level per side. The grey level at every pixel within half a cell beyond
-//! the quiet zone is modelled as that picture, mapped into the image by the homography of
+//! surround, one level per side. The grey level at every pixel of the marker and its quiet
+//! zone is modelled as that picture, mapped into the image by the homography of
 //! the four corners and blurred by a Gaussian of `sigma` pixels:
 //!
 //! `g(p) = lo + c W(p) (1 + gx x(p) + gy y(p)) + sum_k s_k S_k(p)`
@@ -21,9 +21,11 @@
 //! pixel (exact for a straight edge, close near corners of moderate perspective). The levels
 //! (`lo`, `c`, the light gradient `gx, gy` and the four surrounds) enter linearly and are
 //! solved by least squares for each geometry; the eight corner coordinates and `ln sigma`
-//! are fitted by Levenberg-Marquardt on the remaining misfit (variable projection, forward
-//! differences). The plain or pattern corners start it; the result is kept only if it
-//! converges near them.
+//! are fitted by Levenberg-Marquardt on the remaining misfit (variable projection, with
+//! Kaufman's Jacobian: the model's derivative at the current levels). The surround's blur
+//! into the quiet zone is what the edge rules miss; the fit needs no pixel beyond it. The
+//! plain or pattern corners start it; the result is kept only if it moves no corner more
+//! than a cell.
 
 use crate::cross_ratio::square_to_quad;
 use crate::image::{Corners, GrayView};
@@ -36,8 +38,9 @@ const LIN: usize = 8;
 const NL: usize = 9;
 /// Boundaries along one axis of the extended grid: surround | quiet | cells | quiet | surround.
 const MAX_BOUNDS: usize = MAX_CELLS + 3;
-/// How far beyond the quiet zone pixels are fitted, in cells.
-const REACH: f64 = 0.0;
+/// The quiet zone's width in cells: the fitted pixels' margin around the marker (none
+/// beyond it: what lies there is not modelled, only its blur into the quiet zone).
+const QUIET: f64 = 1.0;
 /// Most Levenberg-Marquardt iterations.
 const MAX_ITER: usize = 6;
 
@@ -112,27 +115,25 @@ struct Grid {
     kind: [[Kind; MAX_BOUNDS + 1]; MAX_BOUNDS + 1],
 }
 
+/// The surround side (`before` or `after`) of index `k` of an extended axis over `n` cells,
+/// or `None` inside the surround.
+fn ring_side(k: usize, n: usize, before: usize, after: usize) -> Option<usize> {
+    if k == 0 {
+        Some(before)
+    } else if k == n + 3 {
+        Some(after)
+    } else {
+        None
+    }
+}
+
 impl Grid {
     fn new(cells: &Cells) -> Self {
         let (cn, rn) = (cells.cols, cells.rows);
         let mut kind = [[Kind::White; MAX_BOUNDS + 1]; MAX_BOUNDS + 1];
         for (j, row) in kind.iter_mut().enumerate().take(rn + 4) {
             for (i, k) in row.iter_mut().enumerate().take(cn + 4) {
-                let side_v = if j == 0 {
-                    Some(0)
-                } else if j == rn + 3 {
-                    Some(2)
-                } else {
-                    None
-                };
-                let side_h = if i == 0 {
-                    Some(3)
-                } else if i == cn + 3 {
-                    Some(1)
-                } else {
-                    None
-                };
-                *k = match (side_v, side_h) {
+                *k = match (ring_side(j, rn, 0, 2), ring_side(i, cn, 3, 1)) {
                     (Some(a), Some(b)) => Kind::Corner(a, b),
                     (Some(a), None) | (None, Some(a)) => Kind::Surround(a),
                     (None, None) => {
@@ -256,6 +257,31 @@ fn place(g: &Matrix3<f64>, u: f64, v: f64, sigma: f64) -> Option<Place> {
     (sx > 0.0 && sy > 0.0 && x.is_finite() && y.is_finite()).then_some(Place { x, y, jac, sx, sy })
 }
 
+/// Adds `row^T row` (its upper triangle) to `ata` and `row y` to `atb`.
+#[inline]
+fn add_row<const N: usize>(
+    ata: &mut SMatrix<f64, N, N>,
+    atb: &mut SVector<f64, N>,
+    row: &[f64; N],
+    y: f64,
+) {
+    for (r0, &a0) in row.iter().enumerate() {
+        atb[r0] += a0 * y;
+        for (c0, &a1) in row.iter().enumerate().skip(r0) {
+            ata[(r0, c0)] += a0 * a1;
+        }
+    }
+}
+
+/// Copies the upper triangle of `m` onto its lower one.
+fn mirror<const N: usize>(m: &mut SMatrix<f64, N, N>) {
+    for r0 in 0..N {
+        for c0 in 0..r0 {
+            m[(r0, c0)] = m[(c0, r0)];
+        }
+    }
+}
+
 impl PhotometricFit {
     /// Fits the corners (the marker's own NW, NE, SE, SW) of a decoded marker with cells
     /// `cells` to the image, starting from `corners` and a blur of `sigma0` px. `None` when
@@ -358,12 +384,12 @@ impl PhotometricFit {
         cost.is_finite().then_some(())
     }
 
-    /// Chooses the pixels fitted: centres within the quiet zone and `REACH` cells beyond.
+    /// Chooses the pixels fitted: centres on the marker or its quiet zone.
     fn select_pixels(&mut self, img: &GrayView<'_>, theta: &[f64; NL], grid: &Grid) -> Option<()> {
         let (cols, rows) = (grid.cols as f64, grid.rows as f64);
         let c: [f64; 8] = theta[..8].try_into().ok()?;
         let (h, g) = homographies(&c, cols, rows)?;
-        let ext = 1.0 + REACH;
+        let ext = QUIET;
         let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
         for (mx, my) in [
             (-ext, -ext),
@@ -452,18 +478,9 @@ impl PhotometricFit {
                 sur[2],
                 sur[3],
             ];
-            for (r0, &a0) in row.iter().enumerate() {
-                atb[r0] += a0 * p[2];
-                for (c0, &a1) in row.iter().enumerate().skip(r0) {
-                    ata[(r0, c0)] += a0 * a1;
-                }
-            }
+            add_row(&mut ata, &mut atb, row, p[2]);
         }
-        for r0 in 0..LIN {
-            for c0 in 0..r0 {
-                ata[(r0, c0)] = ata[(c0, r0)];
-            }
-        }
+        mirror(&mut ata);
         // A surround no pixel sees is held near the dark level by a light ridge.
         let scale = ata[(0, 0)].max(1.0);
         for d in 0..LIN {
@@ -550,26 +567,11 @@ impl PhotometricFit {
             jrow[8] = msx * pl.sx + msy * pl.sy;
             // Residual = grey - model, so its Jacobian is -jrow; the step solves
             // (J^T J) d = -J^T r = jrow^T r.
-            for (r0, &a0) in jrow.iter().enumerate() {
-                jtr[r0] += a0 * e;
-                for (c0, &a1) in jrow.iter().enumerate().skip(r0) {
-                    jtj[(r0, c0)] += a0 * a1;
-                }
-            }
+            add_row(&mut jtj, &mut jtr, &jrow, e);
         }
-        for r0 in 0..NL {
-            for c0 in 0..r0 {
-                jtj[(r0, c0)] = jtj[(c0, r0)];
-            }
-        }
+        mirror(&mut jtj);
         Some((jtj, jtr))
     }
-}
-
-/// Mean cell size in pixels (the smaller of the two axes).
-pub(crate) fn cell_pixels(c: &Corners, cols: f64, rows: f64) -> f64 {
-    let len = |i: usize| (c[(i + 1) % 4] - c[i]).norm();
-    (0.5 * (len(0) + len(2)) / cols).min(0.5 * (len(1) + len(3)) / rows)
 }
 
 #[cfg(test)]

@@ -206,26 +206,28 @@ impl DecodeContext<'_> {
         });
         let mut d = best?;
         let family = self.dictionaries[d.dictionary].family();
-        // The corners against the decoded pattern (issue #13).
-        let refined = if self.config.refine.with_pattern {
-            scratch
-                .pattern
-                .refine(img, &d.corners, family, d.code, &self.config.refine)
-        } else {
-            None
-        };
-        // Small markers: the corners fitted to the whole modelled marker (issue #30).
-        let below = self.config.refine.photometric_below_px;
-        let refined = crate::pattern::Cells::new(family, d.code)
-            .and_then(|cells| {
-                let start = refined.unwrap_or(d.corners);
-                let (cols, rows) = (cells.cols as f64, cells.rows as f64);
-                let cell = crate::photometric::cell_pixels(&start, cols, rows);
-                (cell < below)
-                    .then(|| scratch.photometric.fit(img, &start, &cells, 1.0, cell))
-                    .flatten()
-            })
-            .or(refined);
+        // The corners against the decoded pattern (issue #13), then, on markers with small
+        // cells, fitted to the whole modelled marker (issue #30). Each step keeps the corners
+        // before it where its model does not fit.
+        let cfg = &self.config.refine;
+        let cells = (cfg.with_pattern || cfg.photometric_below_px > 0.0)
+            .then(|| crate::pattern::Cells::new(family, d.code))
+            .flatten();
+        let mut refined = None;
+        if let Some(cells) = &cells {
+            if cfg.with_pattern {
+                refined = scratch.pattern.refine(img, &d.corners, cells, cfg);
+            }
+            let start = refined.unwrap_or(d.corners);
+            let (cw, ch) = cells.cell_px(&start);
+            let cell = cw.min(ch);
+            if cell < cfg.photometric_below_px {
+                refined = scratch
+                    .photometric
+                    .fit(img, &start, cells, 1.0, cell)
+                    .or(refined);
+            }
+        }
         // A side along an occluder, not the border (issue #16). On a narrow border under a
         // wider blur than the side check allows for (a tag seen obliquely in a real photo,
         // cells of 2-3 px), the plain corners can put the grid a few tenths of a pixel off,
