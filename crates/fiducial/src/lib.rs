@@ -83,7 +83,8 @@
 //!    edge corrected for the blur of its inner neighbours, which halves the corner error of
 //!    20-40 px markers on the accuracy scenes; and the *photometric step* (module
 //!    `photometric`, `RefineConfig::photometric_below_px`): a marker whose cells are under
-//!    3 px has its corners fitted to its whole modelled image (cells, a one-cell white quiet
+//!    3 px, read as sampled (not through the motion-blurred reading, whose smear its round
+//!    blur does not model), has its corners fitted to its whole modelled image (cells, a one-cell white quiet
 //!    zone, one surround level per side, a light gradient and the blur), which the edge
 //!    rules cannot do when a darker surround is blurred into the quiet zone (they put every
 //!    side inwards: `l12` 12.8 mm long at 3.5 m in the `far` scenario, 0.2 mm after).
