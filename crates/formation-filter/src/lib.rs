@@ -25,7 +25,9 @@
 //!   ([`LeaderMotionTuning::held_rate_std`]). `beta12` is still predicted through the model.
 //! - **C, the follower holds the bearing**: model A's speed, and the turn rate that keeps
 //!   `alpha12` constant ([`unicycle::bearing_holding_turn_rate`]): the follower changes its separation
-//!   (a set-point step) while holding the bearing.
+//!   (a set-point step) while holding the bearing. A follower that changes its own
+//!   set-point says so ([`FormationFilter::follower_setpoint_changed`]): B's probability
+//!   goes to C, since the formation is not held until it settles.
 //!
 //! The switching matrix has one constant, the mean time a model stays in force
 //! ([`LeaderMotionTuning::sojourn`], `Pi_jj = exp(-dt / sojourn)`).
@@ -553,6 +555,22 @@ impl ImmEngine {
         }
     }
 
+    /// Model B's probability handed to the model that covers a set-point change (C, or A
+    /// when J stands in C's place): see [`FormationFilter::follower_setpoint_changed`].
+    fn release_formation(&mut self) -> Result<(), UkfError> {
+        let find = |m: LeaderMotion| self.motions.iter().position(|&k| k == m);
+        let (Some(held), Some(to)) = (
+            find(LeaderMotion::HoldsFormation),
+            find(LeaderMotion::HoldsBearing).or_else(|| find(LeaderMotion::Accelerates)),
+        ) else {
+            return Ok(());
+        };
+        let mut mu = *self.imm.probabilities();
+        mu[to] += mu[held];
+        mu[held] = 0.0;
+        self.imm.set_structure(*self.imm.transition(), mu)
+    }
+
     /// The odometry noise's process noise ([`input_noise`]) at the mixed estimate.
     fn input_noise(
         &self,
@@ -754,6 +772,32 @@ impl FormationFilter {
             self.snapshot = engine.snapshot();
         }
         self.follower = controller;
+        Ok(())
+    }
+
+    /// The follower changed its own set-point (its plan: a robot knows it at run time, as it
+    /// knows the commands it sends). Until the formation settles at the new set-point it is
+    /// not held, so model B, the formation held, is wrong from the first frame on: its
+    /// probability goes to model C, which covers a separation or bearing that changes (to A
+    /// when J stands in C's place), and returns through the switching matrix and the
+    /// likelihoods once the formation is held again. Without this, B holds nearly all of the
+    /// probability when the follower brakes, the mixture predicts the leader braking with it,
+    /// and the first measurement of the change lies far outside the gate (`far.yaml`: 16 mm
+    /// in one frame, NIS 123). Nothing changes for the dual UKF, or when the follower's
+    /// controller is known ([`set_follower_controller`](Self::set_follower_controller)): B
+    /// then models the change itself.
+    ///
+    /// # Errors
+    /// Only if the model probabilities were not a probability vector (they always are); the
+    /// filter is then unchanged.
+    pub fn follower_setpoint_changed(&mut self) -> Result<(), FilterError> {
+        if let Engine::Imm(engine) = &mut self.engine
+            && self.follower.is_none()
+        {
+            engine.release_formation()?;
+            self.model_probabilities = Some(*engine.imm.probabilities());
+            self.snapshot = engine.snapshot();
+        }
         Ok(())
     }
 

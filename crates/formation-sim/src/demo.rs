@@ -947,7 +947,7 @@ impl Follower {
             None
         };
         if me == 1 {
-            self.apply_setpoints(world, ctx.t)?;
+            self.apply_setpoints(world, ctx.t, leader_id)?;
         }
         self.inputs = if world.config.closed_loop {
             track
@@ -992,8 +992,9 @@ impl Follower {
     }
 
     /// Applies the scenario's set-point changes due by `t` (in time order, each once), as
-    /// `reproduce dukf` does.
-    fn apply_setpoints(&mut self, world: &World<'_>, t: f64) -> Result<(), DemoError> {
+    /// `reproduce dukf` does, and tells the tracker of its leader `leader` that they changed
+    /// (the follower knows its own plan; `Tracker::follower_setpoint_changed`).
+    fn apply_setpoints(&mut self, world: &World<'_>, t: f64, leader: u32) -> Result<(), DemoError> {
         let Some(spec) = &world.config.scenario else {
             return Ok(());
         };
@@ -1005,6 +1006,9 @@ impl Follower {
                 .config()
                 .with_setpoints(change.l12, change.alpha12);
             self.controller = SeparationBearingController::new(world.mount.offset, goal)?;
+            self.pipeline
+                .tracker_mut()
+                .follower_setpoint_changed(leader)?;
         }
         self.setpoints_applied = self.setpoints_applied.max(due.len());
         Ok(())

@@ -11,40 +11,31 @@
 //!
 //! # One frame, per leader
 //! 1. **Measurement.** Each pose candidate (rig frame to camera frame) goes through the
-//!    measurement transform of spec 2.5 ([`crate::mount::formation_of_pose`]); its
-//!    6x6 pose covariance is propagated to `(l12, alpha12, beta12)` with it (a formation
-//!    measurement from a joint or ground-plane fit comes with that covariance already).
-//!    `pose` scales a fit's covariance by the noise of that one fit's residual (2 degrees of
-//!    freedom for one face); the tracker rescales it to the corner noise **pooled** over the
-//!    robot's recent fits, `sum SSE / sum (2N - p)`
-//!    ([`TrackerConfig::corner_noise_memory_dof`]; or to a fixed
-//!    [`TrackerConfig::corner_sigma_px`]), adds the floor
-//!    [`TrackerConfig::measurement_floor_std`] (0.03 mm / 0.03 mrad, which keeps `R`
-//!    positive definite when the Jacobian is rank-deficient) and
-//!    [`TrackerConfig::relative_distance_std`], and multiplies the whole by the robot's factor
-//!    learned from its innovations ([`TrackerConfig::innovation_memory`],
-//!    [`dukf::NoiseScale`]) for the errors the residuals cannot see. `docs/tracking.md` has
-//!    the measurements behind these defaults.
+//!    measurement transform of spec 2.5 ([`crate::mount::formation_of_pose`]), which also
+//!    propagates its 6x6 pose covariance (a joint or ground-plane fit comes with its formation
+//!    covariance). That covariance, which `pose` scales by one fit's residual, is rescaled to
+//!    the corner noise **pooled** over the robot's recent fits, `sum SSE / sum (2N - p)`
+//!    ([`TrackerConfig::corner_noise_memory_dof`], or a fixed
+//!    [`TrackerConfig::corner_sigma_px`]); the floor [`TrackerConfig::measurement_floor_std`]
+//!    and [`TrackerConfig::relative_distance_std`] are added, and the whole is multiplied by
+//!    the factor learned from the robot's innovations ([`TrackerConfig::innovation_memory`],
+//!    [`dukf::NoiseScale`]). `docs/tracking.md` has the measurements behind these defaults.
 //! 2. **Prediction.** The track's filter is predicted over the frame gap (see *Time*) on a
 //!    copy, giving the predicted measurement `y-` and its variances `diag(P-)`.
 //! 3. **Candidate choice.** With two planar candidates, the one with the smaller
-//!    Mahalanobis distance `d^2 = nu^T (diag(P-) + R_i)^-1 nu` (innovation `nu = y_i - y-`,
-//!    angles wrapped) is used: the track's prediction, not the reprojection RMS, decides, so
-//!    a frame where the flipped pose happens to reproject better does not flip the estimate.
-//!    Only the diagonal of `P-` is used (the filter exposes standard deviations); the
-//!    off-diagonal terms are small next to `R` for these three variables.
+//!    `d^2 = nu^T (diag(P-) + R_i)^-1 nu` (innovation `nu = y_i - y-`, angles wrapped) is
+//!    used: the track's prediction decides, not the reprojection RMS. Only the diagonal of
+//!    `P-` is used; its off-diagonal terms are small next to `R` for these three variables.
 //! 4. **Gating.** The chosen measurement is applied only if `d^2 <=`
-//!    [`TrackerConfig::gate`] (default 16.27, the 99.9 % point of a chi-square with 3
-//!    degrees of freedom). A gated measurement leaves the track coasting for this frame.
-//!    The measurement that follows a gated one is taken if it lies within the gate of one
-//!    IMM model's own prediction: a change that model predicts (a set-point step) is
-//!    followed, a single outlying frame is not. When [`TrackerConfig::restart_after_gated`]
-//!    measurements (default 2) in a row lie beyond four times the gate of every model's
-//!    prediction, or five times as many lie beyond the gate at all, the track restarts from the latest one (`initialised`, keeping its
-//!    velocity estimate with the prior's spread): a leader that changes its
-//!    speed faster than any model allows (a robot at rest reaching 0.8 m/s within one frame,
-//!    as the closed-loop chain's second robot does) is taken up again one frame later
-//!    instead of coasting until it is lost.
+//!    [`TrackerConfig::gate`] (16.27, the 99.9 % point of a chi-square with 3 degrees of
+//!    freedom); a gated one leaves the track coasting for this frame. The next is taken if
+//!    it lies within the gate of one IMM model's own prediction. A follower that changes its
+//!    set-point says so ([`Tracker::follower_setpoint_changed`]) to have it expected. When
+//!    [`TrackerConfig::restart_after_gated`] measurements (default 2) in a row lie beyond
+//!    four times the gate of every model, or five times as many beyond the gate at all, the
+//!    track restarts from the latest one (`initialised`, keeping its velocity estimate with
+//!    the prior's spread): a leader faster than any model allows (a robot at rest reaching
+//!    0.8 m/s within one frame) is taken up again one frame later.
 //! 5. **Update or coast.** Accepted: a filter step with `R`; status `tracking`. Not seen,
 //!    gated or invalid: a predict-only step (the covariance grows); status `coasting`.
 //!    When the time since the last accepted measurement exceeds `lost_after` (default 2 s)
@@ -53,13 +44,11 @@
 //!    measurement.
 //!
 //! # Initialisation
-//! A new track's formation variables are the first measurement; their covariance is that
-//! measurement's `R` (floor included). The leader's world pose `(x1, y1, theta1)` is not
-//! observable from `(l12, alpha12, beta12)` and the model does not need it; it is placed as
-//! if the follower stood at the origin at that instant, with a loose
-//! [`TrackerConfig::world_pose_prior_std`] (0.1). The leader's velocity prior is the
-//! filter template's `w0`, `Pw0`: by default the paper's `[0, 0]` and `I` (nothing is known
-//! about how the leader moves; 1 m/s and 1 rad/s standard deviations).
+//! A new track's formation variables are the first measurement, with its `R` as their
+//! covariance. The leader's world pose `(x1, y1, theta1)`, which the measurements do not
+//! observe and the model does not need, is placed as if the follower stood at the origin,
+//! with a loose [`TrackerConfig::world_pose_prior_std`] (0.1). The leader's velocity prior is
+//! the filter template's `w0`, `Pw0`: by default the paper's `[0, 0]` and `I`.
 //!
 //! With two candidates and no track yet, nothing in one frame can decide: the `best`
 //! candidate (lower RMS) starts the main hypothesis and the other a **rival**. For
@@ -237,6 +226,20 @@ impl Tracker {
         }
     }
 
+    /// The follower changed its set-point towards `robot` (its own plan): the formation is
+    /// not held until it settles ([`FormationFilter::follower_setpoint_changed`]).
+    ///
+    /// # Errors
+    /// As [`FormationFilter::follower_setpoint_changed`].
+    pub fn follower_setpoint_changed(&mut self, robot: u32) -> Result<(), TrackerError> {
+        if let Some(track) = self.tracks.get_mut(&robot) {
+            for h in std::iter::once(&mut track.main).chain(&mut track.rival) {
+                h.filter.follower_setpoint_changed()?;
+            }
+        }
+        Ok(())
+    }
+
     /// Turns recording for [`smooth`](Self::smooth) on or off (off by default). While on,
     /// every filter step of every track is copied into the track's history, which grows by
     /// one [`FilterStep`](crate::filter::FilterStep) (about 500 bytes) per step and leader
@@ -299,9 +302,8 @@ impl Tracker {
         // Each track's filters take the follower's controller towards its leader, as told.
         for (robot, track) in &mut self.tracks {
             let controller = self.controllers.get(robot).copied();
-            track.main.filter.set_follower_controller(controller)?;
-            if let Some(rival) = &mut track.rival {
-                rival.filter.set_follower_controller(controller)?;
+            for h in std::iter::once(&mut track.main).chain(&mut track.rival) {
+                h.filter.set_follower_controller(controller)?;
             }
         }
         let dt = self.config.filter.dt;
