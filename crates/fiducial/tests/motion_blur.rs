@@ -5,14 +5,16 @@
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
 use fiducial::{Detector, DetectorConfig, Dictionary, GrayView};
-use marker_testkit::{CellPattern, SceneConfig, clutter_frame, marker_scene, motion_blur};
+use marker_testkit::{
+    CellPattern, MarkerScene, SceneConfig, clutter_frame, marker_scene, motion_blur,
+};
 mod common;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-/// Markers read and wrong codes over `scenes` scenes of eight markers (borders 20-70 px),
-/// blur sigma 1, noise 3, then a box motion blur of `length` px in a random direction.
-fn read(length: f64, scenes: u64) -> (usize, usize, usize) {
+/// Scene `seed` of eight paper-dictionary markers with borders of `sides` px, blur sigma 1,
+/// noise 3, then a box motion blur of `length` px in a random direction.
+fn blurred_scene(seed: u64, sides: [f64; 2], length: f64) -> MarkerScene {
     let dict = Dictionary::paper();
     let f = dict.family();
     let all = CellPattern::from_codes(
@@ -21,10 +23,20 @@ fn read(length: f64, scenes: u64) -> (usize, usize, usize) {
         (0..dict.len()).map(|i| dict.code(i).unwrap_or(0)),
     );
     let base = SceneConfig {
-        min_side: 20.0,
-        max_side: 70.0,
+        min_side: sides[0],
+        max_side: sides[1],
         ..SceneConfig::default()
     };
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut scene = marker_scene(&base, &all, &mut rng).unwrap();
+    let angle = rng.random_range(0.0..std::f64::consts::PI);
+    scene.pixels = motion_blur(&scene.pixels, scene.width, scene.height, length, angle).unwrap();
+    scene
+}
+
+/// Markers read and wrong codes over `scenes` scenes of eight markers (borders 20-70 px),
+/// blur sigma 1, noise 3, then a box motion blur of `length` px in a random direction.
+fn read(length: f64, scenes: u64) -> (usize, usize, usize) {
     let mut det = Detector::new(DetectorConfig {
         motion_blur: true,
         ..DetectorConfig::default()
@@ -32,11 +44,7 @@ fn read(length: f64, scenes: u64) -> (usize, usize, usize) {
     let (mut total, mut found, mut wrong) = (0, 0, 0);
     let mut out = Vec::new();
     for seed in 0..scenes {
-        let mut rng = ChaCha8Rng::seed_from_u64(90_000 + seed);
-        let mut scene = marker_scene(&base, &all, &mut rng).unwrap();
-        let angle = rng.random_range(0.0..std::f64::consts::PI);
-        scene.pixels =
-            motion_blur(&scene.pixels, scene.width, scene.height, length, angle).unwrap();
+        let scene = blurred_scene(90_000 + seed, [20.0, 70.0], length);
         let img = GrayView::new(&scene.pixels, scene.width, scene.height).unwrap();
         det.detect(&img, &mut out);
         total += scene.markers.len();
@@ -209,18 +217,7 @@ fn sharp_clutter_is_not_read_by_the_least_cost_reading() {
 /// would have without the step.
 #[test]
 fn markers_read_only_through_the_blur_skip_the_photometric_step() {
-    let dict = Dictionary::paper();
-    let f = dict.family();
-    let all = CellPattern::from_codes(
-        f.rows() as usize,
-        f.cols() as usize,
-        (0..dict.len()).map(|i| dict.code(i).unwrap_or(0)),
-    );
-    let base = SceneConfig {
-        min_side: 16.0,
-        max_side: 30.0,
-        ..SceneConfig::default()
-    };
+    let cols = Dictionary::paper().family().cols() as f64;
     let default = DetectorConfig::default();
     assert!(default.motion_blur && default.refine.photometric_below_px > 0.0);
     let mut no_fit = default;
@@ -231,10 +228,7 @@ fn markers_read_only_through_the_blur_skip_the_photometric_step() {
     let (mut blurred, mut sharp_small) = (0, 0);
     let mut outs = [Vec::new(), Vec::new(), Vec::new()];
     for seed in 0..12 {
-        let mut rng = ChaCha8Rng::seed_from_u64(91_000 + seed);
-        let mut scene = marker_scene(&base, &all, &mut rng).unwrap();
-        let angle = rng.random_range(0.0..std::f64::consts::PI);
-        scene.pixels = motion_blur(&scene.pixels, scene.width, scene.height, 4.0, angle).unwrap();
+        let scene = blurred_scene(91_000 + seed, [16.0, 30.0], 4.0);
         let img = GrayView::new(&scene.pixels, scene.width, scene.height).unwrap();
         for (det, out) in dets.iter_mut().zip(outs.iter_mut()) {
             det.detect(&img, out);
@@ -248,7 +242,7 @@ fn markers_read_only_through_the_blur_skip_the_photometric_step() {
             if plain_read.iter().any(|p| p.index == d.index) {
                 // Read as sampled: small ones are fitted (their corners may move).
                 let side = (d.corners[1] - d.corners[0]).norm();
-                if side / (f.cols() as f64 + 2.0) < 3.0 && d.corners != other.corners {
+                if side / (cols + 2.0) < 3.0 && d.corners != other.corners {
                     sharp_small += 1;
                 }
             } else {
