@@ -16,11 +16,13 @@ use fiducial::{Detector, DetectorConfig, GrayView, dictionary_by_name};
 use marker_testkit::reference::{RefTag, corner_error};
 
 const USAGE: &str =
-    "usage: cargo xtask photos [--reps N] [--dictionary NAME] [--clutter] [--list] [--least] [PHOTO|FOLDER]...
+    "usage: cargo xtask photos [--reps N] [--dictionary NAME] [--clutter] [--list] [--least] [--no-photometric] [PHOTO|FOLDER]...
 
 --list: also print every marker read (id, corners rounded to pixels, bits corrected)
 --least: time each photo by the least of its runs instead of the median (on a loaded
 machine, the run the other processes disturbed least)
+--no-photometric: detect without the photometric step (RefineConfig::photometric_below_px
+= 0), to see what it costs on these photos
 --clutter: first time the frame of the criterion bench fiducial/detect_clutter_640x480
 (marker_testkit's clutter, seed 43), to see where its time goes";
 
@@ -107,6 +109,7 @@ pub fn run(args: &[String]) -> crate::Result {
     let mut clutter = false;
     let mut list = false;
     let mut least = false;
+    let mut config = DetectorConfig::default();
     let mut it = args.iter();
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -121,6 +124,7 @@ pub fn run(args: &[String]) -> crate::Result {
             "--clutter" => clutter = true,
             "--list" => list = true,
             "--least" => least = true,
+            "--no-photometric" => config.refine.photometric_below_px = 0.0,
             "-h" | "--help" => {
                 println!("{USAGE}");
                 return Ok(());
@@ -144,7 +148,7 @@ pub fn run(args: &[String]) -> crate::Result {
         paths = default_photos(&root)?;
     }
     let dict = dictionary_by_name(&dictionary)?.clone();
-    let mut det = Detector::with_dictionary(DetectorConfig::default(), dict);
+    let mut det = Detector::with_dictionary(config, dict);
     println!(
         "{:<34} {:>10} {:>9} {:>5}  work",
         "photo", "size", "ms", "reads"
