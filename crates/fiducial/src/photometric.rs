@@ -732,21 +732,31 @@ mod tests {
             Point2::new(49.4, 51.2),
             Point2::new(29.8, 50.4),
         ];
-        let img = render(80, 80, &truth, &cells, 40.0, 1.0);
+        let moves = [[0.15, -0.1], [-0.1, 0.2], [0.12, 0.05], [-0.2, -0.12]];
+        let (out, _) = fit_rendered(&cells, &truth, 40.0, 1.0, moves);
+        let e = err(&out, &truth);
+        assert!(e < 0.03, "corner error {e} px");
+    }
+
+    /// Renders `truth` on an 80 x 80 frame (`render`'s `surround` and `sigma`) and fits it
+    /// from the corners moved by `moves`: the fitted corners and the iterations taken.
+    fn fit_rendered(
+        cells: &Cells,
+        truth: &Corners,
+        surround: f64,
+        sigma: f64,
+        moves: [[f64; 2]; 4],
+    ) -> (Corners, usize) {
+        let img = render(80, 80, truth, cells, surround, sigma);
         let view = GrayView::new(&img, 80, 80).unwrap();
-        let mut start = truth;
-        for (i, p) in start.iter_mut().enumerate() {
-            p.x += [0.15, -0.1, 0.12, -0.2][i];
-            p.y += [-0.1, 0.2, 0.05, -0.12][i];
+        let mut start = *truth;
+        for (p, m) in start.iter_mut().zip(moves) {
+            p.x += m[0];
+            p.y += m[1];
         }
         let mut fit = PhotometricFit::default();
-        let out = fit.fit(&view, &start, &cells, 1.0, 1.0).expect("fits");
-        let e = err(&out, &truth);
-        assert!(
-            e < 0.03,
-            "corner error {e} px, start {}",
-            err(&start, &truth)
-        );
+        let out = fit.fit(&view, &start, cells, 1.0, 1.0).expect("fits");
+        (out, fit.iterations)
     }
 
     /// The projected step converges in a few iterations where the unprojected one took
@@ -762,17 +772,11 @@ mod tests {
                 Point2::new(47.4, 47.2 + shift),
                 Point2::new(29.8, 46.4),
             ];
-            let img = render(80, 80, &truth, &cells, 40.0 + 30.0 * k as f64, 1.2);
-            let view = GrayView::new(&img, 80, 80).unwrap();
-            let mut start = truth;
-            for (i, p) in start.iter_mut().enumerate() {
-                p.x += [0.2, -0.15, 0.1, -0.2][i];
-                p.y += [-0.15, 0.2, 0.1, -0.1][i];
-            }
-            let mut fit = PhotometricFit::default();
-            let out = fit.fit(&view, &start, &cells, 1.0, 1.0).expect("fits");
+            let moves = [[0.2, -0.15], [-0.15, 0.2], [0.1, 0.1], [-0.2, -0.1]];
+            let surround = 40.0 + 30.0 * k as f64;
+            let (out, iterations) = fit_rendered(&cells, &truth, surround, 1.2, moves);
             assert!(err(&out, &truth) < 0.03, "scene {k}: {}", err(&out, &truth));
-            worst = worst.max(fit.iterations);
+            worst = worst.max(iterations);
         }
         assert!(worst <= 4, "took {worst} of {MAX_ITER} iterations");
     }
