@@ -348,7 +348,8 @@ pub fn run_filter(
 /// As [`run_filter`]; with `follower_controller = false` the filter is *not* told the
 /// follower's controller, so the IMM's models B and C assume an exactly held formation (the
 /// model set before the controller was wired; `docs/dukf-reproduction.md`, measurements
-/// 10-12).
+/// 10-12). It is told when the follower changes its set-point
+/// ([`FormationFilter::follower_setpoint_changed`]), as the demo's tracker is.
 ///
 /// # Errors
 /// Any [`ReproduceError`].
@@ -399,6 +400,8 @@ pub struct FilterRun {
     r: Matrix3<f64>,
     follower_controller: bool,
     previous: Option<Sample>,
+    /// The set-point `[l12, alpha12]` the follower held before `previous`.
+    before: Option<[f64; 2]>,
     history: Option<Vec<FilterStep>>,
     /// Restart from the first measurement with this configuration (see [`Self::new`]).
     restart: Option<FilterConfig>,
@@ -439,6 +442,7 @@ impl FilterRun {
             r: scenario.noise_covariance(),
             follower_controller,
             previous: None,
+            before: None,
             history,
             // Off the paper's setting the filter starts as a robot's does.
             restart: (scenario.control != Control::Truth).then(|| config.clone()),
@@ -485,6 +489,10 @@ impl FilterRun {
     /// Records the sample the follower acted on, whose odometry and controller the next
     /// [`Self::observe`] filters over.
     pub fn acted(&mut self, sample: Sample) {
+        self.before = self
+            .previous
+            .as_ref()
+            .map(|p| [p.controller.l12_desired, p.controller.alpha12_desired]);
         self.previous = Some(sample);
     }
 
@@ -511,6 +519,13 @@ impl FilterRun {
         if self.follower_controller {
             // The follower knows its own controller: the IMM's models B and C use it.
             filter.set_follower_controller(Some(prev.controller))?;
+        }
+        // Not told its controller, the filter is still told when the follower changes its
+        // own set-point, as the demo's tracker is (its plan; a no-op when it knows the
+        // controller).
+        let setpoint = [prev.controller.l12_desired, prev.controller.alpha12_desired];
+        if self.before.is_some_and(|b| b != setpoint) {
+            filter.follower_setpoint_changed()?;
         }
         if self.oracle {
             filter.pin_leader_velocity(prev.leader_inputs)?;

@@ -876,6 +876,51 @@ mod tests {
         leader_inputs: {v: [{constant: 0.8}], w: [{step: {at: 0.5, value: 0.1}}]}\n\
         noise_std: [0.07, 0.03, 0.03]\n";
 
+    /// A follower not told its controller still tells its filter when it changes its own
+    /// set-point, as the demo's tracker is told (`FilterRun` since 2026-12-07): the IMM's
+    /// model B, the formation held, gives its probability up at the change instead of
+    /// predicting the leader moving with the follower.
+    #[test]
+    fn a_setpoint_change_is_told_to_a_filter_not_told_the_controller() {
+        let text = MINIMAL
+            .replace("duration: 1.0", "duration: 3.0")
+            .replace("{step: {at: 0.5, value: 0.1}}", "{constant: 0.0}")
+            + "setpoints: [{at: 2.0, l12: 1.8}]\ncontrol: truth\n";
+        let spec = ScenarioSpec::parse(&text, false, Path::new("x.yaml")).unwrap();
+        let mut seen = 0;
+        for seed in 1..=3 {
+            let scenario = spec.simulate(seed, false).unwrap();
+            let config = spec.config(seed, false);
+            let mut run =
+                crate::reproduce::FilterRun::new(&spec.filter_config(), &config, false, false)
+                    .unwrap();
+            let mut b_before = f64::NAN;
+            for (k, sample) in scenario.samples.iter().enumerate() {
+                run.push(sample).unwrap();
+                let b = run.filter().model_probabilities().expect("the IMM")[1];
+                let changed = k > 0
+                    && sample.controller.l12_desired
+                        != scenario.samples[k - 1].controller.l12_desired;
+                if changed {
+                    b_before = b;
+                }
+                // The step filtered over the first sample with the new set-point.
+                if k > 0
+                    && scenario.samples[k - 1].controller.l12_desired
+                        != scenario.samples[k.saturating_sub(2)].controller.l12_desired
+                {
+                    assert!(b_before > 0.5, "seed {seed}: B held {b_before} before");
+                    assert!(
+                        b < 0.2,
+                        "seed {seed}: B {b} after the change (was {b_before})"
+                    );
+                    seen += 1;
+                }
+            }
+        }
+        assert_eq!(seen, 3, "every seed crossed its set-point change");
+    }
+
     #[test]
     fn terms_sum_and_steps_start_at_their_time() {
         let spec = ScenarioSpec::parse(MINIMAL, false, Path::new("x.yaml")).unwrap();
