@@ -52,8 +52,9 @@ pub struct RefineConfig {
     /// such a marker inwards when what lies beyond the quiet zone is darker (0.07-0.12 px
     /// per corner at 2-3 px cells under a 1 px blur, and up to 0.3-1 px on faces seen 45-65
     /// degrees off axis), which put the `far` scenario's `l12` 12.8 mm long; fitted, its
-    /// `l12` error is -0.1 to +0.2 mm. It costs about 1-2 ms per marker fitted. Default
-    /// 3 px; 0 turns it off.
+    /// `l12` error is -0.2 to +0.2 mm. It costs about 0.5-2 ms per marker fitted, which on
+    /// real frames with many small tags doubles the detection time (`docs/performance.md`).
+    /// Default 3 px; 0 turns it off.
     pub photometric_below_px: f64,
 }
 
