@@ -16,11 +16,13 @@ use fiducial::{Detector, DetectorConfig, GrayView, dictionary_by_name};
 use marker_testkit::reference::{RefTag, corner_error};
 
 const USAGE: &str =
-    "usage: cargo xtask photos [--reps N] [--dictionary NAME] [--clutter] [--list] [--least] [--no-photometric] [PHOTO|FOLDER]...
+    "usage: cargo xtask photos [--reps N] [--dictionary NAME] [--clutter] [--list] [--least] [--no-photometric] [--clusters] [PHOTO|FOLDER]...
 
 --list: also print every marker read (id, corners rounded to pixels, bits corrected)
 --least: time each photo by the least of its runs instead of the median (on a loaded
 machine, the run the other processes disturbed least)
+--clusters: detect with boundary clustering (DetectorConfig::boundary_clusters), as the CLI's
+`detect` does by default; the library default leaves it off
 --no-photometric: detect without the photometric step (RefineConfig::photometric_below_px
 = 0), to see what it costs on these photos
 --clutter: first time the frame of the criterion bench fiducial/detect_clutter_640x480
@@ -125,6 +127,7 @@ pub fn run(args: &[String]) -> crate::Result {
             "--list" => list = true,
             "--least" => least = true,
             "--no-photometric" => config.refine.photometric_below_px = 0.0,
+            "--clusters" => config.boundary_clusters = true,
             "-h" | "--help" => {
                 println!("{USAGE}");
                 return Ok(());
