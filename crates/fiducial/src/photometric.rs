@@ -104,25 +104,15 @@ fn homographies(c: &[f64; 8], cols: f64, rows: f64) -> Option<(Matrix3<f64>, Mat
     Some((m, inv))
 }
 
-/// What lies in one cell of the extended grid (the marker's cells, its quiet zone and the
-/// surround beyond).
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Kind {
-    Black,
-    White,
-    /// Side `k`'s surround (0 top, 1 right, 2 bottom, 3 left).
-    Surround(usize),
-    /// A corner of the surround, shared by two sides.
-    Corner(usize, usize),
-}
-
 /// The extended grid: surround, quiet zone, the marker's cells, quiet zone, surround.
 struct Grid {
     cols: usize,
     rows: usize,
-    /// Each cell's share of the white level and of the four surrounds (0 or 1, a half for
-    /// the surround's corners): the model sums them without a branch per cell, which
-    /// mispredicted on the random pattern and cost half the fit's time.
+    /// Each cell's share of the white level and of the four surrounds (0 top, 1 right, 2
+    /// bottom, 3 left): 1 for a white cell of the marker or its quiet zone, nothing for a
+    /// black one, 1 for a side's surround and a half each for a corner of the surround
+    /// shared by two sides. The model sums them without a branch per cell (a branch on the
+    /// cell's kind mispredicted on the random pattern and cost half the fit's time).
     share: [[[f64; 5]; MAX_BOUNDS + 1]; MAX_BOUNDS + 1],
 }
 
@@ -141,12 +131,17 @@ fn ring_side(k: usize, n: usize, before: usize, after: usize) -> Option<usize> {
 impl Grid {
     fn new(cells: &Cells) -> Self {
         let (cn, rn) = (cells.cols, cells.rows);
-        let mut kind = [[Kind::White; MAX_BOUNDS + 1]; MAX_BOUNDS + 1];
-        for (j, row) in kind.iter_mut().enumerate().take(rn + 4) {
-            for (i, k) in row.iter_mut().enumerate().take(cn + 4) {
-                *k = match (ring_side(j, rn, 0, 2), ring_side(i, cn, 3, 1)) {
-                    (Some(a), Some(b)) => Kind::Corner(a, b),
-                    (Some(a), None) | (None, Some(a)) => Kind::Surround(a),
+        const WHITE: [f64; 5] = [1.0, 0.0, 0.0, 0.0, 0.0];
+        let mut share = [[WHITE; MAX_BOUNDS + 1]; MAX_BOUNDS + 1];
+        for (j, row) in share.iter_mut().enumerate().take(rn + 4) {
+            for (i, sh) in row.iter_mut().enumerate().take(cn + 4) {
+                *sh = [0.0; 5];
+                match (ring_side(j, rn, 0, 2), ring_side(i, cn, 3, 1)) {
+                    (Some(a), Some(b)) => {
+                        sh[1 + a] = 0.5;
+                        sh[1 + b] = 0.5;
+                    }
+                    (Some(a), None) | (None, Some(a)) => sh[1 + a] = 1.0,
                     (None, None) => {
                         if j == 1
                             || j == rn + 2
@@ -154,24 +149,8 @@ impl Grid {
                             || i == cn + 2
                             || !cells.black[j - 2][i - 2]
                         {
-                            Kind::White
-                        } else {
-                            Kind::Black
+                            sh[0] = 1.0;
                         }
-                    }
-                };
-            }
-        }
-        let mut share = [[[0.0; 5]; MAX_BOUNDS + 1]; MAX_BOUNDS + 1];
-        for (srow, krow) in share.iter_mut().zip(&kind) {
-            for (sh, k) in srow.iter_mut().zip(krow) {
-                match *k {
-                    Kind::Black => {}
-                    Kind::White => sh[0] = 1.0,
-                    Kind::Surround(a) => sh[1 + a] = 1.0,
-                    Kind::Corner(a, b) => {
-                        sh[1 + a] = 0.5;
-                        sh[1 + b] = 0.5;
                     }
                 }
             }
