@@ -119,35 +119,36 @@ const MAX_CELL_PX: f64 = 8.0;
 const PHI_RANGE: f64 = 8.0;
 const PHI_STEPS: usize = 4096;
 
-/// [`normal_cdf`] at `PHI_STEPS + 1` points over `[-PHI_RANGE, PHI_RANGE]`.
-fn phi_table() -> &'static [f64; PHI_STEPS + 1] {
-    static TABLE: std::sync::OnceLock<[f64; PHI_STEPS + 1]> = std::sync::OnceLock::new();
-    TABLE.get_or_init(|| {
-        let mut t = [0.0; PHI_STEPS + 1];
-        for (k, v) in t.iter_mut().enumerate() {
-            *v = normal_cdf(-PHI_RANGE + 2.0 * PHI_RANGE * k as f64 / PHI_STEPS as f64);
-        }
-        t
-    })
+/// `f` at `N` points evenly spread over `[-range, range]`, ends included.
+pub(crate) fn tabulate<const N: usize>(range: f64, f: impl Fn(f64) -> f64) -> [f64; N] {
+    let mut t = [0.0; N];
+    for (k, v) in t.iter_mut().enumerate() {
+        *v = f(-range + 2.0 * range * k as f64 / (N - 1) as f64);
+    }
+    t
+}
+
+/// A table of [`tabulate`] over `[-range, range]` interpolated linearly at `x`; `None`
+/// outside the range (NaN included).
+#[inline]
+pub(crate) fn interpolate<const N: usize>(table: &[f64; N], range: f64, x: f64) -> Option<f64> {
+    let steps = (N - 1) as f64;
+    let pos = (x + range) * (steps / (2.0 * range));
+    if pos.is_nan() || pos <= 0.0 || pos >= steps {
+        return None;
+    }
+    // Positive here, so truncation is floor.
+    let k = pos as usize;
+    Some(table[k] + (table[k + 1] - table[k]) * (pos - k as f64))
 }
 
 /// The standard normal distribution function, interpolated in a table (error under 1e-6;
 /// the level fit evaluates it a few thousand times per marker). NaN reads as 0.
 #[inline]
 pub(crate) fn phi(x: f64) -> f64 {
-    let table = phi_table();
-    let pos = (x + PHI_RANGE) * (PHI_STEPS as f64 / (2.0 * PHI_RANGE));
-    if pos.is_nan() || pos <= 0.0 {
-        return 0.0;
-    }
-    if pos >= PHI_STEPS as f64 {
-        return 1.0;
-    }
-    // Positive here, so truncation is floor (a signed cast is one instruction).
-    let k = pos as i64;
-    let f = pos - k as f64;
-    let k = k as usize;
-    table[k] + (table[k + 1] - table[k]) * f
+    static TABLE: std::sync::OnceLock<[f64; PHI_STEPS + 1]> = std::sync::OnceLock::new();
+    let table = TABLE.get_or_init(|| tabulate(PHI_RANGE, normal_cdf));
+    interpolate(table, PHI_RANGE, x).unwrap_or(if x > 0.0 { 1.0 } else { 0.0 })
 }
 
 /// The marker's cells, border included: `black[row][col]`.

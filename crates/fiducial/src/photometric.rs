@@ -33,7 +33,7 @@
 
 use crate::cross_ratio::square_to_quad;
 use crate::image::{Corners, GrayView};
-use crate::pattern::{Cells, MAX_CELLS, phi};
+use crate::pattern::{Cells, MAX_CELLS, interpolate, phi, tabulate};
 use nalgebra::{Matrix3, Point2, SMatrix, SVector, Vector2, Vector3};
 
 /// Linear levels: `lo`, `c`, `c gx`, `c gy`, four surrounds.
@@ -189,20 +189,11 @@ const PDF_STEPS: usize = 2048;
 fn pdf(z: f64) -> f64 {
     static TABLE: std::sync::OnceLock<[f64; PDF_STEPS + 1]> = std::sync::OnceLock::new();
     let table = TABLE.get_or_init(|| {
-        let mut t = [0.0; PDF_STEPS + 1];
-        for (k, v) in t.iter_mut().enumerate() {
-            let z = -PDF_RANGE + 2.0 * PDF_RANGE * k as f64 / PDF_STEPS as f64;
-            *v = (-0.5 * z * z).exp() * 0.398_942_280_401_432_7;
-        }
-        t
+        tabulate(PDF_RANGE, |z| {
+            (-0.5 * z * z).exp() * 0.398_942_280_401_432_7
+        })
     });
-    let pos = (z + PDF_RANGE) * (PDF_STEPS as f64 / (2.0 * PDF_RANGE));
-    if pos.is_nan() || pos <= 0.0 || pos >= PDF_STEPS as f64 {
-        return 0.0;
-    }
-    // Positive here, so truncation is floor.
-    let k = pos as usize;
-    table[k] + (table[k + 1] - table[k]) * (pos - k as f64)
+    interpolate(table, PDF_RANGE, z).unwrap_or(0.0)
 }
 
 impl Axis {
