@@ -87,7 +87,9 @@
 //!    blur does not model), has its corners fitted to its whole modelled image (cells, a one-cell white quiet
 //!    zone, one surround level per side, a light gradient and the blur), which the edge
 //!    rules cannot do when a darker surround is blurred into the quiet zone (they put every
-//!    side inwards: `l12` 12.8 mm long at 3.5 m in the `far` scenario, 0.2 mm after).
+//!    side inwards: `l12` 12.8 mm long at 3.5 m in the `far` scenario, 0.2 mm after); off
+//!    by default, on in [`DetectorConfig::for_pose`], the settings of a robot measuring its
+//!    distance to markers.
 //!    Rejects quads whose contrast is under 20
 //!    grey levels, with more than one light border cell, or whose code is no entry (read
 //!    plainly or blurred); markers one of whose sides runs along an occluder (a border
@@ -217,7 +219,7 @@ pub use crate::dictionary::{Dictionary, GenerateParams, Match, PAPER_NAME, hammi
 pub use crate::error::FiducialError;
 pub use crate::family::MarkerFamily;
 pub use crate::image::{Corners, GrayView, ImageError};
-pub use crate::refine::RefineConfig;
+pub use crate::refine::{PHOTOMETRIC_BELOW_PX, RefineConfig};
 pub use crate::render::{RenderOptions, RenderedMarker, render_marker, render_svg};
 pub use crate::roi::Region;
 pub use crate::sides::SideCheck;

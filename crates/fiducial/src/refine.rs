@@ -53,8 +53,9 @@ pub struct RefineConfig {
     /// per corner at 2-3 px cells under a 1 px blur, and up to 0.3-1 px on faces seen 45-65
     /// degrees off axis), which put the `far` scenario's `l12` 12.8 mm long; fitted, its
     /// `l12` error is -0.2 to +0.2 mm. It costs about 0.5-2 ms per marker fitted, which on
-    /// real frames with many small tags doubles the detection time (`docs/performance.md`).
-    /// Default 3 px; 0 turns it off.
+    /// real frames with many small tags doubles the detection time, for no gain measured
+    /// there (`docs/performance.md`). Default 0, off; [`crate::DetectorConfig::for_pose`]
+    /// sets [`PHOTOMETRIC_BELOW_PX`].
     pub photometric_below_px: f64,
 }
 
@@ -79,10 +80,16 @@ impl Default for RefineConfig {
             max_half_profile: 2.5,
             max_half_profile_cells: 0.4,
             with_pattern: true,
-            photometric_below_px: 3.0,
+            photometric_below_px: 0.0,
         }
     }
 }
+
+/// The cell size under which [`crate::DetectorConfig::for_pose`] fits a marker's corners
+/// to its whole modelled image ([`RefineConfig::photometric_below_px`]), pixels: at 2-3 px
+/// cells the edge rules' bias is 0.07-0.12 px per corner, at 4 px and more it is within the
+/// corners' noise.
+pub const PHOTOMETRIC_BELOW_PX: f64 = 3.0;
 
 /// Bilinear grey level at `(x, y)` (pixel-centre convention), clamped to the frame.
 #[inline]

@@ -218,7 +218,7 @@ fn sharp_clutter_is_not_read_by_the_least_cost_reading() {
 #[test]
 fn markers_read_only_through_the_blur_skip_the_photometric_step() {
     let cols = Dictionary::paper().family().cols() as f64;
-    let default = DetectorConfig::default();
+    let default = DetectorConfig::for_pose();
     assert!(default.motion_blur && default.refine.photometric_below_px > 0.0);
     let mut no_fit = default;
     no_fit.refine.photometric_below_px = 0.0;

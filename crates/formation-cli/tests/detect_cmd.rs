@@ -196,3 +196,59 @@ fn boundary_clusters_are_on_by_default_and_read_tags_touching_dark_regions() {
         default
     );
 }
+
+/// The corners `detect --json` reads in one image, by id.
+fn corners_read(args: &[&str], image: &std::path::Path) -> Vec<(u64, Vec<f64>)> {
+    let out = bin()
+        .arg("detect")
+        .arg("--json")
+        .args(args)
+        .arg(image)
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let line: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let mut found: Vec<(u64, Vec<f64>)> = line["markers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| {
+            let corners = m["corners"].as_array().unwrap();
+            let xy = corners
+                .iter()
+                .flat_map(|c| c.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()))
+                .collect();
+            (m["id"].as_u64().unwrap(), xy)
+        })
+        .collect();
+    found.sort_by_key(|m| m.0);
+    found
+}
+
+/// `--photometric` (the tracker's `DetectorConfig::for_pose`) reads the same tags and moves
+/// the corners of those with cells under 3 px by a fraction of a pixel; without it (the
+/// library's default) they are the pattern step's. Duckietown `test_image_multiple_01.png`:
+/// tag 144's cells are wider and it keeps its corners exactly.
+#[test]
+fn photometric_fits_the_small_tags_only_when_asked() {
+    let frame = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures/realdata/duckietown/test_image_multiple_01.png");
+    let plain = corners_read(&["--dictionary", "tag36h11"], &frame);
+    let fitted = corners_read(&["--dictionary", "tag36h11", "--photometric"], &frame);
+    let ids = |v: &[(u64, Vec<f64>)]| v.iter().map(|m| m.0).collect::<Vec<_>>();
+    assert_eq!(ids(&plain), ids(&fitted));
+    let moved: Vec<(u64, f64)> = plain
+        .iter()
+        .zip(&fitted)
+        .map(|(a, b)| {
+            let most = a.1.iter().zip(&b.1).map(|(p, q)| (p - q).abs());
+            (a.0, most.fold(0.0, f64::max))
+        })
+        .collect();
+    assert!(
+        moved.iter().filter(|m| m.1 > 0.01).count() >= 3,
+        "{moved:?}"
+    );
+    assert!(moved.iter().all(|m| m.1 < 1.0), "{moved:?}");
+    assert!(moved.iter().any(|m| m.0 == 144 && m.1 == 0.0), "{moved:?}");
+}

@@ -797,7 +797,7 @@ fn start_followers(world: &World<'_>, poses: &[PlanarPose]) -> Result<Vec<Follow
         .map(|j| {
             let start = Formation::from_poses(&poses[j - 1], &poses[j], d)?;
             let mut pipeline = Pipeline::new(
-                Detector::with_dictionary(DetectorConfig::default(), world.dict.clone()),
+                Detector::with_dictionary(DetectorConfig::for_pose(), world.dict.clone()),
                 pose::PoseSolver::new(world.k),
                 (w, h),
                 world.rig.clone(),

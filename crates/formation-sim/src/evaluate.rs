@@ -267,9 +267,10 @@ pub fn evaluate_scene(
     })
 }
 
-/// The detector used on scenes: the detector's default settings with `dictionary`.
+/// The detector used on scenes: the tracker pipeline's settings
+/// ([`DetectorConfig::for_pose`]) with `dictionary`.
 pub fn default_detector(dictionary: &Dictionary) -> Detector {
-    Detector::with_dictionary(DetectorConfig::default(), dictionary.clone())
+    Detector::with_dictionary(DetectorConfig::for_pose(), dictionary.clone())
 }
 
 fn faces(list: &[u8]) -> String {

@@ -574,7 +574,7 @@ impl McapSaver {
         let rig = formation_tracker::rig::RigModel::reference();
         let tracker = Tracker::new(TrackerConfig::reference(mount.offset, dt))?;
         let pipeline = formation_tracker::pipeline::Pipeline::new(
-            Detector::with_dictionary(DetectorConfig::default(), Dictionary::paper().clone()),
+            Detector::with_dictionary(DetectorConfig::for_pose(), Dictionary::paper().clone()),
             pose::PoseSolver::new(intrinsics),
             (w, h),
             rig.clone(),

@@ -349,7 +349,7 @@ pub fn build_pipeline(
         Detector::with_dictionary(
             DetectorConfig {
                 boundary_clusters: args.boundary_clusters,
-                ..DetectorConfig::default()
+                ..DetectorConfig::for_pose()
             },
             dictionary,
         ),
