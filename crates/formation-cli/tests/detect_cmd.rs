@@ -148,27 +148,7 @@ fn human_listing_names_robots_and_faces() {
 
 /// The ids `detect --json` reads in one image, sorted.
 fn ids_read(args: &[&str], image: &std::path::Path) -> Vec<u64> {
-    let out = bin()
-        .arg("detect")
-        .arg("--json")
-        .args(args)
-        .arg(image)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let line: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    let mut ids: Vec<u64> = line["markers"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|m| m["id"].as_u64().unwrap())
-        .collect();
-    ids.sort_unstable();
-    ids
+    corners_read(args, image).into_iter().map(|m| m.0).collect()
 }
 
 /// `detect` reads the Duckietown tags that touch something as dark as their ink (ids 22,
@@ -197,7 +177,7 @@ fn boundary_clusters_are_on_by_default_and_read_tags_touching_dark_regions() {
     );
 }
 
-/// The corners `detect --json` reads in one image, by id.
+/// The markers `detect --json` reads in one image, as (id, corners x0 y0 .. x3 y3), by id.
 fn corners_read(args: &[&str], image: &std::path::Path) -> Vec<(u64, Vec<f64>)> {
     let out = bin()
         .arg("detect")
@@ -206,7 +186,11 @@ fn corners_read(args: &[&str], image: &std::path::Path) -> Vec<(u64, Vec<f64>)> 
         .arg(image)
         .output()
         .unwrap();
-    assert!(out.status.success());
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let line: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let mut found: Vec<(u64, Vec<f64>)> = line["markers"]
         .as_array()
