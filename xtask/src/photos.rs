@@ -16,15 +16,16 @@ use fiducial::{Detector, DetectorConfig, GrayView, dictionary_by_name};
 use marker_testkit::reference::{RefTag, corner_error};
 
 const USAGE: &str =
-    "usage: cargo xtask photos [--reps N] [--dictionary NAME] [--clutter] [--list] [--least] [--no-photometric] [--clusters] [PHOTO|FOLDER]...
+    "usage: cargo xtask photos [--reps N] [--dictionary NAME] [--clutter] [--list] [--least] [--photometric] [--clusters] [PHOTO|FOLDER]...
 
 --list: also print every marker read (id, corners rounded to pixels, bits corrected)
 --least: time each photo by the least of its runs instead of the median (on a loaded
 machine, the run the other processes disturbed least)
 --clusters: detect with boundary clustering (DetectorConfig::boundary_clusters), as the CLI's
 `detect` does by default; the library default leaves it off
---no-photometric: detect without the photometric step (RefineConfig::photometric_below_px
-= 0), to see what it costs on these photos
+--photometric: detect with the photometric step on markers whose cells are under
+fiducial::PHOTOMETRIC_BELOW_PX (DetectorConfig::for_pose, the tracker's settings; the
+library default leaves it off), to see what it costs on these photos
 --clutter: first time the frame of the criterion bench fiducial/detect_clutter_640x480
 (marker_testkit's clutter, seed 43), to see where its time goes";
 
@@ -126,7 +127,7 @@ pub fn run(args: &[String]) -> crate::Result {
             "--clutter" => clutter = true,
             "--list" => list = true,
             "--least" => least = true,
-            "--no-photometric" => config.refine.photometric_below_px = 0.0,
+            "--photometric" => config.refine.photometric_below_px = fiducial::PHOTOMETRIC_BELOW_PX,
             "--clusters" => config.boundary_clusters = true,
             "-h" | "--help" => {
                 println!("{USAGE}");

@@ -86,9 +86,11 @@ impl Default for RefineConfig {
 }
 
 /// The cell size under which [`crate::DetectorConfig::for_pose`] fits a marker's corners
-/// to its whole modelled image ([`RefineConfig::photometric_below_px`]), pixels: at 2-3 px
-/// cells the edge rules' bias is 0.07-0.12 px per corner, at 4 px and more it is within the
-/// corners' noise.
+/// to its whole modelled image ([`RefineConfig::photometric_below_px`]), pixels: the edge
+/// rules' bias is largest at 2-3 px cells (0.07-0.12 px per corner, more on oblique faces);
+/// larger cells gain less for the same cost (fitting up to 8 px halves the face-on corner
+/// error of the rig at 2.5-3.8 m, 0.026-0.044 px to 0.014 px, at 1-2 ms more a marker;
+/// `docs/tracking.md`).
 pub const PHOTOMETRIC_BELOW_PX: f64 = 3.0;
 
 /// Bilinear grey level at `(x, y)` (pixel-centre convention), clamped to the frame.
