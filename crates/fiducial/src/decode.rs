@@ -723,9 +723,140 @@ fn soft_lookup(
     best
 }
 
+/// How much lighter than its border the inside of the quad `corners` (clockwise in the
+/// image, from any corner) gets at its lightest, as a share of the step from the border to
+/// the ring just outside it: the lightest of the centres of the cells inside a grid of
+/// `cells` across, less the median of its border cells' centres, over the median of the
+/// centres of the ring of cells around it less the same. `None` when the ring is not
+/// lighter than the border by `min_step` grey levels or the quad cannot be sampled.
+pub(crate) fn inside_lift(
+    image: &GrayView<'_>,
+    corners: &Corners,
+    cells: f64,
+    min_step: f64,
+) -> Option<f64> {
+    let frame = CrossRatioFrame::new(corners).ok()?;
+    let n = cells.round().clamp(3.0, 12.0) as i32;
+    let nf = f64::from(n);
+    let at = |x: i32, y: i32| {
+        let (a, b) = CrossRatioFrame::cell_coords(f64::from(x), f64::from(y), nf, nf);
+        let p = frame.map(a, b)?;
+        bilinear(image, p.x, p.y)
+    };
+    let mut border = [0.0f64; 4 * 12];
+    let mut ring = [0.0f64; 4 * 14];
+    let (mut nb, mut nr) = (0, 0);
+    let mut lightest = f64::NEG_INFINITY;
+    for y in -1..=n {
+        for x in -1..=n {
+            let outer = x == -1 || y == -1 || x == n || y == n;
+            let edge = x == 0 || y == 0 || x == n - 1 || y == n - 1;
+            if outer {
+                if let Some(v) = at(x, y) {
+                    ring[nr] = v;
+                    nr += 1;
+                }
+            } else if edge {
+                border[nb] = at(x, y)?;
+                nb += 1;
+            } else {
+                lightest = lightest.max(at(x, y)?);
+            }
+        }
+    }
+    if nr == 0 {
+        return None;
+    }
+    let dark = median(&mut border[..nb]);
+    let step = median(&mut ring[..nr]) - dark;
+    (step >= min_step).then(|| (lightest - dark) / step)
+}
+
+/// Most [`inside_lift`] of a quad that cannot be a marker, checked on its coarse corners
+/// before the refinement ([`flat_inside`]). Every dictionary entry has light data cells,
+/// and blur only spreads them: on the motion-blur rows (`cargo xtask detector-accuracy
+/// --motion-blur`, seeds 81,000-81,019 and 83,000-83,039, 3-13 px) a bound of 0.3 read
+/// the same markers, 0.5 lost one in 160 at 13 px. The squares of the chessboard photos
+/// (`left01.jpg`, `left05.jpg`), which the first cut and the re-cut find by the dozen,
+/// reach 0.04 at most; their refinement and reading took over a third of those frames.
+const FLAT_INSIDE: f64 = 0.2;
+
+/// Whether the inside of the quad `coarse` (corners clockwise in the image) is as dark as
+/// its border, which no marker's is: its [`inside_lift`] on a grid of `cells` across is
+/// under [`FLAT_INSIDE`] while the ring around it is lighter than the border by at least
+/// the decoder's default contrast. A quad that cannot be sampled is not called flat.
+pub(crate) fn flat_inside(image: &GrayView<'_>, coarse: &Corners, cells: f64) -> bool {
+    let min_step = DecodeParams::default().min_contrast;
+    inside_lift(image, coarse, cells, min_step).is_some_and(|l| l < FLAT_INSIDE)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A dark square with light squares on its sides and dark ones at its corners, as on
+    /// a chessboard (`left01.jpg`, `left05.jpg`), is flat inside; every entry of every
+    /// standard dictionary, sharp or smeared by 1.5 cells of horizontal motion, is not.
+    #[test]
+    fn flat_inside_tells_chessboard_squares_from_markers() {
+        let (cell, n) = (12usize, 5usize);
+        let px: Vec<u8> = (0..(n * cell).pow(2))
+            .map(|i| {
+                let (x, y) = (i % (n * cell) / cell, i / (n * cell) / cell);
+                if (x + y) % 2 == 0 { 30 } else { 220 }
+            })
+            .collect();
+        let img = GrayView::new(&px, n * cell, n * cell).unwrap();
+        // The centre square, (2, 2), on pixel centres of its outermost pixels.
+        let (a, b) = (2.0 * cell as f64, 3.0 * cell as f64 - 1.0);
+        let square = [
+            nalgebra::Point2::new(a, a),
+            nalgebra::Point2::new(b, a),
+            nalgebra::Point2::new(b, b),
+            nalgebra::Point2::new(a, b),
+        ];
+        for cells in [6.0, 8.0, 10.0] {
+            assert!(flat_inside(&img, &square, cells), "{cells} cells");
+        }
+        let mut checked = 0;
+        let names = crate::standard_dictionaries().iter().map(|d| d.name);
+        for name in names.chain([crate::PAPER_NAME]) {
+            let dict = crate::dictionary_by_name(name).unwrap();
+            let family = dict.family();
+            let cells = f64::from(family.width_cells().max(family.height_cells()));
+            let options = crate::RenderOptions {
+                px_per_cell: 4,
+                quiet_cells: 2,
+            };
+            for &code in dict.codes() {
+                let m = crate::render_marker(family, code, &options).unwrap();
+                let (w, h) = (m.width(), m.height());
+                // A centred box blur of 6 px along x.
+                let smeared: Vec<u8> = (0..w * h)
+                    .map(|i| {
+                        let (x, y) = (i % w, i / w);
+                        let sum: u32 = (0..6)
+                            .map(|k| {
+                                u32::from(m.pixels()[y * w + (x + k).saturating_sub(3).min(w - 1)])
+                            })
+                            .sum();
+                        (sum / 6) as u8
+                    })
+                    .collect();
+                for px in [m.pixels(), &smeared[..]] {
+                    let img = GrayView::new(px, w, h).unwrap();
+                    let lift = inside_lift(&img, &m.corners(), cells, 20.0);
+                    assert!(
+                        lift.is_some_and(|l| l > 2.0 * FLAT_INSIDE),
+                        "{name}: code {code:#x} lifts {lift:?}"
+                    );
+                    assert!(!flat_inside(&img, &m.corners(), cells));
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 1000, "{checked} markers");
+    }
 
     proptest::proptest! {
         /// The sampler's fast path (every sample inside, rows and columns shared) gives

@@ -1017,6 +1017,9 @@ fn add_refined(
     {
         return;
     }
+    if crate::decode::flat_inside(img, &coarse, cells_across) {
+        return;
+    }
     let Some((c, contrast)) =
         refiner.refine(img, &coarse, &cfg.refine, min_angle_deg, cells_across)
     else {

@@ -104,6 +104,9 @@ impl Scan<'_, '_> {
                 c.y = c.y * scale + off;
             }
         }
+        if crate::decode::flat_inside(self.img, &coarse, self.cells_across) {
+            return Examined::Dropped;
+        }
         let Some((corners, contrast)) = refiner.refine(
             self.img,
             &coarse,
