@@ -51,6 +51,16 @@ const MIN_MOTION: f64 = 1.5;
 /// Shortest motion worth modelling, in cells of the grid (see [`decode_blurred`]).
 const MIN_MOTION_CELLS: f64 = 1.5;
 
+/// Smallest cell pitch (pixels, along the quad's shorter sides) worth the blurred reading.
+/// Under the optical blur of the model ([`OPTICAL_VARIANCE`], sigma about 1 px) a pattern of
+/// cells `p` px wide keeps `exp(-2 pi^2 sigma^2 / (2 p)^2)` of its contrast before any motion:
+/// 29 % at 2 px, 11 % at 1.5 px, under 1 % at 1 px, so smaller cells cannot be solved for.
+/// On the motion-blur rows (`cargo xtask detector-accuracy --motion-blur`, seeds
+/// 81,000-81,019 and 83,000-83,039, markers of 20-70 px) the smallest pitch read was
+/// 1.94 px and the smallest that reached the solves 1.53 px; on `board.jpg` two of the three
+/// quads that reached them (none a marker) had cells of 1.05 and 1.27 px.
+const MIN_BLUR_PITCH: f64 = 1.5;
+
 /// Bilinear grey level at `p`, `None` outside the image ([`crate::decode`]'s sampler).
 fn bilinear(image: &GrayView<'_>, p: Point2<f64>) -> Option<f64> {
     crate::decode::bilinear(image, p.x, p.y)
@@ -674,7 +684,7 @@ pub(crate) fn decode_blurred(
         // white, reads such a cell right up to noise. Below 1.5 cells (two thirds of its
         // own level, a third of the contrast as margin) the model has nothing to add, and
         // a quad that is not a marker is not worth its cost.
-        if length < MIN_MOTION_CELLS * pitch {
+        if length < MIN_MOTION_CELLS * pitch || pitch < MIN_BLUR_PITCH {
             continue;
         }
         if !counted {
@@ -1036,6 +1046,78 @@ mod tests {
         let same = reading_of(5, 2, &[3], &[(3, 0.2)]);
         let d = least_cost_match(&square(), &dicts, &[(0, 0, a), (0, 1, same)]).expect("read");
         assert_eq!(d.index, 5);
+    }
+
+    /// A quad whose cells are under [`MIN_BLUR_PITCH`] is not solved for even when every
+    /// other gate lets it through (a motion of over 1.5 cells, a ramp, a smeared outline);
+    /// the same marker and motion with cells of 3 px is. Each is rendered five times larger,
+    /// smeared by 2.5 cells along x and reduced by 5 x 5 block means (cells of 1.4 and 3 px).
+    #[test]
+    fn cells_under_the_least_pitch_are_not_solved_for() {
+        let dict = Dictionary::paper();
+        let family = dict.family();
+        const F: usize = 5;
+        for cell in [7u32, 15] {
+            let options = crate::RenderOptions {
+                px_per_cell: cell,
+                quiet_cells: 6,
+            };
+            let m = crate::render_marker(family, dict.codes()[3], &options).expect("rendered");
+            let (w, h) = (m.width(), m.height());
+            let blur = (2.5 * f64::from(cell)).round() as usize;
+            let smeared: Vec<f64> = (0..w * h)
+                .map(|i| {
+                    let (x, y) = (i % w, i / w);
+                    let sum: f64 = (0..blur)
+                        .map(|k| {
+                            f64::from(
+                                m.pixels()[y * w + (x + k).saturating_sub(blur / 2).min(w - 1)],
+                            )
+                        })
+                        .sum();
+                    sum / blur as f64
+                })
+                .collect();
+            let (sw, sh) = (w / F, h / F);
+            let px: Vec<u8> = (0..sw * sh)
+                .map(|i| {
+                    let (x, y) = (i % sw, i / sw);
+                    let sum: f64 = (0..F * F)
+                        .map(|k| smeared[(F * y + k / F) * w + F * x + k % F])
+                        .sum();
+                    (sum / (F * F) as f64).round() as u8
+                })
+                .collect();
+            let img = GrayView::new(&px, sw, sh).expect("valid image");
+            let half = 0.5 * (F as f64 - 1.0);
+            let corners = m
+                .corners()
+                .map(|c| Point2::new((c.x - half) / F as f64, (c.y - half) / F as f64));
+            let pitch = f64::from(cell) / F as f64;
+            let mut us = [Vector2::zeros(); MAX_MOTIONS];
+            let (count, length) = motions(&img, &corners, &mut us);
+            assert!(
+                count > 0 && length >= MIN_MOTION_CELLS * pitch,
+                "{pitch} px: {length}"
+            );
+            let smear = (0..4)
+                .filter_map(|i| outer_reach(&img, &corners, i, 0.6 * length + 3.0))
+                .fold(0.0, f64::max);
+            assert!(
+                smear >= (MIN_SMEAR_FRACTION * length).max(MIN_BLUR_SMEAR),
+                "{pitch} px: {smear}"
+            );
+            let mut scratch = BlurScratch::default();
+            let params = DecodeParams::default();
+            decode_blurred(
+                &img,
+                &corners,
+                std::slice::from_ref(dict),
+                &params,
+                &mut scratch,
+            );
+            assert_eq!(scratch.solved_quads > 0, cell == 15, "{pitch} px");
+        }
     }
 
     /// The envelope factorisation solves what a dense one does: a symmetric positive
