@@ -748,16 +748,18 @@ pub(crate) fn decode_blurred(
 }
 
 /// Most mean squared misfit of the better sign's solve at the estimated motion, as a share
-/// of the samples' variance, for the blurred reading to go on ([`decode_blurred`]). On the
-/// motion-blur rows of `cargo xtask detector-accuracy --motion-blur 81000 20` (3-13 px,
-/// before this bound) every exact reading was explained to within 0.04 of its variance
-/// after all four solves. With a bound of 0.06 one marker in 160 was lost at 13 px (there
-/// and at seeds 82,000-82,019); with 0.08 every row read the same markers, there and on
-/// seeds 83,000-83,039 (1,280 markers). The quads of the real photos that reach the
-/// solves (none a marker) leave 0.02-0.16 unexplained; the bound spares half of them two
-/// of their four solves and the reading (board.jpg 4.22 -> 3.46 ms, sudoku.png 2.78 ->
-/// 2.28 ms, the fingerprint's readings unchanged).
-const MAX_UNEXPLAINED: f64 = 0.08;
+/// of the samples' variance, for the blurred reading to go on ([`decode_blurred`]). Our
+/// own dictionary's markers read on the motion-blur rows of `cargo xtask detector-accuracy
+/// --motion-blur` (3-13 px) were explained to within 0.04 of their variance, and a bound
+/// of 0.08 kept every one of them; but tag36h11's larger grid leaves more: on fresh
+/// tag36h11 scenes of the held-out sets' kind (`cargo xtask motion-sets` at seeds 61,000
+/// on, 20 scenes a set) the markers read left up to 0.118 unexplained (95 % under 0.078),
+/// and at 0.08 `motion-sets` lost 12 of its tag36h11 markers (regression test
+/// `the_early_stop_keeps_the_tag36h11_markers_it_can_read`). At 0.15 those sets and
+/// scenes read what they read with no early stop. The quads of the real photos that reach
+/// the solves (none a marker) leave 0.02-0.16 unexplained, so the bound now spares only
+/// the worst of them their last two solves.
+const MAX_UNEXPLAINED: f64 = 0.15;
 
 /// The variance of the grey levels in `scratch.samples` (0 when there are none).
 fn sample_variance(scratch: &BlurScratch) -> f64 {
