@@ -95,12 +95,21 @@ impl Gate {
 /// chi-square with `dof` degrees of freedom: up when the innovations are larger than the
 /// prediction and `R` together say (errors the reported `R` does not know), down when they
 /// are not. `memory` is about the number of measurements it takes to follow a change.
+///
+/// A new scale may weigh its initial factor as only `prior` measurements
+/// ([`NoiseScale::with_prior`]): the `n`-th measurement then moves it with a memory of
+/// `min(memory, prior + n - 1)`, a running mean at first and an exponential one once
+/// `memory` measurements have been seen, so that a poor initial guess is forgotten within
+/// a few measurements rather than within several memories.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NoiseScale {
     factor: f64,
     memory: f64,
     min: f64,
     max: f64,
+    /// The weight of what is known, in measurements (the initial factor's and those learned
+    /// from); the effective memory until it reaches `memory`.
+    weight: f64,
 }
 
 impl NoiseScale {
@@ -112,7 +121,16 @@ impl NoiseScale {
             memory,
             min,
             max,
+            weight: memory,
         }
+    }
+
+    /// The same scale with its initial factor weighing `prior` measurements (at least 1, at
+    /// most `memory`; by default it weighs `memory`).
+    #[must_use]
+    pub fn with_prior(mut self, prior: f64) -> Self {
+        self.weight = prior.clamp(1.0, self.memory.max(1.0));
+        self
     }
 
     /// The factor to put on `R`.
@@ -127,8 +145,10 @@ impl NoiseScale {
             return;
         }
         let ratio = d2.min(cap) / dof;
-        let next = self.factor * (1.0 + (ratio - 1.0) / self.memory);
+        let memory = (self.weight + 1.0).min(self.memory).max(1.0);
+        let next = self.factor * (1.0 + (ratio - 1.0) / memory);
         self.factor = next.clamp(self.min, self.max);
+        self.weight += 1.0;
     }
 }
 
@@ -214,5 +234,42 @@ mod tests {
             s.learn(0.0, 16.0, 3.0);
         }
         assert_eq!(s.factor(), 0.5);
+    }
+
+    #[test]
+    fn a_light_prior_is_forgotten_within_a_few_measurements() {
+        // Innovations a third of what R says at factor 1 (each measurement alone calls for
+        // a factor of 1/3), starting from 2.
+        let learn = |mut s: NoiseScale, n: usize| {
+            for _ in 0..n {
+                let d2 = 3.0 / 3.0 / s.factor();
+                s.learn(d2, 16.0, 3.0);
+            }
+            s.factor()
+        };
+        let heavy = NoiseScale::new(2.0, 20.0, 0.1, 100.0);
+        let light = heavy.with_prior(2.0);
+        // The light prior is a running mean: after 10 measurements (2 x 2 + 10 / 3) / 12.
+        let (l, h) = (learn(light, 10), learn(heavy, 10));
+        assert!((l - (4.0 + 10.0 / 3.0) / 12.0).abs() < 1e-12, "light {l}");
+        // The heavy one moves by 1/20 of the gap each time: 1/3 + (2 - 1/3) 0.95^10.
+        assert!(
+            (h - (1.0 / 3.0 + 5.0 / 3.0 * 0.95f64.powi(10))).abs() < 1e-12,
+            "heavy {h}"
+        );
+        assert!(l < 0.62 && h > 1.3);
+        // Both settle at the same place, and the light one then moves with `memory`: one
+        // outlier moves it as much as the heavy one.
+        let (mut l, mut h) = (light, heavy);
+        for _ in 0..500 {
+            l.learn(1.0 / l.factor(), 16.0, 3.0);
+            h.learn(1.0 / h.factor(), 16.0, 3.0);
+        }
+        assert!((l.factor() - h.factor()).abs() < 1e-9);
+        let (lb, hb) = (l.factor(), h.factor());
+        l.learn(16.0, 16.0, 3.0);
+        h.learn(16.0, 16.0, 3.0);
+        assert!((l.factor() / lb - h.factor() / hb).abs() < 1e-12);
+        assert!((l.factor() / lb - (1.0 + (16.0 / 3.0 - 1.0) / 20.0)).abs() < 1e-12);
     }
 }
