@@ -102,16 +102,16 @@ use smooth::{NO_INPUTS, Recorded, Segment};
 /// while the evidence is still even.
 const SWITCH_MARGIN: f64 = 8.0;
 
-/// The factor on a robot's `R` before its innovations have been seen: a new track does not
-/// yet know the errors its fit residuals miss (on the tests' 2 x 2-sampled frames they
-/// double the NIS), and its first frames are where the IMM is most confident (model B's
-/// leader velocity is inferred, not measured). It falls to what the innovations call for
-/// within about `innovation_memory` frames.
-const INITIAL_INNOVATION_SCALE: f64 = 2.0;
+/// The factor on a robot's `R` before its innovations have been seen (a new track does not
+/// yet know the errors its fit residuals miss, and its first frames are where the IMM is
+/// most confident), and the measurements it weighs: a running mean forgets it within a few
+/// frames ([`dukf::NoiseScale::with_prior`]; weighing `innovation_memory`, it kept `far`'s
+/// NIS under its band for 2 s). `docs/tracking.md` has the measurements.
+const INITIAL_INNOVATION_SCALE: (f64, f64) = (2.0, 5.0);
 
 /// The range of the factor the innovations may put on `R`
-/// ([`TrackerConfig::innovation_memory`]).
-const INNOVATION_SCALE_RANGE: [f64; 2] = [0.5, 100.0];
+/// ([`TrackerConfig::innovation_memory`]): at `far` it settles near 0.3.
+const INNOVATION_SCALE_RANGE: [f64; 2] = [0.1, 100.0];
 
 /// One filter and how well it has explained the measurements so far.
 #[derive(Debug, Clone)]
@@ -484,7 +484,7 @@ impl Tracker {
         }
         self.innovation_scale
             .get(&robot)
-            .map_or(INITIAL_INNOVATION_SCALE, dukf::NoiseScale::factor)
+            .map_or(INITIAL_INNOVATION_SCALE.0, dukf::NoiseScale::factor)
     }
 
     /// Moves `robot`'s factor on `R` towards what the latest tested measurement's `d^2`
@@ -497,10 +497,10 @@ impl Tracker {
         if memory <= 0.0 {
             return;
         }
-        let [min, max] = INNOVATION_SCALE_RANGE;
+        let ([min, max], (initial, prior)) = (INNOVATION_SCALE_RANGE, INITIAL_INNOVATION_SCALE);
         self.innovation_scale
             .entry(robot)
-            .or_insert_with(|| dukf::NoiseScale::new(INITIAL_INNOVATION_SCALE, memory, min, max))
+            .or_insert_with(|| dukf::NoiseScale::new(initial, memory, min, max).with_prior(prior))
             .learn(d2, self.config.gate, 3.0);
     }
 
