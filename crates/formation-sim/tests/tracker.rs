@@ -744,3 +744,54 @@ fn a_track_told_the_followers_controller_filters_better() {
     tr.update(&input(f, seen(PoseMeasurement::Chosen(estimate(f.pose)))))
         .unwrap();
 }
+
+/// The NIS means over the frames a track updated with, skipping its first `skip`: the
+/// reference scenario's own noisy `y`, reported with `R` `overstate` times its true value.
+fn nis_with_overstated_r(overstate: f64, seed: u64, skip: usize) -> f64 {
+    use formation_tracker::tracker::FormationMeasurement;
+    let scenario = simulate(&ScenarioConfig::reference(seed)).unwrap();
+    let r = scenario.config.noise_covariance() * overstate;
+    let mut tr = tracker();
+    let mut nis = Vec::new();
+    for (k, s) in scenario.samples.iter().enumerate() {
+        let prev = &scenario.samples[k.saturating_sub(1)];
+        let m = FormationMeasurement {
+            y: s.measurement,
+            r,
+            fit: None,
+        };
+        let rep = tr
+            .update(&FrameInput {
+                t: s.t,
+                follower: prev.follower_inputs,
+                mount: CameraMount::default(),
+                observations: seen(PoseMeasurement::Formation(m)),
+            })
+            .unwrap();
+        let l = leader(&rep);
+        if l.measurement == MeasurementUse::Updated
+            && let Some(d2) = l.nis
+        {
+            nis.push(d2);
+        }
+    }
+    assert!(nis.len() > skip + 100, "{} updates", nis.len());
+    let tail = &nis[skip..];
+    tail.iter().sum::<f64>() / tail.len() as f64
+}
+
+/// Regression (issue #30, `far`): when the reported `R` overstates the errors the
+/// innovations see, the factor the tracker learns on `R` brings the NIS mean to its
+/// chi-square mean of 3. Its floor was 0.5 and its initial 2 weighed 20 measurements: `far`'s
+/// NIS mean sat at 2.2, under its band, with the factor on the floor.
+#[test]
+fn an_overstated_r_is_learned_down_to_a_consistent_nis() {
+    for seed in [3, 4] {
+        // R four times the true noise: the factor settles near 1/4, under the old floor.
+        let steady = nis_with_overstated_r(4.0, seed, 15);
+        assert!((2.4..=3.6).contains(&steady), "seed {seed}: NIS {steady}");
+        // With R right the factor stays near 1: the same NIS.
+        let right = nis_with_overstated_r(1.0, seed, 15);
+        assert!((2.4..=3.6).contains(&right), "seed {seed}: NIS {right}");
+    }
+}
