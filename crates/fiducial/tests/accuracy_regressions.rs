@@ -34,15 +34,7 @@ fn found(seed: u64, cfg: DetectorConfig) -> (usize, usize, usize) {
     let mut det = Detector::new(cfg);
     let mut out = Vec::new();
     det.detect(&img, &mut out);
-    let right = scene
-        .markers
-        .iter()
-        .filter(|m| out.iter().any(|d| Some(d.index) == m.index))
-        .count();
-    let wrong = out
-        .iter()
-        .filter(|d| !scene.markers.iter().any(|m| m.index == Some(d.index)))
-        .count();
+    let (right, wrong) = common::tally(&scene, &out);
     (right, wrong, scene.markers.len())
 }
 

@@ -6,6 +6,21 @@
 use fiducial::Dictionary;
 use marker_testkit::{CellPattern, NotMarkers};
 
+/// Of a detection's readings `out` on `scene`: how many of the scene's markers were read,
+/// and how many readings are of no marker in the scene (wrong codes).
+pub fn tally(scene: &marker_testkit::MarkerScene, out: &[fiducial::Decoded]) -> (usize, usize) {
+    let read = scene
+        .markers
+        .iter()
+        .filter(|m| out.iter().any(|d| Some(d.index) == m.index))
+        .count();
+    let wrong = out
+        .iter()
+        .filter(|d| !scene.markers.iter().any(|m| m.index == Some(d.index)))
+        .count();
+    (read, wrong)
+}
+
 /// Every entry of `dict` as a test pattern (index = dictionary index).
 pub fn entries(dict: &Dictionary) -> Vec<CellPattern> {
     let f = dict.family();
