@@ -55,8 +55,11 @@
 //!    normalised profile, exact for any symmetric blur; a total-least-squares line with
 //!    outliers dropped; corners at the lines' intersections; twice). Rejects components
 //!    too small to hold a marker (longer side < `min_side`, 10 px, or shorter side under
-//!    half of it) and quads whose sides the refinement cannot fit; hands a component that
-//!    is too sparse, within `border_margin` (2 px) of the frame's edge, or not a
+//!    half of it), quads whose inside is as dark as their border (before refining them:
+//!    the lightest of the inside is above the border by under 0.2 of the step from the
+//!    border to the ring around the quad, as on a chessboard's squares; no dictionary entry
+//!    is all dark) and quads whose sides the refinement cannot fit; hands a component
+//!    that is too sparse, within `border_margin` (2 px) of the frame's edge, or not a
 //!    quadrilateral to the second look. On the accuracy scenes (`docs/detector-accuracy.md`,
 //!    markers of 20-120 px, blur 1, noise 3) the refined corners are within about 0.04 px
 //!    RMS; a property test holds every corner within 0.1 px for markers of 40-160 px.
@@ -67,7 +70,8 @@
 //!    range, where a border merged with its surroundings through a blurred margin stands
 //!    alone) and the *boundary clusters* (module `cluster`, AprilTag 3's quad search, off
 //!    by default: [`DetectorConfig::boundary_clusters`]). Their components are examined as
-//!    above; it also rejects components without holes (no marker lacks light cells) and
+//!    above (the same rejections); it also rejects components without holes (no marker
+//!    lacks light cells) and
 //!    candidates at the place of, or inside, a quad already found, before refining them.
 //! 5. **Decode** each quad: *read* its cells (module `decode`: cross-ratio cell centres,
 //!    cells averaged over +-0.1 cell, black and white references from the border and the
@@ -95,9 +99,11 @@
 //!    plainly or blurred); markers one of whose sides runs along an occluder (a border
 //!    thinner than its grid says, a light corner cell, an outline inside the quad) with the
 //!    plain corners and with the pattern step's; the
-//!    blurred reading of a quad whose motion is under 1.5 cells or whose outline is not
+//!    blurred reading of a quad whose motion is under 1.5 cells, whose cells are under
+//!    1.5 px (the optical blur leaves them 11 % of their contrast) or whose outline is not
 //!    smeared outwards on any side (by 2 px and a fifth of the motion), before its cell
-//!    levels are solved. The pattern and photometric steps reject nothing: corners
+//!    levels are solved, and stops one whose solve at the estimated motion leaves over
+//!    0.15 of its samples' variance unexplained. The pattern and photometric steps reject nothing: corners
 //!    their models cannot fit keep the previous step's.
 //! 6. **Reconcile**: two readings of one marker (same dictionary and id, centres within
 //!    half a side) are reported once, the one with fewer corrected bits, then the higher
