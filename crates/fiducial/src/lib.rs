@@ -103,8 +103,8 @@
 //!    1.5 px (the optical blur leaves them 11 % of their contrast) or whose outline is not
 //!    smeared outwards on any side (by 2 px and a fifth of the motion), before its cell
 //!    levels are solved, and stops one whose solve at the estimated motion leaves over
-//!    0.15 of its samples' variance unexplained. The pattern and photometric steps reject nothing: corners
-//!    their models cannot fit keep the previous step's.
+//!    0.15 of its samples' variance unexplained. The pattern and photometric steps reject
+//!    nothing: corners their models cannot fit keep the previous step's.
 //! 6. **Reconcile**: two readings of one marker (same dictionary and id, centres within
 //!    half a side) are reported once, the one with fewer corrected bits, then the higher
 //!    contrast.
