@@ -98,7 +98,7 @@ impl Gate {
 ///
 /// A new scale may weigh its initial factor as only `prior` measurements
 /// ([`NoiseScale::with_prior`]): the `n`-th measurement then moves it with a memory of
-/// `min(memory, prior + n - 1)`, a running mean at first and an exponential one once
+/// `min(memory, prior + n)`, a running mean at first and an exponential one once
 /// `memory` measurements have been seen, so that a poor initial guess is forgotten within
 /// a few measurements rather than within several memories.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -78,13 +78,11 @@ pub struct TrackerConfig {
     /// when the innovations are larger than `R` and the prediction say. After each
     /// measurement the gate tested (applied or refused), the factor `s` (2 before the
     /// robot's first measurement: its unseen errors are not yet known) becomes
-    /// `s (1 + (min(d^2, gate) / 3 - 1) / m)`, kept within 0.1-100
-    /// ([`dukf::NoiseScale`]), where `m` is `memory` once the robot has had 15 measurements
-    /// and 5 + their number before (the initial 2 weighs five measurements): it settles where
-    /// the mean `d^2` is 3, the mean of a chi-square with 3 degrees of freedom (errors the fit
-    /// residuals cannot see, such as corner errors shared by a face's corners, raise it;
-    /// errors that vary so slowly that the track follows them, as at `far`, lower it: there it
-    /// settles near 0.3). Default 20
+    /// `s (1 + (min(d^2, gate) / 3 - 1) / memory)`, kept within 0.1-100, the initial 2
+    /// weighing five measurements ([`dukf::NoiseScale::with_prior`]): it settles where the
+    /// mean `d^2` is 3 (errors the fit residuals cannot see, such as corner errors shared by
+    /// a face's corners, raise it; errors so slow that the track follows them lower it: at
+    /// `far` it settles near 0.3). Default 20
     /// (two thirds of a second at 30 frames/s: chosen on the demo's seed 1 among 10, 20, 30
     /// and 100, `docs/tracking.md`); at least 1, or 0 to keep `R` as the pose covariance gives it.
     pub innovation_memory: f64,
