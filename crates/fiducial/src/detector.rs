@@ -26,7 +26,7 @@ use crate::quad::QuadLimits;
 use crate::refine::Refiner;
 use crate::roi::{Region, merge_overlapping};
 use crate::split::{Rect, SplitParams, Splitter};
-use crate::stages::{DecodeContext, Decoding, Examined, Quad, Scan, push_unique};
+use crate::stages::{DecodeContext, Decoding, Examined, Quad, Scan, push_unique, refine_candidate};
 use crate::threshold::Binarizer;
 
 /// The size of one search's binary image: `factor` (1 to 4) is the scale of the quad
@@ -1017,11 +1017,8 @@ fn add_refined(
     {
         return;
     }
-    if crate::decode::flat_inside(img, &coarse, cells_across) {
-        return;
-    }
     let Some((c, contrast)) =
-        refiner.refine(img, &coarse, &cfg.refine, min_angle_deg, cells_across)
+        refine_candidate(img, &coarse, refiner, cfg, min_angle_deg, cells_across)
     else {
         return;
     };

@@ -104,20 +104,36 @@ impl Scan<'_, '_> {
                 c.y = c.y * scale + off;
             }
         }
-        if crate::decode::flat_inside(self.img, &coarse, self.cells_across) {
-            return Examined::Dropped;
-        }
-        let Some((corners, contrast)) = refiner.refine(
+        match refine_candidate(
             self.img,
             &coarse,
-            &cfg.refine,
+            refiner,
+            cfg,
             cfg.min_angle_deg,
             self.cells_across,
-        ) else {
-            return Examined::Dropped;
-        };
-        Examined::Quad(Quad { corners, contrast })
+        ) {
+            Some((corners, contrast)) => Examined::Quad(Quad { corners, contrast }),
+            None => Examined::Dropped,
+        }
     }
+}
+
+/// The refined corners of the candidate `coarse` and their contrast, as the first pass
+/// and the second look both take them: `None` when its inside is as dark as its border
+/// ([`crate::decode::flat_inside`], checked on the coarse corners first: no marker's is)
+/// or when the refinement cannot fit its sides.
+pub(crate) fn refine_candidate(
+    img: &GrayView<'_>,
+    coarse: &Corners,
+    refiner: &mut Refiner,
+    cfg: &DetectorConfig,
+    min_angle_deg: f64,
+    cells_across: f64,
+) -> Option<(Corners, f64)> {
+    if crate::decode::flat_inside(img, coarse, cells_across) {
+        return None;
+    }
+    refiner.refine(img, coarse, &cfg.refine, min_angle_deg, cells_across)
 }
 
 /// Scratch of decoding one quad at a time, owned by the detector (one per thread in
