@@ -1066,26 +1066,15 @@ mod tests {
             };
             let m = crate::render_marker(family, dict.codes()[3], &options).expect("rendered");
             let (w, h) = (m.width(), m.height());
-            let blur = (2.5 * f64::from(cell)).round() as usize;
-            let smeared: Vec<f64> = (0..w * h)
-                .map(|i| {
-                    let (x, y) = (i % w, i / w);
-                    let sum: f64 = (0..blur)
-                        .map(|k| {
-                            f64::from(
-                                m.pixels()[y * w + (x + k).saturating_sub(blur / 2).min(w - 1)],
-                            )
-                        })
-                        .sum();
-                    sum / blur as f64
-                })
-                .collect();
+            let length = (2.5 * f64::from(cell)).round();
+            let smeared =
+                marker_testkit::motion_blur(m.pixels(), w, h, length, 0.0).expect("blurred");
             let (sw, sh) = (w / F, h / F);
             let px: Vec<u8> = (0..sw * sh)
                 .map(|i| {
                     let (x, y) = (i % sw, i / sw);
                     let sum: f64 = (0..F * F)
-                        .map(|k| smeared[(F * y + k / F) * w + F * x + k % F])
+                        .map(|k| f64::from(smeared[(F * y + k / F) * w + F * x + k % F]))
                         .sum();
                     (sum / (F * F) as f64).round() as u8
                 })

@@ -831,18 +831,8 @@ mod tests {
             for &code in dict.codes() {
                 let m = crate::render_marker(family, code, &options).unwrap();
                 let (w, h) = (m.width(), m.height());
-                // A centred box blur of 6 px along x.
-                let smeared: Vec<u8> = (0..w * h)
-                    .map(|i| {
-                        let (x, y) = (i % w, i / w);
-                        let sum: u32 = (0..6)
-                            .map(|k| {
-                                u32::from(m.pixels()[y * w + (x + k).saturating_sub(3).min(w - 1)])
-                            })
-                            .sum();
-                        (sum / 6) as u8
-                    })
-                    .collect();
+                // A box blur of 6 px along x.
+                let smeared = marker_testkit::motion_blur(m.pixels(), w, h, 6.0, 0.0).unwrap();
                 for px in [m.pixels(), &smeared[..]] {
                     let img = GrayView::new(px, w, h).unwrap();
                     let lift = inside_lift(&img, &m.corners(), cells, 20.0);
