@@ -86,6 +86,17 @@ fn input(f: &Frame, observations: Vec<Observation>) -> FrameInput {
     }
 }
 
+/// A frame at `t` with the follower's inputs `follower` in which the leader is measured as
+/// `pose` (the scenario's samples, not `Frame`s).
+fn sample_input(t: f64, follower: Inputs, pose: PoseMeasurement) -> FrameInput {
+    FrameInput {
+        t,
+        follower,
+        mount: CameraMount::default(),
+        observations: seen(pose),
+    }
+}
+
 fn seen(pose: PoseMeasurement) -> Vec<Observation> {
     vec![Observation {
         robot: ROBOT,
@@ -641,12 +652,11 @@ fn formation_measurements_are_filtered_and_checked() {
             [good, mirrored]
         };
         let rep = tr
-            .update(&FrameInput {
-                t: s.t,
-                follower: prev.follower_inputs,
-                mount: CameraMount::default(),
-                observations: seen(PoseMeasurement::FormationCandidates(pair)),
-            })
+            .update(&sample_input(
+                s.t,
+                prev.follower_inputs,
+                PoseMeasurement::FormationCandidates(pair),
+            ))
             .unwrap();
         let l = leader(&rep);
         assert!(sane(l));
@@ -688,12 +698,11 @@ fn formation_measurements_are_filtered_and_checked() {
     .enumerate()
     {
         let rep = tr
-            .update(&FrameInput {
-                t: last.t + (i + 1) as f64 / 30.0,
-                follower: last.follower_inputs,
-                mount: CameraMount::default(),
-                observations: seen(bad),
-            })
+            .update(&sample_input(
+                last.t + (i + 1) as f64 / 30.0,
+                last.follower_inputs,
+                bad,
+            ))
             .unwrap();
         assert_eq!(leader(&rep).measurement, MeasurementUse::Invalid);
         assert!(sane(leader(&rep)));
@@ -761,12 +770,11 @@ fn nis_with_overstated_r(overstate: f64, seed: u64, skip: usize) -> f64 {
             fit: None,
         };
         let rep = tr
-            .update(&FrameInput {
-                t: s.t,
-                follower: prev.follower_inputs,
-                mount: CameraMount::default(),
-                observations: seen(PoseMeasurement::Formation(m)),
-            })
+            .update(&sample_input(
+                s.t,
+                prev.follower_inputs,
+                PoseMeasurement::Formation(m),
+            ))
             .unwrap();
         let l = leader(&rep);
         if l.measurement == MeasurementUse::Updated
