@@ -48,9 +48,10 @@ pub const MIN_SIDE_REL: f64 = 0.5;
 
 /// Smallest interior angle of a cluster's quadrilateral, degrees (the detector's
 /// `min_angle_deg` when that is smaller): a marker almost flat on the table and seen along
-/// its diagonal has two corners of about 30 degrees (Duckietown tag 58 of
-/// `test_image_multiple_09.png`: 29.4 degrees in AprilTag 3's corners), below the first
-/// pass's default. AprilTag 3 accepts down to 10 degrees.
+/// its diagonal has two sharp corners (Duckietown tag 58 of `test_image_multiple_09.png`:
+/// 29.4 degrees in AprilTag 3's corners). The first pass's default is the same since
+/// 2026-12-07 ([`crate::DetectorConfig::min_angle_deg`]); this bound keeps clustering
+/// reading such markers under a stricter first pass. AprilTag 3 accepts down to 10 degrees.
 pub const MIN_ANGLE_DEG: f64 = 15.0;
 
 /// Pixel classes.

@@ -49,7 +49,7 @@
 //!    (8-connected), with each component's pixel count, box and holes. Rejects nothing.
 //! 3. **Examine** each component: *trace* its outer border (Moore following), *fit* a
 //!    four-vertex polygon (module `quad`: straight sides within 1.5 px + 5 % of the side,
-//!    interior angles >= 30 degrees), *refine* its corners to sub-pixel (module `refine`: per
+//!    interior angles >= 15 degrees), *refine* its corners to sub-pixel (module `refine`: per
 //!    side, up to 64 grey-level edge profiles away from the corners, each at most 2.5 px and
 //!    0.4 border cell long either side of the edge, located by the area under the
 //!    normalised profile, exact for any symmetric blur; a total-least-squares line with

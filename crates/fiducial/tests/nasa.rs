@@ -11,9 +11,11 @@
 //! across the side rather than along the grid's slanted lines: the reference's eighth, a tag
 //! lying almost flat (a parallelogram with 33 degree corners), was dropped because the
 //! slant made its 1.2 px border cells read as 2.1 px ones, held to a check they cannot pass.
-//! Two tags still give no quad with the default settings: the third's border touches the
-//! dark floor through a light rim of 1-2 px, and the ninth, lying flat, has corners of 21
-//! degrees, under the quad fit's 30. Boundary clustering (`formation-tracker detect`'s
+//! Two tags gave no quad with the default settings: the third's border touches the dark
+//! floor through a light rim of 1-2 px, and the ninth, lying flat, has corners of 21
+//! degrees, under the quad fit's 30 of then; the fit takes 15 since 2026-12-07, and the
+//! ninth is read by default too, with two tags the reference lacks (the edge-on one and one
+//! lying flat right of the ninth). Boundary clustering (`formation-tracker detect`'s
 //! search) finds the third's quad, which the side check dropped until it took the corner
 //! cell's level above the border's black near that corner: glare lights the border
 //! unevenly there (cells 7 to 68 grey levels, contrast 80; its NW corner cell read 0.456 of
@@ -23,7 +25,10 @@
 //! finds the ninth (its quads may have corners of 15 degrees), 2.3 px off at one 21 degree
 //! tip: a side's offset moves a tip 1 / sin 21 deg = 2.8 times as far, and the two sides
 //! there lie 0.29 and up to 0.57 px from AprilTag 3's (on a tag 6 px high, border cells of
-//! 1.2 px), with the pattern step (2.30 px) or without it (2.32 px).
+//! 1.2 px), with the pattern step (2.30 px) or without it (2.32 px). On tags of its shape
+//! drawn with an exact truth, AprilTag 3's own corners lie 1.0-3.1 px from it and ours
+//! 0.1-0.7 px (`docs/grazing-angles.md`, `cargo xtask grazing`): at such tips the reference
+//! is as far from the truth as our reading is from the reference.
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
 use std::path::PathBuf;
@@ -58,6 +63,25 @@ const EDGE_ON: [[f64; 2]; 4] = [
     [385.0, 308.0],
     [380.0, 272.0],
 ];
+
+/// The tag lying flat to the right of the reference's ninth, which the reference does not
+/// list either (rounded corners).
+const FLAT_RIGHT: [[f64; 2]; 4] = [
+    [747.4, 361.1],
+    [783.8, 365.4],
+    [756.8, 372.1],
+    [720.7, 367.7],
+];
+
+/// Whether `d` is a tag of the photo: a reference tag within a pixel, the ninth at its 21
+/// degree tips (2.3 px), or one of the two tags the reference does not list.
+fn known(d: &Decoded, refs: &[RefTag]) -> bool {
+    refs.iter().any(|r| corner_error(&d.corners, &r.1) <= 1.0)
+        || corner_error(&d.corners, &refs[8].1) <= 2.5
+        || [EDGE_ON, FLAT_RIGHT]
+            .iter()
+            .any(|e| corner_error(&d.corners, e) <= 2.0)
+}
 
 /// The markers read on the photo by a tag36h11 detector with `config`.
 fn detect_photo(config: DetectorConfig) -> Vec<Decoded> {
@@ -96,14 +120,15 @@ fn reads_eight_of_the_ten_reference_tags_within_a_pixel_and_nothing_false() {
     // The tag lying almost flat, which the side check dropped before (the eighth).
     assert!(read.contains(&7), "reference tags read: {read:?}");
     assert!(read.len() >= 8, "reference tags read: {read:?}");
-    // Every read is a reference tag or the edge-on tag on the cube's left face.
+    // The ninth, lying flat with 21 degree tips (refused by the quad fit's old 30 degrees).
+    assert!(
+        out.iter()
+            .any(|d| corner_error(&d.corners, &refs[8].1) <= 2.5),
+        "the ninth reference tag is not read"
+    );
+    // Every read is a tag of the photo.
     for d in &out {
-        let known = refs.iter().any(|r| corner_error(&d.corners, &r.1) <= 1.0);
-        assert!(
-            known || corner_error(&d.corners, &EDGE_ON) <= 2.0,
-            "a read at no known tag: {:?}",
-            d.corners
-        );
+        assert!(known(d, &refs), "a read at no known tag: {:?}", d.corners);
     }
 }
 
@@ -123,20 +148,8 @@ fn with_boundary_clusters_reads_the_third_tag_too() {
     let read = read_within_a_pixel(&out, &refs);
     assert!(read.contains(&2), "reference tags read: {read:?}");
     assert!(read.len() >= 9, "reference tags read: {read:?}");
-    let extras = [
-        EDGE_ON,
-        [
-            [747.4, 361.1],
-            [783.8, 365.4],
-            [756.8, 372.1],
-            [720.7, 367.7],
-        ],
-    ];
     for d in &out {
-        let known = refs.iter().any(|r| corner_error(&d.corners, &r.1) <= 1.0)
-            || corner_error(&d.corners, &refs[8].1) <= 2.5
-            || extras.iter().any(|e| corner_error(&d.corners, e) <= 2.0);
-        assert!(known, "a read at no known tag: {:?}", d.corners);
+        assert!(known(d, &refs), "a read at no known tag: {:?}", d.corners);
     }
 }
 
