@@ -15,6 +15,7 @@ mod dictionary;
 mod dukf_table;
 mod figures;
 mod fingerprint;
+mod grazing;
 mod motion_sets;
 mod photos;
 mod pyenv;
@@ -89,6 +90,9 @@ commands:
                    the median time, the reads and where the work went (--reps N, default 20;
                    --dictionary NAME, default tag36h11; --clutter: the clutter bench's
                    frame too; --list: every marker read; or name photos/folders to time)
+  grazing          markers seen at a grazing angle (the NASA photo's tag 8, drawn with an exact
+                   truth): ours against AprilTag 3 (pupil-apriltags in target/py-venv); writes
+                   docs/grazing-angles.md (--markers N per row, default 20)
   unused-deps      fail if a workspace crate declares a dependency its code never names
   figures          run the demo and copy its figures into docs/img/ (the README's)
   solvepnp         OpenCV's single-marker poses (solvePnP IPPE_SQUARE) and lens projections
@@ -121,6 +125,7 @@ fn main() -> ExitCode {
         Some("solvepnp") => solvepnp::run(&args[1..]),
         Some("bags") => bags::run(&args[1..]),
         Some("photos") => photos::run(&args[1..]),
+        Some("grazing") => grazing::run(&args[1..]),
         Some("compare") => compare::run(&args[1..]),
         Some("motion-sets") => motion_sets::run(&args[1..]),
         Some("ros2-interop") => ros2_interop::run(&args[1..]),
