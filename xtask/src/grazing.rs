@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 
 use fiducial::{Detector, DetectorConfig, GrayView, dictionary_by_name};
 use marker_testkit::reference::corner_error;
-use marker_testkit::{Canvas, CellPattern, Effects};
+use marker_testkit::{Canvas, CellPattern, Effects, sharpest_corner_deg};
 use nalgebra::Point2;
 use serde_json::Value;
 
@@ -47,18 +47,6 @@ fn quad(scale: f64) -> [[f64; 2]; 4] {
             H as f64 / 2.0 + (p[1] - c[1]) * scale,
         ]
     })
-}
-
-/// The smallest interior angle of `q`, degrees.
-fn sharpest(q: &[[f64; 2]; 4]) -> f64 {
-    (0..4)
-        .map(|i| {
-            let (p, a, b) = (q[i], q[(i + 3) % 4], q[(i + 1) % 4]);
-            let (u, v) = ([a[0] - p[0], a[1] - p[1]], [b[0] - p[0], b[1] - p[1]]);
-            let cos = (u[0] * v[0] + u[1] * v[1]) / (u[0].hypot(u[1]) * v[0].hypot(v[1]));
-            cos.acos().to_degrees()
-        })
-        .fold(180.0, f64::min)
 }
 
 /// One detector's results on one set: the worst corner error of each marker read with its
@@ -322,7 +310,7 @@ fn document(sets: &[(f64, f64, Score)], at3: &[Score], markers: usize, nasa: &Na
         let _ = writeln!(
             md,
             "| {scale:.1} | {:.1} | {blur:.1} | {or} | {os} | {tr} | {ts} | {}; {} |",
-            sharpest(&quad(*scale)),
+            sharpest_corner_deg(&quad(*scale)),
             ours.wrong,
             theirs.wrong
         );

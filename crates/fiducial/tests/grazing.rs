@@ -9,7 +9,7 @@
 #![allow(clippy::unwrap_used)] // tests may unwrap (house rules)
 
 use fiducial::{Detector, DetectorConfig, GrayView, dictionary_by_name};
-use marker_testkit::{Canvas, CellPattern, Effects};
+use marker_testkit::{Canvas, CellPattern, Effects, sharpest_corner_deg};
 
 const W: usize = 160;
 const H: usize = 80;
@@ -25,18 +25,6 @@ fn quad() -> [[f64; 2]; 4] {
         [677.782, 359.534],
     ];
     tag8.map(|p| [80.0 + (p[0] - 680.0) * 1.3, 40.0 + (p[1] - 365.0) * 1.3])
-}
-
-/// The smallest interior angle of `q`, degrees.
-fn sharpest(q: &[[f64; 2]; 4]) -> f64 {
-    (0..4)
-        .map(|i| {
-            let (p, a, b) = (q[i], q[(i + 3) % 4], q[(i + 1) % 4]);
-            let (u, v) = ([a[0] - p[0], a[1] - p[1]], [b[0] - p[0], b[1] - p[1]]);
-            let cos = (u[0] * v[0] + u[1] * v[1]) / (u[0].hypot(u[1]) * v[0].hypot(v[1]));
-            cos.acos().to_degrees()
-        })
-        .fold(180.0, f64::min)
 }
 
 /// Entry `index` of tag36h11 drawn on [`quad`] over a light surface, blur 0.4, noise 3.
@@ -67,7 +55,7 @@ fn detect(pixels: &[u8], config: DetectorConfig) -> Vec<fiducial::Decoded> {
 #[test]
 fn a_marker_seen_at_a_grazing_angle_is_read_with_its_corners() {
     let truth = quad();
-    let angle = sharpest(&truth);
+    let angle = sharpest_corner_deg(&truth);
     assert!((20.0..23.0).contains(&angle), "{angle}");
     for (index, seed) in [(0, 1), (5, 2), (17, 3), (100, 4), (400, 5)] {
         let pixels = frame(index, seed);

@@ -404,6 +404,20 @@ fn convex_clockwise(c: &[[f64; 2]; 4], min_angle_deg: f64) -> bool {
     })
 }
 
+/// The smallest interior angle of the quadrilateral `c`, degrees: how sharp the sharpest
+/// corner of a marker's outline is (a marker seen at a grazing angle is a thin
+/// parallelogram with two sharp corners).
+pub fn sharpest_corner_deg(c: &[[f64; 2]; 4]) -> f64 {
+    (0..4)
+        .map(|i| {
+            let (p, a, b) = (c[i], c[(i + 3) % 4], c[(i + 1) % 4]);
+            let (u, v) = ([a[0] - p[0], a[1] - p[1]], [b[0] - p[0], b[1] - p[1]]);
+            let cos = (u[0] * v[0] + u[1] * v[1]) / (u[0].hypot(u[1]) * v[0].hypot(v[1]));
+            cos.clamp(-1.0, 1.0).acos().to_degrees()
+        })
+        .fold(180.0, f64::min)
+}
+
 /// Settings of a marker scene.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SceneConfig {
@@ -841,6 +855,21 @@ mod tests {
     use super::*;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
+
+    #[test]
+    fn the_sharpest_corner_of_a_square_and_of_a_thin_parallelogram() {
+        let square = [[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]];
+        assert!((sharpest_corner_deg(&square) - 90.0).abs() < 1e-9);
+        // Sides along x and at 20 degrees to it: corners of 20 and 160 degrees.
+        let (c, s) = (20f64.to_radians().cos(), 20f64.to_radians().sin());
+        let thin = [
+            [0.0, 0.0],
+            [30.0, 0.0],
+            [30.0 + 9.0 * c, 9.0 * s],
+            [9.0 * c, 9.0 * s],
+        ];
+        assert!((sharpest_corner_deg(&thin) - 20.0).abs() < 1e-9);
+    }
 
     /// Two families rendered from generators in the same state share the placement (the
     /// paired comparison of `cargo xtask detector-accuracy`); an index beyond the entries is
