@@ -310,7 +310,7 @@ fn duckietown_cases(root: &Path) -> crate::Result<Value> {
     let dir = root.join("fixtures/realdata/duckietown");
     let ks = duckietown_k(&std::fs::read_to_string(dir.join("test_info.yaml"))?)?;
     let dict = fiducial::dictionary_by_name("tag36h11")?.clone();
-    // Boundary clustering on: it reads the last five of the 56 tags.
+    // Boundary clustering on: it reads the last one of the 56 tags (id 58 of frame 09).
     let config = fiducial::DetectorConfig {
         boundary_clusters: true,
         ..fiducial::DetectorConfig::default()

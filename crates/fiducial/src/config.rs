@@ -56,7 +56,7 @@ pub struct DetectorConfig {
     /// Look for quads in the boundary clusters of large dark components that gave no quad
     /// (AprilTag 3's quad search, the second look's boundary clusters; issue #13): finds markers whose border has
     /// merged with something as dark as their ink, e.g. flat tags at grazing angles on real
-    /// frames (it reads the last 4 of the 56 Duckietown tags). Default off here (the
+    /// frames (it reads the one Duckietown tag of 56 the first pass misses). Default off here (the
     /// per-frame loop of a robot; `formation-tracker detect` turns it on): it labels the
     /// boxes of every large component that gave no quad, often most of a real or
     /// cluttered frame (measured on one core: 640x480 clutter frames 2.2-6.1 ms a frame

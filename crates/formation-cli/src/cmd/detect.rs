@@ -41,7 +41,7 @@ pub struct Args {
     /// Do not search large dark regions that gave no quad by AprilTag 3's boundary
     /// clustering. It is on by default in `detect` (photographs, where recall matters more
     /// than milliseconds): it reads tags that touch something as dark as their ink (a tag
-    /// lying on a dark floor or against a shadow, as 4 of the 56 Duckietown tags do), and
+    /// lying on a dark floor or against a shadow, as 1 of the 56 Duckietown tags does), and
     /// costs about 3 ms more per 640x480 real frame, 2-4x the time on cluttered frames
     /// (docs/marker-families.md). The library's `DetectorConfig::default()` and `track`
     /// keep it off.
