@@ -35,8 +35,16 @@ fn assert_equivalent(full: &DemoRun, guided: &DemoRun) {
     assert_eq!(f.frames, g.frames);
     assert_eq!(f.frames_detected, g.frames_detected);
     assert_eq!(f.reacquired_same_id, g.reacquired_same_id);
+    // The gate (99.9 % of a chi-square with 3 degrees of freedom): a frame whose NIS lies
+    // within 1 % of it in both runs may be taken in one and refused in the other, since the
+    // two read their corners from different crops (at 4K, t = 0.133 s: 16.277 full-frame,
+    // 16.261 guided, against 16.266).
+    let gate = formation_tracker::tracker::CHI2_3_999;
+    let on_the_gate = |nis: Option<f64>| nis.is_some_and(|d| (d - gate).abs() <= 0.01 * gate);
     for (a, b) in full.traces[0].records.iter().zip(&guided.traces[0].records) {
-        assert_eq!(a.status, b.status, "t = {}", a.step.t);
+        if !(on_the_gate(a.nis) && on_the_gate(b.nis)) {
+            assert_eq!(a.status, b.status, "t = {}", a.step.t);
+        }
         assert_eq!(a.leaders, b.leaders, "t = {}", a.step.t);
         // Recall does not drop: every frame reads as many markers (a face seen at a grazing
         // angle was once lost in regions searched at a coarse scale).
