@@ -7,7 +7,7 @@
 //! measured on.
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use serde_json::Value;
@@ -171,7 +171,7 @@ const RATIOS: &[(&str, &str, f64, &str)] = &[
 pub fn run(args: &[String]) -> Result {
     let no_run = args.iter().any(|a| a == "--no-run");
     let quick = args.iter().any(|a| a == "--quick");
-    let root = workspace_root()?;
+    let root = crate::workspace_root()?;
     if !no_run {
         let mut cmd = Command::new(env!("CARGO"));
         cmd.current_dir(&root)
@@ -225,14 +225,6 @@ struct Row {
     median_ns: f64,
     lo_ns: f64,
     hi_ns: f64,
-}
-
-fn workspace_root() -> Result<PathBuf> {
-    let manifest = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    manifest
-        .parent()
-        .map(Path::to_path_buf)
-        .ok_or_else(|| "xtask has no parent directory".into())
 }
 
 /// Walks `target/criterion` for `new/benchmark.json` + `new/estimates.json` pairs.

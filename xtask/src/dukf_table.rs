@@ -22,7 +22,7 @@ mod common;
 mod held_out;
 mod smoothing;
 
-use common::{CHECK_SEEDS, SEEDS, median, verdict, workspace_root};
+use common::{CHECK_SEEDS, SEEDS, median, verdict};
 
 /// The paper's figures (Figs. 12-13) and the issue's velocity bounds.
 const PAPER_MSE_L12: f64 = 1.88e-4;
@@ -144,10 +144,12 @@ pub fn run(args: &[String]) -> Result {
         [flag, file] if flag == "--scenario" => return run_scenario(std::path::Path::new(file)),
         [flag] if flag == "--held-out" => {
             let (md, smoothing) = held_out::document()?;
-            let path = workspace_root()?.join("docs").join("dukf-held-out.md");
+            let path = crate::workspace_root()?
+                .join("docs")
+                .join("dukf-held-out.md");
             crate::write_atomically(&path, &md)?;
             println!("dukf-table: wrote {}", path.display());
-            let smoothing_path = workspace_root()?.join("docs").join("smoothing.md");
+            let smoothing_path = crate::workspace_root()?.join("docs").join("smoothing.md");
             let doc = std::fs::read_to_string(&smoothing_path)?;
             crate::write_atomically(&smoothing_path, &splice_held_out(&doc, &smoothing))?;
             println!(
@@ -175,7 +177,9 @@ pub fn run(args: &[String]) -> Result {
     write_per_seed_and_bias(&mut md, &runs);
     let _ = writeln!(md, "\n{}", include_str!("dukf_table_notes.md").trim_end());
 
-    let path = workspace_root()?.join("docs").join("dukf-reproduction.md");
+    let path = crate::workspace_root()?
+        .join("docs")
+        .join("dukf-reproduction.md");
     crate::write_atomically(&path, &md)?;
     let smoothing = smoothing::document(
         &runs.dual_runs,
@@ -183,7 +187,7 @@ pub fn run(args: &[String]) -> Result {
         &runs.clean,
         &runs.check,
     )?;
-    let smoothing_path = workspace_root()?.join("docs").join("smoothing.md");
+    let smoothing_path = crate::workspace_root()?.join("docs").join("smoothing.md");
     // The held-out section is `--held-out`'s: kept as it is.
     let held = std::fs::read_to_string(&smoothing_path)
         .ok()
@@ -600,7 +604,7 @@ fn write_other_scenarios(md: &mut String) -> Result {
          --scenario FILE` or `formation-tracker reproduce dukf --scenario FILE`. \
          `reference.yaml` is the scenario above.\n"
     );
-    let root = workspace_root()?;
+    let root = crate::workspace_root()?;
     for (name, what) in [
         (
             "l12-step.yaml",

@@ -80,13 +80,6 @@ impl Score {
     }
 }
 
-fn workspace_root() -> Result<PathBuf> {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .map(Path::to_path_buf)
-        .ok_or_else(|| "xtask has no parent directory".into())
-}
-
 fn write_pgm(path: &Path, pixels: &[u8]) -> Result {
     let mut pgm = format!("P5\n{W} {H}\n255\n").into_bytes();
     pgm.extend_from_slice(pixels);
@@ -110,7 +103,7 @@ pub fn run(args: &[String]) -> Result {
             .into());
         }
     };
-    let root = workspace_root()?;
+    let root = crate::workspace_root()?;
     let work = root.join("target").join("grazing");
     std::fs::create_dir_all(&work)?;
     let dict = dictionary_by_name("tag36h11")?;

@@ -44,6 +44,14 @@ fn realdata(root: &std::path::Path, sub: &str) -> Result<std::path::PathBuf> {
 
 type Result<T = ()> = std::result::Result<T, Box<dyn std::error::Error>>;
 
+/// The repository's root folder (the parent of `xtask/`).
+fn workspace_root() -> Result<std::path::PathBuf> {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map(std::path::Path::to_path_buf)
+        .ok_or_else(|| "xtask has no parent directory".into())
+}
+
 /// Writes `text` to a temporary file beside `path` (its name and `.tmp`), then renames it
 /// over `path`, so that an interrupted run leaves the old file whole.
 fn write_atomically(path: &std::path::Path, text: &str) -> Result {

@@ -1,9 +1,5 @@
 //! What the dukf table and its smoothing section share: the seeds and small helpers.
 
-use std::path::PathBuf;
-
-use crate::Result;
-
 /// The seeds the tables are tuned and reported on.
 pub const SEEDS: std::ops::RangeInclusive<u64> = 1..=20;
 /// Seeds never used for tuning, reported as a check.
@@ -25,15 +21,6 @@ pub fn median(mut v: Vec<f64>) -> f64 {
 /// `pass` or `FAIL`.
 pub fn verdict(ok: bool) -> &'static str {
     if ok { "pass" } else { "FAIL" }
-}
-
-/// The repository's root folder.
-pub fn workspace_root() -> Result<PathBuf> {
-    let manifest = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    Ok(manifest
-        .parent()
-        .ok_or("xtask has no parent directory")?
-        .to_path_buf())
 }
 
 /// Seeds the issue #30 table reports on, never used for tuning its baselines (which are tuned

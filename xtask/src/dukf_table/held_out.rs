@@ -25,7 +25,7 @@ use formation_sim::scenario_file::ScenarioSpec;
 use serde_json::{Value, json};
 use unicycle::{PolarModel, wrap_angle};
 
-use super::common::{HELD_OUT_SEEDS, SEEDS, median, verdict, workspace_root};
+use super::common::{HELD_OUT_SEEDS, SEEDS, median, verdict};
 use super::{chi2_bounds, consistency};
 use crate::Result;
 
@@ -516,7 +516,7 @@ fn scenario_section(
 
 /// The whole document, and the held-out section of `docs/smoothing.md`.
 pub fn document() -> Result<(String, String)> {
-    let root = workspace_root()?;
+    let root = crate::workspace_root()?;
     let python = crate::pyenv::python(
         &root,
         "dukf-table",

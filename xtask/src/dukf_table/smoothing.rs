@@ -9,7 +9,7 @@ use formation_filter::FilterDesign;
 use formation_sim::reproduce::{Reproduction, Summary, reproduce, run_filter};
 use formation_sim::scenario_file::ScenarioSpec;
 
-use super::common::{CHECK_SEEDS, SEEDS, median, verdict, workspace_root};
+use super::common::{CHECK_SEEDS, SEEDS, median, verdict};
 use crate::Result;
 
 /// The smoothed median MSE of `l12` and `alpha12` must be at most this fraction of the
@@ -128,7 +128,7 @@ pub(super) fn document(
         "\n## Reference scenario, seeds 21..40 (never used for tuning)\n"
     );
     table(&mut md, &c, &s, &d, &ds, true);
-    let root = workspace_root()?;
+    let root = crate::workspace_root()?;
     for name in ["l12-step.yaml", "hard-turn.yaml"] {
         eprintln!("dukf-table: smoothing on {name}");
         let spec = ScenarioSpec::load(&root.join("fixtures").join("scenarios").join(name))?;
