@@ -1,8 +1,8 @@
 """AprilTag 3's corners on grey images, for `cargo xtask grazing`.
 
 argv[1]: a JSON list of PGM paths; argv[2]: the output, a JSON list with one entry per
-image: the tags read, each {"id", "corners": [[x, y] x 4]} in AprilTag's pixel convention
-(pixel centres at half-integers). Detector: tag36h11, decimate 1, refine_edges on (the
+image, in `compare.py`'s form of a peer's reads: {"markers": [[id, [[x, y] x 4]], ...]}, in
+AprilTag's pixel convention (pixel centres at half-integers). Detector: tag36h11, decimate 1, refine_edges on (the
 settings of the NASA photo's reference reading).
 """
 import json
@@ -31,8 +31,8 @@ detector = pupil_apriltags.Detector(families="tag36h11", quad_decimate=1.0, refi
 out = []
 for path in json.load(open(sys.argv[1])):
     img = np.ascontiguousarray(read_pgm(path))
-    out.append([
-        {"id": int(d.tag_id), "corners": [[float(x), float(y)] for x, y in d.corners]}
+    out.append({"markers": [
+        [int(d.tag_id), [[float(x), float(y)] for x, y in d.corners]]
         for d in detector.detect(img)
-    ])
+    ]})
 json.dump(out, open(sys.argv[2], "w"))
