@@ -1450,9 +1450,10 @@ fn photo_section(photos: &[PathBuf], ours: &[Vec<Reads>], peers: &Value) -> crat
             text,
             "On {name} (its README's reference corners, {} tags), ours reads {} with every \
              corner within 1 px of the reference, AprilTag 3 {} (target: all); ours also \
-             reads {elsewhere} tags the reference does not list. A tag seen at a grazing \
-             angle has corners so sharp that AprilTag 3's own corners lie over a pixel from \
-             the truth there: `docs/grazing-angles.md`.\n",
+             reads {elsewhere} tags the reference does not list. On a tag seen at a grazing \
+             angle a sharp corner moves by several times any offset of its sides; \
+             `docs/grazing-angles.md` measures ours and AprilTag 3 against an exact truth \
+             there.\n",
             refs.len(),
             within(&ours),
             within(&peer)
