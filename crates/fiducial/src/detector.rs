@@ -897,14 +897,17 @@ impl Detector {
         let cfg = &self.config;
         let params = split_params(cfg, limits);
         let (quads, refiner) = (&mut self.quads, &mut self.refiner);
-        let mut add = |coarse: Corners, min_angle_deg: f64| {
+        let mut add = |coarse: Corners, min_angle_deg: f64, dark_cut: bool| {
             add_refined(
                 quads,
                 refiner,
                 img,
-                coarse,
+                Candidate {
+                    coarse,
+                    min_angle_deg,
+                    dark_cut,
+                },
                 cfg,
-                min_angle_deg,
                 cells_across,
             );
         };
@@ -920,7 +923,7 @@ impl Detector {
                         &params,
                         LIGHT_CUT,
                         LIGHT_CUT_MIN_CONTRAST,
-                        |c| add(c, cfg.min_angle_deg),
+                        |c| add(c, cfg.min_angle_deg, false),
                     );
                 }
             }
@@ -944,14 +947,14 @@ impl Detector {
             if factor == 1 {
                 self.splitter
                     .split(img, &self.retry_runs, rect, &params, |c| {
-                        add(c, cfg.min_angle_deg)
+                        add(c, cfg.min_angle_deg, true)
                     });
             }
             // What the re-cut could not separate: clusters of the light/dark boundary.
             if cfg.boundary_clusters {
                 let angle = cfg.min_angle_deg.min(crate::cluster::MIN_ANGLE_DEG);
                 self.clusterer
-                    .clusters(img, rect, &params, |c| add(c, angle));
+                    .clusters(img, rect, &params, |c| add(c, angle, false));
             }
         }
     }
@@ -994,6 +997,14 @@ fn contains(outer: &Corners, inner: &Corners) -> bool {
     })
 }
 
+/// A quad candidate of the second look: its coarse corners, the sharpest corner its fit
+/// accepts (degrees), and whether the re-cut found it ([`Quad`]'s `dark_cut`).
+struct Candidate {
+    coarse: Corners,
+    min_angle_deg: f64,
+    dark_cut: bool,
+}
+
 /// Refines the coarse corners of a re-cut or light-cut quad on `img` and adds the quad to
 /// `quads` unless it is already there: most re-cut components are ones already found (or
 /// their parts), so those are skipped before the refinement, by the coarse corners. So
@@ -1006,11 +1017,15 @@ fn add_refined(
     quads: &mut Vec<Quad>,
     refiner: &mut Refiner,
     img: &GrayView<'_>,
-    coarse: Corners,
+    candidate: Candidate,
     cfg: &DetectorConfig,
-    min_angle_deg: f64,
     cells_across: f64,
 ) {
+    let Candidate {
+        coarse,
+        min_angle_deg,
+        dark_cut,
+    } = candidate;
     if quads
         .iter()
         .any(|q| same_place(&q.corners, &coarse) || contains(&q.corners, &coarse))
@@ -1026,6 +1041,7 @@ fn add_refined(
         quads.push(Quad {
             corners: c,
             contrast,
+            dark_cut,
         });
     }
 }

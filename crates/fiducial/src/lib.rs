@@ -99,7 +99,9 @@
 //!    plainly or blurred); markers one of whose sides runs along an occluder (a border
 //!    thinner than its grid says, a light corner cell, an outline inside the quad) with the
 //!    plain corners and with the pattern step's; the
-//!    blurred reading of a quad whose motion is under 1.5 cells, whose cells are under
+//!    blurred reading of a quad the re-cut found (its outline is dark at a quarter of the
+//!    local range all round, which a smear of 1.5 cells across a border next to a white
+//!    cell does not leave), whose motion is under 1.5 cells, whose cells are under
 //!    1.5 px (the optical blur leaves them 11 % of their contrast) or whose outline is not
 //!    smeared outwards on any side (by 2 px and a fifth of the motion), before its cell
 //!    levels are solved, and stops one whose solve at the estimated motion leaves over

@@ -24,6 +24,10 @@ pub struct Quad {
     pub corners: Corners,
     /// Mean grey-level step across the four edges (0-255): a confidence measure.
     pub contrast: f64,
+    /// Whether the second look's re-cut found it (its outline closed at a quarter of the
+    /// local range, [`crate::split`]): such a quad is not read as motion-blurred (see
+    /// [`DecodeContext::decode`]).
+    pub(crate) dark_cut: bool,
 }
 
 /// What one scan of a detection needs to examine a component.
@@ -112,7 +116,11 @@ impl Scan<'_, '_> {
             cfg.min_angle_deg,
             self.cells_across,
         ) {
-            Some((corners, contrast)) => Examined::Quad(Quad { corners, contrast }),
+            Some((corners, contrast)) => Examined::Quad(Quad {
+                corners,
+                contrast,
+                dark_cut: false,
+            }),
             None => Examined::Dropped,
         }
     }
@@ -209,11 +217,21 @@ impl DecodeContext<'_> {
                 best = Some(d);
             }
         }
-        // Not an entry as sampled: read it as a motion-blurred marker (issue #16).
+        // Not an entry as sampled: read it as a motion-blurred marker (issue #16), unless
+        // the re-cut found it. The re-cut closes outlines that stay dark below a quarter of
+        // the local range, and a marker smeared by the 1.5 cells or more the blurred
+        // reading models has none: wherever a white cell adjoins its border across the
+        // motion, the smear averages the one black cell with at least half a cell of white
+        // on every pixel, a third of the contrast above black or more, so the outline is
+        // open there at that cut. (A marker far dimmer than its neighbourhood could still
+        // close; on the motion-blur rows of `cargo xtask detector-accuracy --motion-blur`
+        // and the sets of `cargo xtask motion-sets` no marker was read this way, while
+        // board.jpg's two blurred readings and the clutter bench frame's one, about 0.8 ms
+        // of each frame, were of the re-cut's quads.)
         // Read as sampled, the marker is sharp enough for the photometric step's model.
         let sharp = best.is_some();
         let best = best.or_else(|| {
-            (self.config.motion_blur && marker_like)
+            (self.config.motion_blur && marker_like && !q.dark_cut)
                 .then(|| {
                     crate::blur::decode_blurred(
                         img,
