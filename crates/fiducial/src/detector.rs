@@ -25,7 +25,7 @@ use crate::image::{Corners, GrayView};
 use crate::quad::QuadLimits;
 use crate::refine::Refiner;
 use crate::roi::{Region, merge_overlapping};
-use crate::split::{Rect, SplitParams, Splitter};
+use crate::split::{LIGHT_CUT, LIGHT_CUT_MIN_CONTRAST, Rect, SplitParams, Splitter};
 use crate::stages::{DecodeContext, Decoding, Examined, Quad, Scan, push_unique, refine_candidate};
 use crate::threshold::Binarizer;
 
@@ -959,19 +959,6 @@ impl Detector {
         }
     }
 }
-
-/// Where the light cut of [`Detector`]'s `split_retries` lies between the local minimum (0) and
-/// maximum (1) grey level: at 0.7, a smeared border whose box blur covers it for only
-/// half its length (a one-cell border next to a white cell under a motion of two cells)
-/// still reads dark under blur sigma 1 and noise, while the white margin around the
-/// marker stays light (at 9 px of motion blur, 0.6 read 2 markers more in 960 but once
-/// gave a wrong code, 0.8 read 6 fewer).
-pub(crate) const LIGHT_CUT: f64 = 0.7;
-
-/// Least local contrast (max - min grey level over a 3 x 3 tile neighbourhood) in which
-/// the light cut marks anything dark: a flat neighbourhood cut near its own maximum would
-/// turn noise into dark blobs (the first cut's default `min_contrast` is the same).
-pub(crate) const LIGHT_CUT_MIN_CONTRAST: u8 = 30;
 
 /// Boxes of at least this many pixels across are not light-cut: a marker that large has
 /// cells of over 20 px, which a motion blur of less than 1.5 cells (30 px) leaves readable

@@ -49,6 +49,19 @@ const TILE: usize = 8;
 /// Where the re-cut lies between the local minimum (0) and maximum (1) grey level.
 const CUT: f64 = 0.25;
 
+/// Where the light cut of [`crate::Detector`]'s `split_retries` lies between the local
+/// minimum (0) and maximum (1) grey level: at 0.7, a smeared border whose box blur covers it for only
+/// half its length (a one-cell border next to a white cell under a motion of two cells)
+/// still reads dark under blur sigma 1 and noise, while the white margin around the
+/// marker stays light (at 9 px of motion blur, 0.6 read 2 markers more in 960 but once
+/// gave a wrong code, 0.8 read 6 fewer).
+pub(crate) const LIGHT_CUT: f64 = 0.7;
+
+/// Least local contrast (max - min grey level over a 3 x 3 tile neighbourhood) in which
+/// the light cut marks anything dark: a flat neighbourhood cut near its own maximum would
+/// turn noise into dark blobs (the first cut's default `min_contrast` is the same).
+pub(crate) const LIGHT_CUT_MIN_CONTRAST: u8 = 30;
+
 /// A pixel rectangle, inclusive bounds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Rect {
@@ -448,7 +461,6 @@ impl Splitter {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::detector::{LIGHT_CUT, LIGHT_CUT_MIN_CONTRAST};
     use proptest::prelude::*;
 
     /// The cut written out pixel by pixel: the rectangle's 8-px tiles, each pixel against
