@@ -16,7 +16,7 @@ use fiducial::{Detector, DetectorConfig, GrayView, dictionary_by_name};
 use marker_testkit::reference::{RefTag, corner_error};
 
 const USAGE: &str =
-    "usage: cargo xtask photos [--reps N] [--dictionary NAME] [--clutter] [--list] [--least] [--photometric] [--clusters] [PHOTO|FOLDER]...
+    "usage: cargo xtask photos [--reps N] [--dictionary NAME] [--clutter] [--scene] [--list] [--least] [--photometric] [--clusters] [PHOTO|FOLDER]...
 
 --list: also print every marker read (id, corners rounded to pixels, bits corrected)
 --least: time each photo by the least of its runs instead of the median (on a loaded
@@ -27,7 +27,10 @@ machine, the run the other processes disturbed least)
 fiducial::PHOTOMETRIC_BELOW_PX (DetectorConfig::for_pose, the tracker's settings; the
 library default leaves it off), to see what it costs on these photos
 --clutter: first time the frame of the criterion bench fiducial/detect_clutter_640x480
-(marker_testkit's clutter, seed 43), to see where its time goes";
+(marker_testkit's clutter, seed 43), to see where its time goes
+--scene: first time the frame of the criterion bench fiducial/detect_640x480 (marker_testkit's
+accuracy scene, seed 42: 8 markers of the paper dictionary, 20-120 px), with the paper
+dictionary whatever --dictionary says: the frame the clutter bench is compared with";
 
 /// The frame of the bench `fiducial/detect_clutter_640x480`: `marker_testkit`'s clutter,
 /// seed 43, without entries of the paper dictionary.
@@ -48,6 +51,22 @@ fn bench_clutter() -> crate::Result<Vec<u8>> {
     Ok(marker_testkit::clutter_frame(
         640, 480, 1.0, 3.0, not, &mut rng,
     )?)
+}
+
+/// The frame of the bench `fiducial/detect_640x480`: `marker_testkit`'s accuracy scene
+/// (the default [`marker_testkit::SceneConfig`]), seed 42, markers of the paper dictionary.
+fn bench_scene() -> crate::Result<Vec<u8>> {
+    use rand::SeedableRng;
+    let dict = fiducial::Dictionary::paper();
+    let f = dict.family();
+    let entries = marker_testkit::CellPattern::from_codes(
+        f.rows() as usize,
+        f.cols() as usize,
+        (0..dict.len()).map(|i| dict.code(i).unwrap_or(0)),
+    );
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(42);
+    let cfg = marker_testkit::SceneConfig::default();
+    Ok(marker_testkit::marker_scene(&cfg, &entries, &mut rng)?.pixels)
 }
 
 /// Photo files (PNG or JPEG) of `dir`, sorted by name.
@@ -110,6 +129,7 @@ pub fn run(args: &[String]) -> crate::Result {
     let mut dictionary = "tag36h11".to_string();
     let mut paths = Vec::new();
     let mut clutter = false;
+    let mut scene = false;
     let mut list = false;
     let mut least = false;
     let mut config = DetectorConfig::default();
@@ -125,6 +145,7 @@ pub fn run(args: &[String]) -> crate::Result {
             }
             "--dictionary" => dictionary = it.next().ok_or("--dictionary needs a name")?.clone(),
             "--clutter" => clutter = true,
+            "--scene" => scene = true,
             "--list" => list = true,
             "--least" => least = true,
             "--photometric" => config.refine.photometric_below_px = fiducial::PHOTOMETRIC_BELOW_PX,
@@ -148,7 +169,7 @@ pub fn run(args: &[String]) -> crate::Result {
         .parent()
         .ok_or("xtask has no parent folder")?
         .to_path_buf();
-    if paths.is_empty() && !clutter {
+    if paths.is_empty() && !clutter && !scene {
         paths = default_photos(&root)?;
     }
     let dict = dictionary_by_name(&dictionary)?.clone();
@@ -158,6 +179,18 @@ pub fn run(args: &[String]) -> crate::Result {
         "photo", "size", "ms", "reads"
     );
     let mut total = 0.0;
+    if scene {
+        let px = bench_scene()?;
+        let mut paper = Detector::new(config);
+        total += report(
+            &mut paper,
+            "accuracy_640x480 (bench, seed 42)",
+            &GrayView::new(&px, 640, 480)?,
+            Timing { reps, least },
+            list,
+            None,
+        );
+    }
     if clutter {
         let px = bench_clutter()?;
         let img = GrayView::new(&px, 640, 480)?;
