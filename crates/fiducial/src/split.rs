@@ -50,10 +50,10 @@ const TILE: usize = 8;
 const CUT: f64 = 0.25;
 
 /// Where the light cut of [`crate::Detector`]'s `split_retries` lies between the local
-/// minimum (0) and maximum (1) grey level: at 0.7, a smeared border whose box blur covers it for only
-/// half its length (a one-cell border next to a white cell under a motion of two cells)
-/// still reads dark under blur sigma 1 and noise, while the white margin around the
-/// marker stays light (at 9 px of motion blur, 0.6 read 2 markers more in 960 but once
+/// minimum (0) and maximum (1) grey level: at 0.7, a smeared border whose box blur covers
+/// it for only half its length (a one-cell border next to a white cell under a motion of
+/// two cells) still reads dark under blur sigma 1 and noise, while the white margin around
+/// the marker stays light (at 9 px of motion blur, 0.6 read 2 markers more in 960 but once
 /// gave a wrong code, 0.8 read 6 fewer).
 pub(crate) const LIGHT_CUT: f64 = 0.7;
 
