@@ -251,13 +251,7 @@ impl Family {
 
     /// Every entry as a cell pattern (one-cell border, one-cell quiet zone).
     pub(crate) fn patterns(self) -> crate::Result<Vec<CellPattern>> {
-        let d = self.dictionary()?;
-        let f = d.family();
-        Ok(CellPattern::from_codes(
-            f.rows() as usize,
-            f.cols() as usize,
-            (0..d.len()).map(|i| d.code(i).unwrap_or(0)),
-        ))
+        Ok(crate::detector_accuracy::entries(self.dictionary()?))
     }
 }
 

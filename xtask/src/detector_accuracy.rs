@@ -87,7 +87,7 @@ fn reads_per_detector(dets: &[Detector], frames: &[Vec<u8>]) -> crate::Result<(V
 }
 
 /// Every entry of `dict` as a test pattern (index = dictionary index).
-fn entries(dict: &Dictionary) -> Vec<CellPattern> {
+pub(crate) fn entries(dict: &Dictionary) -> Vec<CellPattern> {
     let f = dict.family();
     CellPattern::from_codes(
         f.rows() as usize,

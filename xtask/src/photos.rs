@@ -57,13 +57,7 @@ fn bench_clutter() -> crate::Result<Vec<u8>> {
 /// (the default [`marker_testkit::SceneConfig`]), seed 42, markers of the paper dictionary.
 fn bench_scene() -> crate::Result<Vec<u8>> {
     use rand::SeedableRng;
-    let dict = fiducial::Dictionary::paper();
-    let f = dict.family();
-    let entries = marker_testkit::CellPattern::from_codes(
-        f.rows() as usize,
-        f.cols() as usize,
-        (0..dict.len()).map(|i| dict.code(i).unwrap_or(0)),
-    );
+    let entries = crate::detector_accuracy::entries(fiducial::Dictionary::paper());
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(42);
     let cfg = marker_testkit::SceneConfig::default();
     Ok(marker_testkit::marker_scene(&cfg, &entries, &mut rng)?.pixels)
